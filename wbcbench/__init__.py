@@ -1,0 +1,1 @@
+"""wbcbench: whole-body controller benchmark."""
