@@ -1,0 +1,80 @@
+"""The Controller protocol and the controller registry."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+
+import numpy as np
+
+from ..errors import ConfigError, UnknownNameError
+from ..robots import Robot
+from ..sim.model import ActuationMode
+from ..types import Command, Measurement, References
+
+
+class Controller(ABC):
+    """A whole-body controller: `reset` once with the first measurement, then `step` every control tick.
+
+    A controller sees only a `Measurement` (what a real robot gives) and the scenario's `References`.
+    `log_channels()` names extra per-tick values it wants recorded (name -> component labels);
+    `log_values()` returns them for the last step, in the same order.
+    """
+
+    name: str = ""
+    modes: tuple[ActuationMode, ...] = ()
+    default_mode: ActuationMode = ActuationMode.TORQUE
+
+    def __init__(self, robot: Robot, mode: ActuationMode, dt: float):
+        if mode not in self.modes:
+            raise ConfigError(f"controller '{self.name}' does not support mode '{mode.value}'; "
+                              f"allowed: {', '.join(m.value for m in self.modes)}", key="--mode")
+        self.robot = robot
+        self.mode = mode
+        self.dt = dt
+
+    @abstractmethod
+    def reset(self, meas: Measurement, refs: References) -> None: ...
+
+    @abstractmethod
+    def step(self, meas: Measurement, refs: References) -> Command: ...
+
+    def log_channels(self) -> dict[str, list[str]]:
+        return {}
+
+    def log_values(self) -> list[np.ndarray | float]:
+        return []
+
+    def status(self) -> dict:
+        """Counters for the run summary (e.g. QP failures)."""
+        return {}
+
+
+ControllerFactory = Callable[[Robot, ActuationMode, float], Controller]
+_REGISTRY: dict[str, type[Controller]] = {}
+
+
+def register(cls: type[Controller]) -> type[Controller]:
+    """Class decorator adding a controller to the registry under `cls.name`."""
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def available_controllers() -> dict[str, type[Controller]]:
+    from . import joint_pd  # noqa: F401  (registration side effect of importing the modules)
+    return dict(sorted(_REGISTRY.items()))
+
+
+def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, dt: float) -> Controller:
+    ctrls = available_controllers()
+    if name not in ctrls:
+        raise UnknownNameError("controller", name, ctrls, key="--controller")
+    cls = ctrls[name]
+    if mode is None:
+        mode = cls.default_mode
+    try:
+        mode = ActuationMode(mode)
+    except ValueError:
+        raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in ActuationMode)}",
+                          key="--mode") from None
+    return cls(robot, mode, dt)

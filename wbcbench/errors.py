@@ -1,0 +1,46 @@
+"""Domain errors. Every user-facing failure is one of these: the CLI prints its message on one line."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+
+class WbcError(Exception):
+    """Base class for errors wbcbench reports to the user (one line, exit code 2)."""
+
+
+class ConfigError(WbcError):
+    """A configuration file or argument is invalid.
+
+    The message names the file, the key and what is allowed.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, key: str | None = None):
+        where = ""
+        if file:
+            where = f"{file}: "
+        if key:
+            where += f"option {key}: " if key.startswith("--") else f"key '{key}': "
+        super().__init__(where + message)
+        self.file = file
+        self.key = key
+
+
+class UnknownNameError(ConfigError):
+    """A name (robot, scenario, controller, frame, joint...) that does not exist."""
+
+    def __init__(self, kind: str, name: str, valid: Iterable[str], *, file: str | None = None,
+                 key: str | None = None):
+        valid = sorted(valid)
+        close = difflib.get_close_matches(name, valid, n=3)
+        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+        listing = ", ".join(valid) if len(valid) <= 20 else ", ".join(valid[:20]) + ", ..."
+        super().__init__(f"unknown {kind} '{name}'{hint}; known: {listing}", file=file, key=key)
+        self.name = name
+        self.valid = valid
+
+
+def did_you_mean(name: str, valid: Iterable[str]) -> str:
+    close = difflib.get_close_matches(name, list(valid), n=3)
+    return f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""

@@ -1,0 +1,86 @@
+"""Per-tick run log: a columnar Parquet file written in row groups as the run goes, so a run that fails or is
+interrupted keeps its log up to the last flushed group (and `close()` flushes the rest)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+
+class Recorder:
+    """Register channels (name -> component labels) once, then fill one row per tick and `commit()` it.
+
+    Column names are `channel` for scalars or `channel.component`. Values are float64.
+    """
+
+    def __init__(self, path: str | Path, chunk: int = 1000):
+        self.path = Path(path)
+        self.chunk = chunk
+        self.columns: list[str] = []
+        self.slices: dict[str, slice] = {}
+        self._buf: np.ndarray | None = None
+        self._n = 0
+        self._writer: pq.ParquetWriter | None = None
+        self.rows_written = 0
+
+    def add_channel(self, name: str, components: list[str] | None = None) -> slice:
+        if self._buf is not None:
+            raise RuntimeError("channels must be added before the first row")
+        if name in self.slices:
+            raise ValueError(f"channel '{name}' registered twice")
+        start = len(self.columns)
+        if components:
+            self.columns += [f"{name}.{c}" for c in components]
+        else:
+            self.columns.append(name)
+        self.slices[name] = slice(start, len(self.columns))
+        return self.slices[name]
+
+    @property
+    def row(self) -> np.ndarray:
+        """The row being filled (write into it with the slices returned by add_channel)."""
+        if self._buf is None:
+            self._buf = np.full((self.chunk, len(self.columns)), np.nan)
+        return self._buf[self._n]
+
+    def commit(self) -> None:
+        self.row  # noqa: B018  (allocates on first use)
+        self._n += 1
+        if self._n == self.chunk:
+            self.flush()
+
+    def flush(self) -> None:
+        if self._buf is None or self._n == 0:
+            return
+        block = self._buf[: self._n]
+        table = pa.Table.from_arrays([pa.array(block[:, i]) for i in range(block.shape[1])], names=self.columns)
+        if self._writer is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd")
+        self._writer.write_table(table)
+        self.rows_written += self._n
+        self._n = 0
+        self._buf[:] = np.nan
+
+    def close(self) -> None:
+        self.flush()
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+
+def read_log(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a run log into {column: array}."""
+    table = pq.read_table(path)
+    return {name: table.column(name).to_numpy() for name in table.column_names}
+
+
+def channel(log: dict[str, np.ndarray], name: str) -> np.ndarray:
+    """All columns of a channel stacked as (ticks, components), in their recorded order."""
+    cols = [k for k in log if k == name or k.startswith(name + ".")]
+    if not cols:
+        raise KeyError(f"no channel '{name}' in the log")
+    return np.column_stack([log[c] for c in cols])

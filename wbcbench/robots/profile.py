@@ -1,0 +1,181 @@
+"""Robot profiles: everything robot-specific, read from one YAML file per robot."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Section, load_yaml
+from ..errors import UnknownNameError
+
+PROFILE_DIR = Path(__file__).parent / "profiles"
+
+
+class Side(str, Enum):
+    """A side of the robot; feet and hands are keyed by it."""
+
+    LEFT = "left"
+    RIGHT = "right"
+
+
+@dataclass(frozen=True)
+class FootSpec:
+    """One foot: its sole frame (centre of the sole rectangle, z = contact normal) and its ankle F/T sensor.
+
+    If `parent_frame` is set, the sole frame does not exist in the URDF and is added at `offset` [m]
+    (expressed in the parent frame, same orientation).
+    """
+
+    frame: str
+    ft_sensor_frame: str
+    parent_frame: str | None = None
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class SoleSpec:
+    """The sole rectangle in the sole frame [m]: length along x, width along y, centre offset (x, y)."""
+
+    length: float
+    width: float
+    center: tuple[float, float]
+    thickness: float
+
+    @property
+    def corners(self) -> np.ndarray:
+        """(4, 3) corners of the rectangle in the sole frame, counter-clockwise from (-x, -y)."""
+        cx, cy = self.center
+        hl, hw = self.length / 2, self.width / 2
+        return np.array([[cx - hl, cy - hw, 0], [cx + hl, cy - hw, 0], [cx + hl, cy + hw, 0],
+                         [cx - hl, cy + hw, 0]])
+
+
+@dataclass(frozen=True)
+class GainSpec:
+    """Per-joint gains by joint-name prefix (longest prefix wins); kd = kd_ratio * kp."""
+
+    kp: dict[str, float]
+    kd_ratio: float
+
+    def resolve(self, joint_names: list[str], file: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        kp = np.zeros(len(joint_names))
+        for i, name in enumerate(joint_names):
+            best = max((p for p in self.kp if name.startswith(p)), key=len, default=None)
+            if best is None:
+                raise UnknownNameError("gain pattern for joint", name, self.kp, file=file, key="kp")
+            kp[i] = self.kp[best]
+        return kp, self.kd_ratio * kp
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """Everything wbcbench needs to know about one robot, validated on load."""
+
+    name: str
+    description: str
+    loader: str
+    reference_posture: str | dict[str, float]
+    base_frame: str
+    torso_frame: str
+    imu_frame: str
+    head_frame: str
+    feet: dict[Side, FootSpec]
+    hands: dict[Side, str]
+    sole: SoleSpec
+    position_limit_overrides: dict[str, tuple[float, float]]
+    armature: float | None
+    position_gains: GainSpec
+    torque_pd_gains: GainSpec
+    min_base_height: float
+    max_tilt: float
+    file: str = field(default="", compare=False)
+
+
+def available_robots() -> list[str]:
+    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+
+
+def _gains(sec: Section) -> GainSpec:
+    kp_sec = sec.section("kp")
+    kp = {k: kp_sec.float(k, min=0.0) for k in list(kp_sec.data)}
+    kp_sec.finish()
+    if not kp:
+        raise sec.error("kp", "needs at least one joint-name prefix")
+    g = GainSpec(kp=kp, kd_ratio=sec.float("kd_ratio", min=0.0))
+    sec.finish()
+    return g
+
+
+def load_profile(name_or_path: str | Path) -> RobotProfile:
+    """Load a robot profile by robot name (a file in wbcbench/robots/profiles) or by path to a YAML file."""
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml"):
+        path = p
+    else:
+        path = PROFILE_DIR / f"{name_or_path}.yaml"
+        if not path.exists():
+            raise UnknownNameError("robot", str(name_or_path), available_robots())
+    file = str(path)
+    root = Section(load_yaml(path), file)
+    posture = root.raw("reference_posture")
+    if isinstance(posture, dict):
+        posture_sec = Section(posture, file, "reference_posture")
+        posture = {k: posture_sec.float(k) for k in list(posture_sec.data)}
+    elif not isinstance(posture, str):
+        raise root.error("reference_posture", "must be an SRDF state name or a mapping joint -> angle [rad]")
+    feet_sec = root.section("feet")
+    feet = {}
+    for side in Side:
+        fs = feet_sec.section(side.value)
+        offset = fs.vector("offset", [0.0, 0.0, 0.0], length=3)
+        feet[side] = FootSpec(frame=fs.str("frame"), ft_sensor_frame=fs.str("ft_sensor_frame"),
+                              parent_frame=fs.str("parent_frame", None) if fs.has("parent_frame") else None,
+                              offset=tuple(offset))
+        fs.finish()
+    feet_sec.finish()
+    hands_sec = root.section("hands")
+    hands = {side: hands_sec.str(side.value) for side in Side}
+    hands_sec.finish()
+    sole_sec = root.section("sole")
+    sole = SoleSpec(length=sole_sec.float("length", positive=True), width=sole_sec.float("width", positive=True),
+                    center=tuple(sole_sec.vector("center", [0.0, 0.0], length=2)),
+                    thickness=sole_sec.float("thickness", 0.02, positive=True))
+    sole_sec.finish()
+    lim = root.section("limits", {})
+    overrides = {}
+    ov = lim.section("position_overrides", {})
+    for jname in list(ov.data):
+        lo_hi = ov.vector(jname, length=2)
+        if lo_hi[0] >= lo_hi[1]:
+            raise ov.error(jname, f"lower limit must be below upper, got {lo_hi.tolist()}")
+        overrides[jname] = (float(lo_hi[0]), float(lo_hi[1]))
+    ov.finish()
+    armature = lim.float("armature", min=0.0) if lim.has("armature") else None
+    lim.finish()
+    fall = root.section("fall")
+    prof = RobotProfile(
+        name=root.str("name"),
+        description=root.str("description", ""),
+        loader=root.str("loader"),
+        reference_posture=posture,
+        base_frame=root.str("base_frame"),
+        torso_frame=root.str("torso_frame"),
+        imu_frame=root.str("imu_frame"),
+        head_frame=root.str("head_frame"),
+        feet=feet,
+        hands=hands,
+        sole=sole,
+        position_limit_overrides=overrides,
+        armature=armature,
+        position_gains=_gains(root.section("position_gains")),
+        torque_pd_gains=_gains(root.section("torque_pd_gains")),
+        min_base_height=fall.float("min_base_height", positive=True),
+        max_tilt=fall.float("max_tilt", positive=True),
+        file=file,
+    )
+    fall.finish()
+    root.finish()
+    return prof

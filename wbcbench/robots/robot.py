@@ -1,0 +1,209 @@
+"""The Robot: a pinocchio model built from example-robot-data, plus its profile.
+
+One `Robot` is shared by planners, controllers, estimators and metrics; the simulator builds its MuJoCo
+model from the same URDF (`Robot.urdf_path`) so the two never disagree about masses or frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import ConfigError, UnknownNameError
+from .profile import RobotProfile, Side, load_profile
+
+
+@dataclass(frozen=True)
+class ModelFiles:
+    urdf: Path
+    srdf: Path | None
+    package_root: Path  # directory that `package://example-robot-data/` resolves to (its parent)
+    has_rotor_parameters: bool
+
+
+def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
+    from example_robot_data.robots_loader import ROBOTS
+    from example_robot_data.utils import getModelPath
+
+    if loader_name not in ROBOTS:
+        raise UnknownNameError("example-robot-data loader", loader_name, ROBOTS, file=profile_file, key="loader")
+    cls = ROBOTS[loader_name]
+    if not cls.urdf_filename:
+        raise ConfigError(f"loader '{loader_name}' has no URDF (SDF models are not supported)",
+                          file=profile_file, key="loader")
+    rel = Path(cls.path) / cls.urdf_subpath / cls.urdf_filename
+    root = Path(getModelPath(str(rel)))
+    srdf = root / cls.path / cls.srdf_subpath / cls.srdf_filename if cls.srdf_filename else None
+    # URDF meshes are "package://example-robot-data/robots/...": the package root is two levels above robots/
+    return ModelFiles(urdf=(root / rel).resolve(), srdf=srdf.resolve() if srdf else None,
+                      package_root=root.resolve().parent.parent,
+                      has_rotor_parameters=bool(getattr(cls, "has_rotor_parameters", False)))
+
+
+class Robot:
+    """A floating-base robot: pinocchio model (free flyer at the root), profile and derived quantities.
+
+    Conventions: q = [p_world_base (3), quat_world_base (x, y, z, w), joints]; v = [v_base (3, LOCAL),
+    w_base (3, LOCAL), joint velocities]. Joint order is pinocchio's (URDF tree order).
+    """
+
+    def __init__(self, profile: RobotProfile):
+        self.profile = profile
+        self.files = _model_files(profile.loader, profile.file)
+        model = pin.buildModelFromUrdf(str(self.files.urdf), pin.JointModelFreeFlyer())
+        if self.files.srdf is not None and self.files.has_rotor_parameters:
+            pin.loadRotorParameters(model, str(self.files.srdf), False)
+            model.armature = np.multiply(model.rotorInertia, np.square(model.rotorGearRatio))
+        if profile.armature is not None:
+            arm = model.armature.copy()
+            arm[6:] = profile.armature
+            model.armature = arm
+        self._apply_limits(model)
+        self.model = model
+        self._add_sole_frames()
+        self.data = self.model.createData()
+        self.q0 = self._reference_configuration()
+
+    # ------------------------------------------------------------------ construction helpers
+    def _apply_limits(self, model: pin.Model) -> None:
+        lo, hi = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
+        lo[:7], hi[:7] = -np.inf, np.inf
+        for jname, (a, b) in self.profile.position_limit_overrides.items():
+            if not model.existJointName(jname):
+                raise UnknownNameError("joint", jname, list(model.names)[2:], file=self.profile.file,
+                                       key="limits.position_overrides")
+            jid = model.getJointId(jname)
+            lo[model.idx_qs[jid]], hi[model.idx_qs[jid]] = a, b
+        model.lowerPositionLimit, model.upperPositionLimit = lo, hi
+
+    def _frame_id(self, name: str, key: str) -> int:
+        if not self.model.existFrame(name):
+            raise UnknownNameError("frame", name, [f.name for f in self.model.frames], file=self.profile.file,
+                                   key=key)
+        return self.model.getFrameId(name)
+
+    def _add_sole_frames(self) -> None:
+        for side, foot in self.profile.feet.items():
+            if foot.parent_frame is None:
+                self._frame_id(foot.frame, f"feet.{side.value}.frame")
+                continue
+            pid = self._frame_id(foot.parent_frame, f"feet.{side.value}.parent_frame")
+            parent = self.model.frames[pid]
+            placement = parent.placement * pin.SE3(np.eye(3), np.asarray(foot.offset))
+            self.model.addFrame(pin.Frame(foot.frame, parent.parentJoint, pid, placement, pin.FrameType.OP_FRAME))
+        for side in Side:
+            self._frame_id(self.profile.feet[side].ft_sensor_frame, f"feet.{side.value}.ft_sensor_frame")
+            self._frame_id(self.profile.hands[side], f"hands.{side.value}")
+        for key in ("base_frame", "torso_frame", "imu_frame", "head_frame"):
+            self._frame_id(getattr(self.profile, key), key)
+
+    def _reference_configuration(self) -> np.ndarray:
+        model = self.model
+        posture = self.profile.reference_posture
+        if isinstance(posture, str):
+            if self.files.srdf is None:
+                raise ConfigError(f"'{posture}' names an SRDF state but the robot has no SRDF; give a mapping "
+                                  "joint -> angle", file=self.profile.file, key="reference_posture")
+            pin.loadReferenceConfigurations(model, str(self.files.srdf), False)
+            names = [entry.key() for entry in model.referenceConfigurations]
+            if posture not in names:
+                raise UnknownNameError("SRDF state", posture, names, file=self.profile.file,
+                                       key="reference_posture")
+            q = np.array(model.referenceConfigurations[posture], dtype=float)
+        else:
+            q = pin.neutral(model)
+            for jname, val in posture.items():
+                if not model.existJointName(jname):
+                    raise UnknownNameError("joint", jname, self.joint_names, file=self.profile.file,
+                                           key="reference_posture")
+                q[model.idx_qs[model.getJointId(jname)]] = val
+        q[:3] = 0.0
+        q[3:7] = [0, 0, 0, 1]
+        q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
+        # Put the base at the height where the lower sole touches z = 0, the feet centred about x = y = 0.
+        pin.framesForwardKinematics(model, self.data, q)
+        soles = np.array([self.data.oMf[self.sole_frame_id(s)].translation for s in Side])
+        q[0] = -soles[:, 0].mean()
+        q[1] = -soles[:, 1].mean()
+        q[2] = -soles[:, 2].min()
+        return q
+
+    # ------------------------------------------------------------------ accessors
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def na(self) -> int:
+        """Number of actuated joints (nv - 6)."""
+        return self.model.nv - 6
+
+    @cached_property
+    def joint_names(self) -> list[str]:
+        """Actuated joint names in pinocchio order (all 1-DoF joints after the free flyer)."""
+        names = list(self.model.names)[2:]
+        for jid in range(2, self.model.njoints):
+            if self.model.nvs[jid] != 1 or self.model.nqs[jid] != 1:
+                raise ConfigError(f"joint '{self.model.names[jid]}' is not a 1-DoF revolute/prismatic joint; "
+                                  "only those are supported", file=self.profile.file)
+        return names
+
+    @cached_property
+    def mass(self) -> float:
+        return float(pin.computeTotalMass(self.model))
+
+    def sole_frame_id(self, side: Side) -> int:
+        return self.model.getFrameId(self.profile.feet[side].frame)
+
+    def frame_id(self, name: str) -> int:
+        return self._frame_id(name, "frame")
+
+    @cached_property
+    def effort_limit(self) -> np.ndarray:
+        return np.array(self.model.effortLimit[6:], dtype=float)
+
+    @cached_property
+    def velocity_limit(self) -> np.ndarray:
+        return np.array(self.model.velocityLimit[6:], dtype=float)
+
+    @cached_property
+    def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array(self.model.lowerPositionLimit[7:]), np.array(self.model.upperPositionLimit[7:]))
+
+    def foot_below_sensor(self, side: Side) -> tuple[float, np.ndarray]:
+        """Mass [kg] and CoM (in the F/T sensor frame) [m] of everything below the ankle F/T sensor.
+
+        Computed from the model: the inertias of the sensor's joint subtree, so the ZMP estimator can remove
+        the foot's own weight from the sensor reading.
+        """
+        fid = self.model.getFrameId(self.profile.feet[side].ft_sensor_frame)
+        frame = self.model.frames[fid]
+        jid = frame.parentJoint
+        total = pin.Inertia.Zero()
+        pin.forwardKinematics(self.model, self.data, self.q0)
+        oMj = self.data.oMi[jid]
+        for k in range(jid, self.model.njoints):
+            if jid in self.model.supports[k]:
+                total += (oMj.inverse() * self.data.oMi[k]).act(self.model.inertias[k])
+        in_sensor = frame.placement.actInv(total) if frame.type != pin.FrameType.JOINT else total
+        return float(in_sensor.mass), np.array(in_sensor.lever)
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, mass={self.mass:.2f} kg)"
+
+
+def load_robot(name_or_path: str) -> Robot:
+    """Build a Robot from a profile name (see `available_robots()`) or a profile YAML path."""
+    return Robot(load_profile(name_or_path))

@@ -1,0 +1,194 @@
+"""The run loop: scenario -> controller -> simulator at the control rate, every tick recorded.
+
+A run directory holds config.json (everything resolved), log.parquet (one row per control tick) and
+summary.json. A run that falls or fails still writes its log up to the failure and says why.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .controllers.base import Controller, make_controller
+from .errors import ConfigError, WbcError
+from .recorder import Recorder, read_log
+from .robots import Robot, Side, load_robot
+from .scenarios import Scenario, load_scenario
+from .sim.model import SimOptions
+from .sim.simulator import Simulator
+
+
+@dataclass
+class RunResult:
+    run_dir: Path
+    summary: dict
+    log: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+
+
+def _base_labels(robot: Robot) -> tuple[list[str], list[str]]:
+    q = ["x", "y", "z", "qx", "qy", "qz", "qw"] + robot.joint_names
+    v = ["vx", "vy", "vz", "wx", "wy", "wz"] + robot.joint_names
+    return q, v
+
+
+def step_time_stats(us: np.ndarray) -> dict:
+    us = us[np.isfinite(us)]
+    if us.size == 0:
+        return {"median": None, "p99": None, "max": None, "mean": None}
+    return {"median": float(np.median(us)), "p99": float(np.percentile(us, 99)), "max": float(us.max()),
+            "mean": float(us.mean())}
+
+
+def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos", mode: str | None = None,
+        duration: float | None = None, out: str | Path | None = None,
+        progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None) -> RunResult:
+    """Run one scenario with one controller; returns the summary (and the log, read back)."""
+    robot = load_robot(robot) if isinstance(robot, str) else robot
+    scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
+    spec = scen.spec
+    options = sim_options or SimOptions()
+    substeps = int(round(spec.control_dt / options.timestep))
+    if substeps < 1 or abs(substeps * options.timestep - spec.control_dt) > 1e-12:
+        raise ConfigError(f"control_dt {spec.control_dt} must be a multiple of the physics timestep "
+                          f"{options.timestep}", file=spec.file, key="control_dt")
+    ctrl: Controller = make_controller(controller, robot, mode, spec.control_dt)
+    sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes)
+
+    if out is None:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out = Path("runs") / f"{spec.name}-{controller}-{ctrl.mode.value}-{robot.name}-{stamp}"
+    run_dir = Path(out)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
+              "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
+              "mode": ctrl.mode.value, "duration_s": spec.duration, "control_dt_s": spec.control_dt,
+              "sim": {"timestep": options.timestep, "integrator": options.integrator,
+                      "noslip_iterations": options.noslip_iterations, "substeps": substeps},
+              "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
+              "versions": _versions()}
+    (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
+
+    # --- log layout
+    rec = Recorder(run_dir / "log.parquet")
+    qlab, vlab = _base_labels(robot)
+    s_t = rec.add_channel("t")
+    s_q = rec.add_channel("q", qlab)
+    s_v = rec.add_channel("v", vlab)
+    s_tau = rec.add_channel("tau", robot.joint_names)
+    s_com = rec.add_channel("com", ["x", "y", "z"])
+    s_vcom = rec.add_channel("com_vel", ["x", "y", "z"])
+    s_ref = rec.add_channel("com_ref", ["x", "y", "z"])
+    wl = ["fx", "fy", "fz", "mx", "my", "mz"]
+    s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
+    s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
+    s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
+    s_time = rec.add_channel("controller_time_us")
+    extra = ctrl.log_channels()
+    s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
+
+    model, data = robot.model, robot.model.createData()
+    n_ticks = int(round(spec.duration / spec.control_dt))
+    fell, reason, error = False, "", None
+    ctrl_us = np.full(n_ticks, np.nan)
+    wall0 = time.perf_counter()
+    tick = 0
+    try:
+        meas = sim.measure()
+        q_true = sim.true_q()
+        com0 = pin.centerOfMass(model, data, q_true)
+        scen.setup(q_true, com0.copy())
+        ctrl.reset(meas, scen.references(0.0))
+        for tick in range(n_ticks):
+            t = tick * spec.control_dt
+            meas = sim.measure()
+            refs = scen.references(t)
+            c0 = time.perf_counter()
+            cmd = ctrl.step(meas, refs)
+            ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
+            sim.apply(cmd)
+            sim.step(substeps)
+            # ---- record the state after the step (ground truth) and what was commanded
+            row = rec.row
+            q, v = sim.true_q(), sim.true_v()
+            pin.centerOfMass(model, data, q, v)
+            row[s_t] = (tick + 1) * spec.control_dt
+            row[s_q] = q
+            row[s_v] = v
+            row[s_tau] = sim.applied_torque()
+            row[s_com] = data.com[0]
+            row[s_vcom] = data.vcom[0]
+            if refs.com is not None:
+                row[s_ref] = refs.com
+            cws = sim.contact_wrenches()
+            m2 = sim.measure()
+            for s in Side:
+                row[s_cw[s]] = cws[s]
+                row[s_ft[s]][:3] = m2.ft_force[s]
+                row[s_ft[s]][3:] = m2.ft_torque[s]
+                row[s_in[s]] = float(s in refs.contacts)
+            row[s_time] = ctrl_us[tick]
+            for sl, val in zip(s_extra, ctrl.log_values()):
+                row[sl] = val
+            rec.commit()
+            fs = sim.fall_status()
+            if fs.fell:
+                fell, reason = True, fs.reason
+                break
+            if progress is not None and tick % 100 == 0:
+                progress((tick + 1) / n_ticks)
+    except WbcError:
+        raise
+    except Exception as exc:  # a crash in a controller: keep the log, say why
+        fell, reason = True, f"error: {type(exc).__name__}: {exc}"
+        error = traceback.format_exc()
+    finally:
+        rec.close()
+    wall = time.perf_counter() - wall0
+    sim_time = (tick + 1) * spec.control_dt if n_ticks else 0.0
+    summary = {
+        "robot": robot.name, "scenario": spec.name, "controller": controller, "mode": ctrl.mode.value,
+        "fell": fell, "fall_reason": reason or None, "sim_time_s": sim_time, "duration_s": spec.duration,
+        "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
+        "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
+        "controller_status": ctrl.status(),
+        "metrics": {},
+    }
+    log = {}
+    if rec.rows_written:
+        log = read_log(run_dir / "log.parquet")
+        try:
+            summary["metrics"] = {**_common_metrics(log), **scen.metrics(log)}
+        except Exception as exc:  # metrics must never lose the run
+            summary["metrics_error"] = f"{type(exc).__name__}: {exc}"
+    if error:
+        (run_dir / "error.txt").write_text(error)
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    return RunResult(run_dir, summary, log)
+
+
+def _common_metrics(log: dict[str, np.ndarray]) -> dict:
+    z = log["q.z"]
+    z0 = z[0]
+    return {"base_height_change_m": float(z[-1] - z0), "base_height_max_deviation_m": float(np.abs(z - z0).max()),
+            "com_final_m": [float(log[f"com.{a}"][-1]) for a in "xyz"]}
+
+
+def _versions() -> dict:
+    import mujoco
+
+    out = {"python": platform.python_version(), "pinocchio": pin.__version__, "mujoco": mujoco.__version__,
+           "numpy": np.__version__}
+    for mod in ("daqp", "proxsuite"):
+        try:
+            out[mod] = __import__(mod).__version__
+        except Exception:  # pragma: no cover - optional info only
+            pass
+    return out

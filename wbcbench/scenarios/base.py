@@ -1,0 +1,112 @@
+"""Scenarios: YAML files (wbcbench/scenarios/*.yaml or a user's path) dispatched on `kind:` to a Python class
+that gives the per-tick references and the scenario's own metrics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Section, load_yaml
+from ..errors import UnknownNameError
+from ..robots import Robot, Side
+from ..sim.push import Push, parse_push
+from ..sim.terrain import Terrain, parse_terrain
+from ..types import References
+
+SCENARIO_DIR = Path(__file__).parent
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """The parts every scenario has; `params` holds the kind-specific section, validated by the kind."""
+
+    name: str
+    kind: str
+    description: str
+    duration: float
+    control_dt: float
+    terrain: Terrain
+    pushes: tuple[Push, ...]
+    file: str
+
+
+class Scenario:
+    """Base scenario: stand on both feet; subclasses override `references` and `metrics`."""
+
+    kind = "stand"
+
+    def __init__(self, spec: ScenarioSpec, params: Section, robot: Robot):
+        self.spec = spec
+        self.robot = robot
+        self.parse(params)
+        params.finish()
+
+    def parse(self, params: Section) -> None:
+        """Read kind-specific keys from `params` (unknown keys are rejected afterwards)."""
+
+    def setup(self, q0: np.ndarray, com0: np.ndarray) -> None:
+        """Called once with the initial configuration and CoM, before the first tick."""
+        self.q0 = q0
+        self.com0 = com0
+
+    def references(self, t: float) -> References:
+        return References(t=t, contacts=frozenset(Side))
+
+    def metrics(self, log: dict[str, np.ndarray]) -> dict:
+        """Scenario-specific metrics computed from the run log."""
+        return {}
+
+
+_KINDS: dict[str, type[Scenario]] = {}
+
+
+def register_kind(cls: type[Scenario]) -> type[Scenario]:
+    _KINDS[cls.kind] = cls
+    return cls
+
+
+register_kind(Scenario)
+
+
+def available_scenarios() -> list[str]:
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def scenario_path(name_or_path: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml"):
+        return p
+    path = SCENARIO_DIR / f"{name_or_path}.yaml"
+    if not path.exists():
+        raise UnknownNameError("scenario", name_or_path, available_scenarios(), key="SCENARIO")
+    return path
+
+
+def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
+    """Load and validate a scenario by name or path; `duration` overrides the file's."""
+    from . import kinds  # noqa: F401  (registers the scenario kinds)
+
+    path = scenario_path(name_or_path)
+    file = str(path)
+    root = Section(load_yaml(path), file)
+    kind = root.str("kind", "stand")
+    if kind not in _KINDS:
+        raise UnknownNameError("scenario kind", kind, _KINDS, file=file, key="kind")
+    pushes = tuple(parse_push(Section(p, file, f"pushes[{i}]")) for i, p in enumerate(root.list("pushes", [])))
+    spec = ScenarioSpec(
+        name=root.str("name", path.stem),
+        kind=kind,
+        description=root.str("description", ""),
+        duration=duration if duration is not None else root.float("duration", positive=True),
+        control_dt=root.float("control_dt", 1e-3, positive=True),
+        terrain=parse_terrain(root.section("terrain", {})),
+        pushes=pushes,
+        file=file,
+    )
+    if duration is not None:
+        root.raw("duration", None)
+    params = root.section("params", {})
+    root.finish()
+    return _KINDS[kind](spec, params, robot)

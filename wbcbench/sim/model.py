@@ -1,0 +1,165 @@
+"""The MuJoCo model of a Robot, built with MjSpec from the same URDF pinocchio reads.
+
+Collision geometry is limited to one box per sole matching the profile's rectangle (bottom face on the sole
+plane) plus the terrain; every other body is collision-free. Sensors: a force and a torque sensor at each
+ankle F/T frame of the profile, and an IMU (gyro, accelerometer, orientation) at the profile's IMU frame.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from enum import Enum
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from ..robots import Robot, Side
+from .terrain import Terrain
+
+
+class ActuationMode(str, Enum):
+    """How joint commands reach the simulated robot.
+
+    TORQUE: motors, the command is joint torque (clamped to the URDF effort limits).
+    POSITION: MuJoCo position servos, torque = kp (q_ref - q) + kd (v_ref - v), with the profile's
+        `position_gains`; the damping is integrated implicitly (integrator implicitfast).
+    SPD: stable PD (Tan, Liu and Turk 2011): torque = kp (q_ref - q - dt v) + kd (v_ref - v - dt a), with
+        the next acceleration a predicted from the full mass matrix, same gains as POSITION.
+    """
+
+    TORQUE = "torque"
+    POSITION = "position"
+    SPD = "spd"
+
+
+@dataclass
+class SimOptions:
+    """Simulator settings. `timestep` [s] is the physics step; the control step is a multiple of it."""
+
+    timestep: float = 1e-3
+    integrator: str = "implicitfast"
+    noslip_iterations: int = 0
+    sole_friction: float = 1.0
+    solref: tuple[float, float] = (0.02, 1.0)
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    extra: dict = field(default_factory=dict)
+
+
+INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+               "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
+
+
+def _urdf_for_mujoco(robot: Robot) -> str:
+    """URDF text with visuals and collision meshes removed and mesh packages resolved."""
+    txt = robot.files.urdf.read_text()
+    txt = re.sub(r"<visual\b.*?</visual>", "", txt, flags=re.S)
+    txt = re.sub(r"<collision\b.*?</collision>", "", txt, flags=re.S)
+    txt = txt.replace("package://", str(robot.files.package_root) + "/")
+    compiler = ('<mujoco><compiler discardvisual="true" fusestatic="true" strippath="false" '
+                'balanceinertia="false" autolimits="true"/></mujoco>')
+    return re.sub(r"(<robot\b[^>]*>)", r"\1" + compiler, txt, count=1)
+
+
+def _quat_wxyz(R: np.ndarray) -> np.ndarray:
+    q = pin.Quaternion(R)
+    return np.array([q.w, q.x, q.y, q.z])
+
+
+def _rpy_quat(rpy) -> np.ndarray:
+    return _quat_wxyz(pin.rpy.rpyToMatrix(*rpy))
+
+
+def ft_site_name(side: Side) -> str:
+    return f"ft_{side.value}"
+
+
+def sole_geom_name(side: Side) -> str:
+    return f"sole_{side.value}"
+
+
+def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
+                       options: SimOptions | None = None) -> mujoco.MjModel:
+    """Compile the MuJoCo model of `robot` standing in `terrain`, with actuators for `mode`."""
+    options = options or SimOptions()
+    spec = mujoco.MjSpec.from_string(_urdf_for_mujoco(robot))
+    pmodel = robot.model
+    base = spec.worldbody.first_body()
+    base.add_freejoint(name="root")
+    spec.option.timestep = options.timestep
+    spec.option.integrator = INTEGRATORS[options.integrator]
+    spec.option.noslip_iterations = options.noslip_iterations
+    spec.option.gravity = list(options.gravity)
+
+    # the body owning each pinocchio joint (MuJoCo body frame == URDF child link frame == pinocchio joint frame)
+    body_of_joint = {}
+    for j in spec.joints:
+        if j.name != "root":
+            body_of_joint[j.name] = j.parent
+    body_of_joint[pmodel.names[1]] = base
+
+    def body_and_placement(frame_name: str) -> tuple[mujoco.MjsBody, pin.SE3]:
+        f = pmodel.frames[pmodel.getFrameId(frame_name)]
+        return body_of_joint[pmodel.names[f.parentJoint]], f.placement
+
+    # joints: armature from pinocchio (rotor inertia x gear ratio^2), absent in the URDF
+    for j in spec.joints:
+        if j.name == "root":
+            continue
+        jid = pmodel.getJointId(j.name)
+        j.armature = float(pmodel.armature[pmodel.idx_vs[jid]])
+
+    # sole boxes and F/T sites
+    sole = robot.profile.sole
+    for side in Side:
+        body, M = body_and_placement(robot.profile.feet[side].frame)
+        center = M.act(np.array([sole.center[0], sole.center[1], sole.thickness / 2]))
+        g = body.add_geom(name=sole_geom_name(side), type=mujoco.mjtGeom.mjGEOM_BOX,
+                          size=[sole.length / 2, sole.width / 2, sole.thickness / 2],
+                          pos=center, quat=_quat_wxyz(M.rotation))
+        g.friction = [options.sole_friction, 0.005, 0.0001]
+        g.solref = list(options.solref)
+        g.contype, g.conaffinity = 1, 1
+        g.rgba = [0.2, 0.2, 0.8, 1]
+        body, M = body_and_placement(robot.profile.feet[side].ft_sensor_frame)
+        body.add_site(name=ft_site_name(side), pos=M.translation, quat=_quat_wxyz(M.rotation))
+        for kind, t in (("force", mujoco.mjtSensor.mjSENS_FORCE), ("torque", mujoco.mjtSensor.mjSENS_TORQUE)):
+            spec.add_sensor(name=f"{kind}_{side.value}", type=t, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                            objname=ft_site_name(side))
+    body, M = body_and_placement(robot.profile.imu_frame)
+    body.add_site(name="imu", pos=M.translation, quat=_quat_wxyz(M.rotation))
+    for name, t in (("gyro", mujoco.mjtSensor.mjSENS_GYRO), ("accelerometer", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
+                    ("imu_quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)):
+        spec.add_sensor(name=name, type=t, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+
+    # terrain
+    if terrain.floor:
+        floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
+        floor.friction = [terrain.friction, 0.005, 0.0001]
+        floor.rgba = [0.5, 0.5, 0.5, 1]
+    for i, b in enumerate(terrain.boxes):
+        g = spec.worldbody.add_geom(name=b.name or f"terrain_{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                    size=[s / 2 for s in b.size], pos=list(b.center), quat=_rpy_quat(b.rpy))
+        g.friction = [terrain.friction, 0.005, 0.0001]
+        g.rgba = [0.6, 0.5, 0.4, 1]
+
+    # actuators, one per actuated joint, in pinocchio order
+    kp, kd = robot.profile.position_gains.resolve(robot.joint_names, robot.profile.file)
+    effort = robot.effort_limit
+    for i, jname in enumerate(robot.joint_names):
+        a = spec.add_actuator(name=jname, target=jname, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.forcelimited = True
+        a.forcerange = [-effort[i], effort[i]]
+        if mode is ActuationMode.POSITION:
+            a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            a.gainprm[0] = kp[i]
+            a.biasprm[0:3] = [0.0, -kp[i], -kd[i]]
+        else:
+            a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            a.biastype = mujoco.mjtBias.mjBIAS_NONE
+            a.gainprm[0] = 1.0
+            a.ctrllimited = True
+            a.ctrlrange = [-effort[i], effort[i]]
+    return spec.compile()

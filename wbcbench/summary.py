@@ -1,0 +1,38 @@
+"""The one-screen terminal summary of a run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return str(v)
+
+
+def render_summary(console: Console, s: dict, run_dir: Path) -> None:
+    status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
+    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}: {status}",
+              show_header=False, title_justify="left")
+    t.add_column("key", style="bold")
+    t.add_column("value")
+    t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s")
+    rtf = s.get("real_time_factor")
+    t.add_row("wall time", f"{s['wall_time_s']:.2f} s (real-time factor {rtf:.2f})" if rtf else f"{s['wall_time_s']:.2f} s")
+    st = s["step_time_us"]
+    if st["median"] is not None:
+        t.add_row("controller step", f"median {st['median']:.1f} us, p99 {st['p99']:.1f} us, max {st['max']:.1f} us")
+    for k, v in s.get("controller_status", {}).items():
+        t.add_row(k, _fmt(v))
+    for k, v in s.get("metrics", {}).items():
+        if isinstance(v, dict):
+            continue
+        t.add_row(k, _fmt(v))
+    t.add_row("run directory", str(run_dir))
+    console.print(t)
