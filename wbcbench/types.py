@@ -17,8 +17,9 @@ class Measurement:
     v: (nv,) pinocchio velocity: base twist (LOCAL frame) from the estimator, joint velocities from encoders.
     imu_quat: (4,) orientation of the IMU frame in the world, (x, y, z, w).
     gyro: (3,) [rad/s] and accelerometer: (3,) [m/s^2] in the IMU frame.
-    ft_force / ft_torque: per foot (3,) [N], [N m], the ankle F/T sensor reading in the sensor frame (the
-        wrench the foot below exerts on the leg above, MuJoCo's convention).
+    ft_force / ft_torque: per foot (3,) [N], [N m], the ankle F/T sensor reading in the sensor frame: the
+        wrench the leg above exerts on the foot below, about the sensor origin (MuJoCo's convention). Standing
+        still, the ground contact force is F = -R F_s - m_foot g.
     """
 
     t: float

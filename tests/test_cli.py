@@ -1,0 +1,76 @@
+"""Command line: help lists what exists; bad input is one line on stderr with exit code 2."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from wbcbench.cli import main
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "wbcbench.cli", *args], capture_output=True, text=True)
+
+
+def test_help_lists_scenarios_controllers_robots(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    for name in ("stand", "joint-pd", "talos", "g1", "spd"):
+        assert name in out
+
+
+def _one_line_error(proc, *needles):
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+def test_unknown_robot_lists_known_ones():
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", "atlas"), "atlas", "talos", "g1")
+
+
+def test_unknown_controller_and_scenario():
+    _one_line_error(run_cli("run", "stand", "-c", "nope"), "nope", "joint-pd")
+    _one_line_error(run_cli("run", "standing", "-c", "joint-pd"), "standing", "stand")
+
+
+def test_malformed_profile_names_file_and_key(tmp_path: Path):
+    bad = tmp_path / "bad_robot.yaml"
+    text = (Path(__file__).parents[1] / "wbcbench/robots/profiles/talos.yaml").read_text()
+    bad.write_text(text.replace("length: 0.20", "length: -0.2"))
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), str(bad), "sole.length", "> 0")
+    bad.write_text(text.replace("torso_frame: torso_2_link", "torso_frame: torso_9_link"))
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "torso_9_link",
+                    "torso_frame")
+    bad.write_text(text + "\nunexpected_key: 1\n")
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "unexpected_key", "unknown key")
+    bad.write_text("name: [unclosed\n")
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "invalid YAML")
+
+
+def test_malformed_terrain_names_file_and_key(tmp_path: Path):
+    bad = tmp_path / "scene.yaml"
+    bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: lava}\n")
+    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), str(bad), "terrain.type", "flat")
+    bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: boxes, boxes: [{center: [0, 0], "
+                   "size: [1, 1, 1]}]}\n")
+    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.boxes[0].center", "3 values")
+    bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: stairs, count: 3, height: -0.1, depth: 0.3}\n")
+    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.height", "> 0")
+
+
+def test_unsupported_mode():
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--mode", "velocity"), "velocity", "torque")
+
+
+def test_run_writes_a_run_directory(tmp_path: Path):
+    out = tmp_path / "r"
+    proc = run_cli("run", "stand", "-c", "joint-pd", "-d", "0.5", "-o", str(out), "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "summary.json").exists() and (out / "log.parquet").exists() and (out / "config.json").exists()
+    assert "completed" in proc.stdout

@@ -1,0 +1,93 @@
+"""Standing in simulation: the joint-pd controller keeps TALOS (three modes) and G1 up; pushes are survived;
+a failing run keeps its log."""
+
+import json
+
+import numpy as np
+import pytest
+
+from wbcbench.controllers.base import Controller, register
+from wbcbench.recorder import read_log
+from wbcbench.runner import run
+from wbcbench.sim.model import ActuationMode
+
+
+@pytest.mark.parametrize("mode", ["torque", "position", "spd"])
+def test_talos_stands_10s(talos, tmp_path, mode):
+    res = run("stand", "joint-pd", talos, mode=mode, duration=10.0, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["sim_time_s"] == pytest.approx(10.0)
+    assert s["metrics"]["base_height_max_deviation_m"] < 0.02
+    # the contact forces carry the robot's weight at the end
+    fz = res.log["contact_left.fz"][-1] + res.log["contact_right.fz"][-1]
+    assert fz == pytest.approx(talos.mass * 9.81, rel=0.02)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    for key in ("robot", "scenario", "controller", "mode", "fell", "fall_reason", "sim_time_s", "wall_time_s",
+                "step_time_us", "metrics"):
+        assert key in summary
+    assert set(summary["step_time_us"]) >= {"median", "p99", "max"}
+    assert len(read_log(tmp_path / "log.parquet")["t"]) == 10000
+
+
+def test_g1_stands_10s_torque(g1, tmp_path):
+    res = run("stand", "joint-pd", g1, mode="torque", duration=10.0, out=tmp_path)
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    assert res.summary["metrics"]["base_height_max_deviation_m"] < 0.02
+
+
+def test_talos_survives_100N_lateral_push(talos, tmp_path):
+    res = run("push", "joint-pd", talos, mode="torque", out=tmp_path)
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    # the push did act: the base moved sideways during/after it
+    y = res.log["q.y"]
+    t = res.log["t"]
+    assert np.abs(y[(t > 1.0) & (t < 2.0)] - y[0]).max() > 1e-3
+
+
+def test_a_fall_is_detected_and_logged(talos, tmp_path):
+    """No torque at all: TALOS collapses; the run stops, says why, and keeps its log up to the fall."""
+    res = run("stand", "zero-torque-test", talos, duration=5.0, out=tmp_path)
+    s = res.summary
+    assert s["fell"] and s["fall_reason"]
+    assert s["sim_time_s"] < 5.0
+    log = read_log(tmp_path / "log.parquet")
+    assert len(log["t"]) == round(s["sim_time_s"] / 1e-3)
+
+
+def test_a_crashing_controller_keeps_the_log(talos, tmp_path):
+    res = run("stand", "crash-test", talos, duration=2.0, out=tmp_path)
+    s = res.summary
+    assert s["fell"] and "boom" in s["fall_reason"]
+    assert len(read_log(tmp_path / "log.parquet")["t"]) == 1500
+    assert (tmp_path / "error.txt").exists()
+
+
+@register
+class _ZeroTorque(Controller):
+    name = "zero-torque-test"
+    modes = (ActuationMode.TORQUE,)
+
+    def reset(self, meas, refs):
+        pass
+
+    def step(self, meas, refs):
+        from wbcbench.types import Command
+        return Command(tau=np.zeros(self.robot.na))
+
+
+@register
+class _Crash(_ZeroTorque):
+    name = "crash-test"
+
+    def __init__(self, robot, mode, dt):
+        super().__init__(robot, mode, dt)
+        from wbcbench.controllers.joint_pd import JointPD
+        self.inner = JointPD(robot, mode, dt)
+        self.n = 0
+
+    def step(self, meas, refs):
+        self.n += 1
+        if self.n > 1500:
+            raise RuntimeError("boom")
+        return self.inner.step(meas, refs)
