@@ -108,7 +108,6 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
         ctrl.reset(meas, scen.references(0.0))
         for tick in range(n_ticks):
             t = tick * spec.control_dt
-            meas = sim.measure()
             refs = scen.references(t)
             c0 = time.perf_counter()
             cmd = ctrl.step(meas, refs)
@@ -128,11 +127,11 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
             if refs.com is not None:
                 row[s_ref] = refs.com
             cws = sim.contact_wrenches()
-            m2 = sim.measure()
+            meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             for s in Side:
                 row[s_cw[s]] = cws[s]
-                row[s_ft[s]][:3] = m2.ft_force[s]
-                row[s_ft[s]][3:] = m2.ft_torque[s]
+                row[s_ft[s]][:3] = meas.ft_force[s]
+                row[s_ft[s]][3:] = meas.ft_torque[s]
                 row[s_in[s]] = float(s in refs.contacts)
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):

@@ -106,19 +106,32 @@ class Simulator:
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
-        out = {s: np.zeros(6) for s in Side}
         d = self.data
-        for i in range(d.ncon):
-            c = d.contact[i]
-            for s, gid in self._sole_geoms.items():
-                if c.geom1 == gid or c.geom2 == gid:
-                    mujoco.mj_contactForce(self.model, d, i, self._cf)
-                    # contact frame rows: normal first; force of geom1 on geom2 -> flip if the sole is geom1
-                    f = c.frame.reshape(3, 3).T @ self._cf[:3]
-                    if c.geom1 == gid:
-                        f = -f
-                    out[s][:3] += f
-                    out[s][3:] += np.cross(c.pos, f)
+        out = {s: np.zeros(6) for s in Side}
+        n = d.ncon
+        if n == 0:
+            return out
+        con = d.contact
+        g1, g2 = con.geom1[:n], con.geom2[:n]
+        frames = con.frame[:n].reshape(n, 3, 3)
+        pos = con.pos[:n]
+        cf = self._cf
+        local = np.empty((n, 3))
+        for i in range(n):
+            mujoco.mj_contactForce(self.model, d, i, cf)
+            local[i] = cf[:3]
+        # contact frame rows: normal first; force of geom1 on geom2
+        world = np.einsum("nij,ni->nj", frames, local)
+        for s, gid in self._sole_geoms.items():
+            sign = np.where(g1 == gid, -1.0, np.where(g2 == gid, 1.0, 0.0))
+            if not sign.any():
+                continue
+            f = world * sign[:, None]
+            w = out[s]
+            w[:3] = f.sum(axis=0)
+            w[3] = (pos[:, 1] * f[:, 2] - pos[:, 2] * f[:, 1]).sum()
+            w[4] = (pos[:, 2] * f[:, 0] - pos[:, 0] * f[:, 2]).sum()
+            w[5] = (pos[:, 0] * f[:, 1] - pos[:, 1] * f[:, 0]).sum()
         return out
 
     def fall_status(self) -> FallStatus:
