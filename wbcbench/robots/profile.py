@@ -3,22 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 from pathlib import Path
 
 import numpy as np
 
 from ..config import Section, load_yaml
 from ..errors import UnknownNameError
+from ..side import Side
 
 PROFILE_DIR = Path(__file__).parent / "profiles"
-
-
-class Side(str, Enum):
-    """A side of the robot; feet and hands are keyed by it."""
-
-    LEFT = "left"
-    RIGHT = "right"
 
 
 @dataclass(frozen=True)
