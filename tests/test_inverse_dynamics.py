@@ -1,0 +1,210 @@
+"""The inverse-dynamics controller (TSID-like weighted QP): dynamics consistency, contact wrenches, task
+semantics, the sway and one-foot scenarios, bad task files and QP failures."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.controllers.inverse_dynamics import QP_FALLBACK, QP_OK, QP_RELAXED, TSIDPosition, TSIDTorque
+from wbcbench.controllers.taskset import TaskSpec, load_taskset, taskset_path
+from wbcbench.errors import ConfigError
+from wbcbench.qp import QPResult, QPStatus
+from wbcbench.runner import run
+from wbcbench.side import Side
+from wbcbench.sim.model import ActuationMode
+from wbcbench.sim.simulator import Simulator
+from wbcbench.types import References
+
+
+
+def _controller(robot, cls=TSIDTorque, mode=ActuationMode.TORQUE, taskset=None):
+    sim = Simulator(robot, mode=mode)
+    ctrl = cls(robot, mode, 1e-3, taskset)
+    meas = sim.measure()
+    ctrl.reset(meas, References(t=0.0))
+    return sim, ctrl, meas
+
+
+def _check_tick(ctrl, q, v):
+    """M dv + h = S^T tau + sum J_c^T w, wrenches in their cones, on the state the QP used."""
+    m, d = ctrl.model, ctrl.data
+    rhs = np.concatenate([np.zeros(6), ctrl.tau])
+    for s in Side:
+        c = ctrl.contacts[s]
+        if c.active:
+            J = pin.getFrameJacobian(m, d, c.contact.frame_id, pin.LOCAL)
+            rhs += J.T @ ctrl.wrench[s]
+            assert c.contact.inside(ctrl.wrench[s], tol=1e-7), (s, ctrl.wrench[s])
+            cop = c.contact.cop(ctrl.wrench[s])
+            sole = ctrl.robot.profile.sole
+            assert abs(cop[0] - sole.center[0]) <= sole.length / 2 + 1e-9
+            assert abs(cop[1] - sole.center[1]) <= sole.width / 2 + 1e-9
+        else:
+            assert np.all(ctrl.wrench[s] == 0)
+    M = pin.crba(m, m.createData(), q)
+    M = np.triu(M) + np.triu(M, 1).T
+    lhs = M @ ctrl.dv + pin.nonLinearEffects(m, m.createData(), q, v)
+    assert np.abs(lhs - rhs).max() < 1e-8
+
+
+def test_dynamics_consistency_and_wrenches_every_tick(talos):
+    """One second of lateral sway in closed loop, then the shift onto one foot: every solved tick is
+    dynamically consistent to 1e-8 and its wrenches are inside their friction pyramids and soles."""
+    from wbcbench.scenarios import load_scenario
+
+    sim, ctrl, meas = _controller(talos)
+    for name, T in (("sway", 1.0), ("one-foot", 2.0)):
+        scen = load_scenario(name, talos)
+        sim.reset()
+        meas = sim.measure()
+        scen.setup(meas.q, pin.centerOfMass(talos.model, talos.model.createData(), meas.q))
+        ctrl.reset(meas, scen.references(0.0))
+        for k in range(int(T / 1e-3)):
+            refs = scen.references(k * 1e-3)
+            cmd = ctrl.step(meas, refs)
+            assert ctrl.qp_status == QP_OK
+            _check_tick(ctrl, meas.q, meas.v)
+            sim.apply(cmd)
+            sim.step()
+            meas = sim.measure()
+    # at the end of one-foot the right contact has been ramped out
+    assert not ctrl.contacts[Side.RIGHT].active
+
+
+def _solve_once(robot, taskset, com_ref=None):
+    sim, ctrl, meas = _controller(robot, taskset=taskset)
+    refs = References(t=0.0)
+    if com_ref is not None:
+        refs = References(t=0.0, com=com_ref, com_vel=np.zeros(3), com_acc=np.zeros(3))
+    ctrl.step(meas, refs)
+    return ctrl.dv.copy(), {s: w.copy() for s, w in ctrl.wrench.items()}
+
+
+def test_zero_weight_task_changes_nothing(talos):
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    hand = TaskSpec(name="hand", type="frame", weight=0.0, kp=np.full(6, 100.0), kd=None,
+                    frame=talos.profile.hands[Side.LEFT])
+    with_hand = replace(spec, tasks=spec.tasks + (hand,))
+    dv0, w0 = _solve_once(talos, spec, com_ref=np.array([0.01, 0.02, 0.87]))
+    dv1, w1 = _solve_once(talos, with_hand, com_ref=np.array([0.01, 0.02, 0.87]))
+    assert np.abs(dv0 - dv1).max() < 1e-9
+    # and the same task with a weight does change the solution (the test can fail)
+    weighted = replace(spec, tasks=spec.tasks + (replace(hand, weight=10.0),))
+    sim, ctrl, meas = _controller(talos, taskset=weighted)
+    ctrl.task_by_name["hand"].set_reference(pin.SE3(np.eye(3), np.array([0.3, 0.3, 1.2])))
+    ctrl.step(meas, References(t=0.0, com=np.array([0.01, 0.02, 0.87]), com_vel=np.zeros(3),
+                               com_acc=np.zeros(3)))
+    assert np.abs(ctrl.dv - dv0).max() > 1e-3
+
+
+def test_masked_axis_is_left_free(talos):
+    """With only the x-y CoM task (height axis masked out), the CoM height reference has no effect."""
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    xy_only = replace(spec, tasks=tuple(t for t in spec.tasks if t.name != "com_z"))
+    dv_a, _ = _solve_once(talos, xy_only, com_ref=np.array([0.0, 0.0, 0.80]))
+    dv_b, _ = _solve_once(talos, xy_only, com_ref=np.array([0.0, 0.0, 0.95]))
+    assert np.abs(dv_a - dv_b).max() < 1e-9
+    dv_c, _ = _solve_once(talos, xy_only, com_ref=np.array([0.0, 0.03, 0.80]))
+    assert np.abs(dv_a - dv_c).max() > 1e-3
+    # with the height task back, the height reference matters
+    dv_d, _ = _solve_once(talos, spec, com_ref=np.array([0.0, 0.0, 0.80]))
+    dv_e, _ = _solve_once(talos, spec, com_ref=np.array([0.0, 0.0, 0.95]))
+    assert np.abs(dv_d - dv_e).max() > 1e-3
+
+
+@pytest.mark.parametrize("controller", ["tsid-torque", "tsid-position"])
+def test_sway_tracks_the_com_within_1cm(talos, tmp_path, controller):
+    res = run("sway", controller, talos, duration=10.0, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["com_rms_error_m"] < 0.01
+    assert s["controller_status"]["qp_fallback_ticks"] == 0
+    # the CoM really moved: +-5 cm peak to peak about 10 cm laterally
+    y = res.log["com.y"]
+    assert y.max() - y.min() > 0.08
+
+
+def test_one_foot_balance(talos, tmp_path):
+    res = run("one-foot", "tsid-torque", talos, duration=5.0, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    log = res.log
+    # the right foot carries nothing at the end and has been lifted about 5 cm
+    assert abs(log["contact_right.fz"][-1]) < 1e-6
+    q = np.column_stack([log[c] for c in log if c.startswith("q.")])[-1]
+    d = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, d, q)
+    z = d.oMf[talos.sole_frame_id(Side.RIGHT)].translation[2]
+    assert z == pytest.approx(0.05, abs=0.005)
+    assert log["contact_left.fz"][-1] == pytest.approx(talos.mass * 9.81, rel=0.02)
+
+
+def test_qp_failure_falls_back_to_a_safe_command(talos, monkeypatch):
+    sim, ctrl, meas = _controller(talos)
+    fail = QPResult.failure(QPStatus.INFEASIBLE, solver="daqp", raw_status=-1)
+    monkeypatch.setattr(ctrl.solver, "solve", lambda p: fail)
+    monkeypatch.setattr(ctrl.relaxed_solver, "solve", lambda p: fail)
+    cmd = ctrl.step(meas, References(t=0.0))
+    assert ctrl.qp_status == QP_FALLBACK and ctrl.status()["qp_fallback_ticks"] == 1
+    # the fallback is the joint-pd law about the current posture: it holds the robot (finite, within limits)
+    assert np.all(np.isfinite(cmd.tau)) and np.all(np.abs(cmd.tau) <= talos.effort_limit * 10)
+    from wbcbench.controllers.joint_pd import JointPD
+    ref = JointPD(talos, ActuationMode.TORQUE, 1e-3)
+    ref.q_ref = meas.q[7:]
+    assert np.allclose(cmd.tau, ref.step(meas, References(t=0.0)).tau)
+
+
+def test_infeasible_limits_are_relaxed_and_logged(talos, tmp_path):
+    """Joints locked by their position limits and torque limits far too low to stand: the QP is infeasible,
+    so it is solved again without the limit rows, and says so."""
+    sim, ctrl, meas = _controller(talos)
+    ctrl.tau_max = np.full(talos.na, 1.0)
+    ctrl.q_lo, ctrl.q_hi = meas.q[7:] - 1e-9, meas.q[7:] + 1e-9
+    ctrl.step(meas, References(t=0.0))
+    assert ctrl.qp_status == QP_RELAXED and ctrl.status()["qp_relaxed_ticks"] == 1
+    _check_tick(ctrl, meas.q, meas.v)
+
+
+def _bad_taskset(tmp_path, talos, old, new):
+    text = taskset_path(talos, "tsid-torque").read_text()
+    assert old in text
+    p = tmp_path / "tasks.yaml"
+    p.write_text(text.replace(old, new))
+    return p
+
+
+@pytest.mark.parametrize("old,new,needles", [
+    ("frame: torso,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
+    ("type: angular_momentum,", "type: angular_momentom,", ["tasks[3].type", "angular_momentum"]),
+    ("mask: [0, 0, 1]", "mask: [0, 1]", ["tasks[1].mask", "3 entries"]),
+    ("weight: 0.02, kp: 10.0", "weight: 0.02, kp: -10.0", ["tasks[3].kp", ">= 0"]),
+    ("weight: 1.0, kp: 100.0", "weight: -1.0, kp: 100.0", ["tasks[2].weight", ">= 0"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  kq: 1.0\n", ["contacts.kq", "unknown key"]),
+])
+def test_bad_task_files_name_file_and_key(talos, tmp_path, old, new, needles):
+    p = _bad_taskset(tmp_path, talos, old, new)
+    with pytest.raises(ConfigError) as err:
+        load_taskset(p, talos)
+    msg = str(err.value)
+    assert str(p) in msg
+    for n in needles:
+        assert n in msg, msg
+
+
+def test_position_mode_feeds_back_the_integrated_state(talos):
+    """TSID position: the QP runs on its own integrated state, not on the measurement (paper Section 3.3)."""
+    sim, ctrl, meas = _controller(talos, TSIDPosition, ActuationMode.POSITION)
+    refs = References(t=0.0)
+    cmd = ctrl.step(meas, refs)
+    q1 = ctrl.q_int.copy()
+    bogus = replace(meas, q=meas.q + np.concatenate([[0.1, 0, 0], np.zeros(talos.nq - 3)]))
+    ctrl.step(bogus, refs)
+    ctrl2 = TSIDPosition(talos, ActuationMode.POSITION, 1e-3)
+    ctrl2.reset(meas, refs)
+    ctrl2.step(meas, refs)
+    ctrl2.step(meas, refs)
+    assert np.allclose(ctrl.q_int, ctrl2.q_int, atol=1e-12)
+    assert np.allclose(cmd.q, q1[7:])

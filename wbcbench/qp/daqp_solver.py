@@ -1,0 +1,157 @@
+"""DAQP backend (dual active-set, Arnstrom et al. 2022): the default QP solver."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import daqp
+import numpy as np
+import numpy.typing as npt
+
+from wbcbench.qp.problem import QPProblem
+from wbcbench.qp.result import QPResult, QPStatus
+from wbcbench.qp.solver import QPSolver
+
+__all__ = ["DaqpSolver", "DAQP_EXIT_FLAGS"]
+
+# daqp exit flags (include/constants.h of daqp 0.11) mapped to our status.
+DAQP_EXIT_FLAGS: dict[int, QPStatus] = {
+    2: QPStatus.OPTIMAL,  # optimal with soft constraints relaxed; we never mark a row soft
+    1: QPStatus.OPTIMAL,
+    -1: QPStatus.INFEASIBLE,
+    -2: QPStatus.NUMERICAL,  # cycling
+    -3: QPStatus.UNBOUNDED,
+    -4: QPStatus.MAX_ITER,  # iteration limit
+    -5: QPStatus.NUMERICAL,  # non-convex: H not positive semi-definite
+    -6: QPStatus.NUMERICAL,  # overdetermined initial working set (dependent, contradicting equalities)
+    -7: QPStatus.MAX_ITER,  # time limit
+    -8: QPStatus.NUMERICAL,  # problem class not supported
+}
+"""daqp exit flag -> :class:`QPStatus`; any other flag maps to :attr:`QPStatus.NUMERICAL`."""
+
+_SENSE_INEQUALITY = 0
+_SENSE_EQUALITY = 5  # DAQP_ACTIVE | DAQP_IMMUTABLE: a row that stays in the working set
+
+_DEFAULTS: dict[str, float] = {"primal_tol": 1e-9, "dual_tol": 1e-10}
+
+
+class DaqpSolver(QPSolver):
+    """QP backend on ``daqp.Model`` (one workspace, set up once per problem structure).
+
+    daqp solves ``min 1/2 x^T H x + f^T x`` s.t. ``blower <= A x <= bupper``, where the first
+    ``len(bupper) - rows(A)`` entries of the bound vectors are simple bounds on the first variables. This
+    class stacks the problem as::
+
+        A      = [A_eq; C]                  (m_eq + m_in, n)
+        bupper = [ub; b_eq; u]              (n_box + m_eq + m_in,), n_box = n with box bounds, else 0
+        blower = [lb; b_eq; l]
+        sense  = [0 ...; 5 ...; 0 ...]      5 marks an equality row (active and immutable)
+
+    into buffers allocated when the structure changes and reused otherwise. Between calls of the same
+    structure the workspace is updated in place and daqp restarts from the previous active set (warm start);
+    after a failed solve the next one starts cold.
+
+    Tolerances: ``primal_tol`` defaults to 1e-9 (daqp's own default, 1e-6, lets a returned point violate a
+    constraint by up to 1e-6). A singular ``H`` is handled by daqp's automatic proximal-point iterations
+    (``eps_prox < 0``, daqp's default); their stopping tolerance is 1e-6 unless ``dual_tol`` differs from
+    daqp's default, in which case it is ``0.1 * dual_tol``: we set ``dual_tol = 1e-10``, which makes those
+    solves exact to about 1e-10 (measured: residuals off by up to 1e-7 with daqp's defaults on the
+    hierarchical levels of ``tests/qp``). Any daqp setting can be passed by keyword, see
+    ``daqp.Model().settings``.
+
+    Args:
+        warm_start: restart each solve from the previous active set when the structure is unchanged.
+        **settings: daqp settings, e.g. ``primal_tol=1e-9``, ``iter_limit=1000``.
+
+    Raises:
+        ValueError: an unknown setting name (the message lists the valid ones).
+    """
+
+    name = "daqp"
+
+    def __init__(self, *, warm_start: bool = True, **settings: float):
+        valid = daqp.Model().settings
+        unknown = sorted(set(settings) - set(valid))
+        if unknown:
+            raise ValueError(f"DaqpSolver: unknown setting(s) {unknown}; valid: {', '.join(sorted(valid))}")
+        self.settings: dict[str, float] = {**_DEFAULTS, **settings}
+        self.warm_start = bool(warm_start)
+        self.reset()
+
+    def reset(self) -> None:
+        """Drop the workspace: the next solve sets daqp up from scratch."""
+        self._model: Any = None
+        self._key: tuple[int, int, int, bool] | None = None
+        self._cold = True
+
+    def _setup(self, p: QPProblem, key: tuple[int, int, int, bool]) -> int:
+        n, m_eq, m_in, box = key
+        nb = n if box else 0
+        self._A = np.zeros((m_eq + m_in, n))
+        self._bu = np.zeros(nb + m_eq + m_in)
+        self._bl = np.zeros(nb + m_eq + m_in)
+        self._sense = np.full(nb + m_eq + m_in, _SENSE_INEQUALITY, dtype=np.intc)
+        self._sense[nb : nb + m_eq] = _SENSE_EQUALITY
+        self._A_eq, self._A_in = self._A[:m_eq], self._A[m_eq:]
+        self._bu_box, self._bl_box = self._bu[:nb], self._bl[:nb]
+        self._bu_eq, self._bl_eq = self._bu[nb : nb + m_eq], self._bl[nb : nb + m_eq]
+        self._bu_in, self._bl_in = self._bu[nb + m_eq :], self._bl[nb + m_eq :]
+        self._fill(p, m_eq, m_in, box)
+        self._model = daqp.Model()
+        self._model.settings = self.settings
+        self._key = key
+        flag, _ = self._model.setup(_writable(p.H), _writable(p.g), self._A, self._bu, self._bl, self._sense.copy())
+        return int(flag)
+
+    def _fill(self, p: QPProblem, m_eq: int, m_in: int, box: bool) -> None:
+        if box:
+            np.copyto(self._bu_box, p.ub)
+            np.copyto(self._bl_box, p.lb)
+        if m_eq:
+            np.copyto(self._A_eq, p.A_eq)
+            np.copyto(self._bu_eq, p.b_eq)
+            np.copyto(self._bl_eq, p.b_eq)
+        if m_in:
+            np.copyto(self._A_in, p.C)
+            np.copyto(self._bu_in, p.u)
+            np.copyto(self._bl_in, p.l)
+
+    def solve(self, problem: QPProblem) -> QPResult:
+        """Solve ``problem`` with daqp; see the class docstring for the layout and warm start."""
+        p = problem
+        m_eq = 0 if p.A_eq is None else p.A_eq.shape[0]
+        m_in = 0 if p.C is None else p.C.shape[0]
+        box = p.lb is not None
+        key = (p.H.shape[0], m_eq, m_in, box)
+        if key != self._key or self._model is None:
+            flag = self._setup(p, key)
+        else:
+            self._fill(p, m_eq, m_in, box)
+            kwargs: dict[str, Any] = {"H": _writable(p.H), "f": _writable(p.g)}
+            if m_eq + m_in:
+                kwargs["A"] = self._A
+            if self._bu.shape[0]:
+                kwargs["bupper"] = self._bu
+                kwargs["blower"] = self._bl
+                if self._cold or not self.warm_start:
+                    kwargs["sense"] = self._sense.copy()
+            flag = int(self._model.update(**kwargs))
+        if flag < 0:
+            self._model = None  # set up again next time
+            return QPResult.failure(DAQP_EXIT_FLAGS.get(flag, QPStatus.NUMERICAL), solver=self.name, raw_status=flag)
+        x, fval, exitflag, info = self._model.solve()
+        status = DAQP_EXIT_FLAGS.get(int(exitflag), QPStatus.NUMERICAL)
+        iterations = int(info["iterations"])
+        if status is QPStatus.OPTIMAL and not np.isfinite(x).all():
+            status = QPStatus.NUMERICAL
+        if status is not QPStatus.OPTIMAL:
+            self._cold = True
+            return QPResult.failure(status, solver=self.name, raw_status=int(exitflag), iterations=iterations)
+        self._cold = False
+        # daqp.Model.solve returns a fresh copy of its iterate: the result may own it.
+        return QPResult(x, status, iterations, float(fval), self.name, int(exitflag))
+
+
+def _writable(array: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """daqp's typed memoryviews refuse read-only buffers: copy those (only those)."""
+    return array if array.flags.writeable else array.copy()
