@@ -69,7 +69,7 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     run_dir.mkdir(parents=True, exist_ok=True)
     config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
               "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
-              "mode": ctrl.mode.value, "duration_s": spec.duration, "control_dt_s": spec.control_dt,
+              "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
               "sim": {"timestep": options.timestep, "integrator": options.integrator,
                       "noslip_iterations": options.noslip_iterations, "substeps": substeps},
               "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
@@ -86,6 +86,8 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     s_com = rec.add_channel("com", ["x", "y", "z"])
     s_vcom = rec.add_channel("com_vel", ["x", "y", "z"])
     s_ref = rec.add_channel("com_ref", ["x", "y", "z"])
+    s_zmp = rec.add_channel("zmp_ref", ["x", "y", "z"])
+    s_fref = {s: rec.add_channel(f"foot_ref_{s.value}", ["x", "y", "z"]) for s in Side}
     wl = ["fx", "fy", "fz", "mx", "my", "mz"]
     s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
     s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
@@ -95,16 +97,16 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
 
     model, data = robot.model, robot.model.createData()
-    n_ticks = int(round(spec.duration / spec.control_dt))
+    q_true = sim.true_q()
+    scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
+    duration = spec.duration if spec.duration > 0 else scen.planned_duration
+    n_ticks = int(round(duration / spec.control_dt))
     fell, reason, error = False, "", None
     ctrl_us = np.full(n_ticks, np.nan)
     wall0 = time.perf_counter()
     tick = 0
     try:
         meas = sim.measure()
-        q_true = sim.true_q()
-        com0 = pin.centerOfMass(model, data, q_true)
-        scen.setup(q_true, com0.copy())
         ctrl.reset(meas, scen.references(0.0))
         for tick in range(n_ticks):
             t = tick * spec.control_dt
@@ -126,6 +128,10 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
             row[s_vcom] = data.vcom[0]
             if refs.com is not None:
                 row[s_ref] = refs.com
+            if refs.zmp is not None:
+                row[s_zmp] = refs.zmp
+            for s, foot in refs.feet.items():
+                row[s_fref[s]] = foot[0]
             cws = sim.contact_wrenches()
             meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             for s in Side:
@@ -154,7 +160,7 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     sim_time = (tick + 1) * spec.control_dt if n_ticks else 0.0
     summary = {
         "robot": robot.name, "scenario": spec.name, "controller": controller, "mode": ctrl.mode.value,
-        "fell": fell, "fall_reason": reason or None, "sim_time_s": sim_time, "duration_s": spec.duration,
+        "fell": fell, "fall_reason": reason or None, "sim_time_s": sim_time, "duration_s": duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
         "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
         "controller_status": ctrl.status(),

@@ -53,6 +53,7 @@ class References:
     com, com_vel, com_acc: (3,) CoM reference [m, m/s, m/s^2], world frame.
     feet: per swinging/moving foot, (position (3,), velocity (3,), acceleration (3,)) of the sole frame origin
         in the world; orientation held at its current/start value unless `feet_rotation` gives it.
+    zmp: (3,) planned ZMP [m], world frame (walking scenarios).
     """
 
     t: float
@@ -62,3 +63,4 @@ class References:
     com_acc: np.ndarray | None = None
     feet: dict = field(default_factory=dict)
     feet_rotation: dict = field(default_factory=dict)
+    zmp: np.ndarray | None = None

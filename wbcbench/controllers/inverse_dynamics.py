@@ -23,6 +23,8 @@ mode holds the last integrated posture with zero velocity. Both events are count
 
 from __future__ import annotations
 
+from time import perf_counter
+
 import numpy as np
 import pinocchio as pin
 
@@ -76,7 +78,9 @@ class _ContactState:
             s = 1.0
         else:
             s = min(1.0, max(0.0, (t - self.ramp_t0) / self.ramp_T))
-        self.contact.set_max_force(self.ramp_from + s * (self.ramp_to - self.ramp_from))
+        f = self.ramp_from + s * (self.ramp_to - self.ramp_from)
+        if f != self.contact.max_normal_force:
+            self.contact.set_max_force(f)
         return s >= 1.0 and self.ramp_to == 0.0
 
 
@@ -115,6 +119,10 @@ class InverseDynamicsController(Controller):
         self.fallback_pd = None
         self._buf: dict[int, dict] = {}
         self._Jc: list[np.ndarray] = []
+        self._t_pin = self._t_solve = 0.0
+        max_rows = sum(t.dim for t in self.tasks) + 12
+        self._Ac = np.zeros((max_rows, self.nv))
+        self._bc = np.zeros(max_rows)
         self.n_relaxed = 0
         self.n_fallback = 0
         self.qp_status = QP_OK
@@ -180,7 +188,9 @@ class InverseDynamicsController(Controller):
         m, d = self.model, self.data
         t = meas.t
         q, v = self._state(meas)
+        t0 = perf_counter()
         update_kinematics(m, d, q, v)
+        self._t_pin = perf_counter() - t0
         self._set_references(refs)
         self._update_contacts(t, refs)
         active = [s for s in Side if self.contacts[s].active]
@@ -243,9 +253,11 @@ class InverseDynamicsController(Controller):
         B = self._buffers(nc)
         H, g, A_eq, b_eq, C, lo, hi, lb, ub = (B[k] for k in ("H", "g", "A_eq", "b_eq", "C", "l", "u", "lb", "ub"))
         # ---- cost: stack sqrt(w)-scaled rows, one product for the Hessian
-        rows_A, rows_b = [], []
+        Ac, bc = self._Ac, self._bc
+        k = 0
         hard_A, hard_b = [], []
-        for task in self.tasks:
+        swing = [self.swing[s] for s in Side if not self.contacts[s].active]
+        for task in self.tasks + swing:
             if task.weight == 0.0 and task.name not in self.hard:
                 continue
             A, b = acceleration_rows(task, m, d)
@@ -253,22 +265,16 @@ class InverseDynamicsController(Controller):
                 hard_A.append(A)
                 hard_b.append(b)
                 continue
+            r = A.shape[0]
             sw = np.sqrt(task.weight)
-            rows_A.append(sw * A)
-            rows_b.append(sw * b)
-        for s in Side:
-            if not self.contacts[s].active:
-                A, b = acceleration_rows(self.swing[s], m, d)
-                sw = np.sqrt(self.swing[s].weight)
-                rows_A.append(sw * A)
-                rows_b.append(sw * b)
-        Ac = np.vstack(rows_A)
-        bc = np.concatenate(rows_b)
+            np.multiply(A, sw, out=Ac[k:k + r])
+            np.multiply(b, -sw, out=bc[k:k + r])
+            k += r
         H[:] = 0.0
-        np.matmul(Ac.T, Ac, out=H[:nv, :nv])
-        H[np.diag_indices(n)] += B["reg"]
+        np.matmul(Ac[:k].T, Ac[:k], out=H[:nv, :nv])
+        H.flat[::n + 1] += B["reg"]
         g[:] = 0.0
-        np.matmul(Ac.T, -bc, out=g[:nv])
+        np.matmul(Ac[:k].T, bc[:k], out=g[:nv])
         # ---- equalities: floating-base dynamics, contact motion, hard tasks
         A_eq[:] = 0.0
         A_eq[:6, :nv] = d.M[:6]
@@ -304,7 +310,9 @@ class InverseDynamicsController(Controller):
         a_lo = np.maximum(2 * (self.q_lo - qj - vj * h) / h**2, (-self.v_max - vj) / self.dt)
         lb[6:nv] = np.minimum(a_lo, a_hi)
         ub[6:nv] = a_hi
+        t0 = perf_counter()
         res = self.solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub))
+        self._t_solve = perf_counter() - t0
         if res.ok:
             self.qp_status = QP_OK
             return res.x
@@ -330,6 +338,12 @@ class InverseDynamicsController(Controller):
         return Command(q=self.q_int[7:].copy(), v=np.zeros(self.robot.na))
 
     # ------------------------------------------------------------------ logging
+    @property
+    def last_timing_us(self) -> dict[str, float]:
+        """Split of the last step [us]: pinocchio (kinematics and dynamics update) and the QP solve; the rest
+        of a step is task rows, QP assembly and the command."""
+        return {"pinocchio": self._t_pin * 1e6, "solve": self._t_solve * 1e6}
+
     def log_channels(self) -> dict[str, list[str]]:
         w = ["fx", "fy", "fz", "mx", "my", "mz"]
         return {"qp_status": [], "tau_cmd": self.robot.joint_names,

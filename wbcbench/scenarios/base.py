@@ -99,7 +99,8 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         name=root.str("name", path.stem),
         kind=kind,
         description=root.str("description", ""),
-        duration=duration if duration is not None else root.float("duration", positive=True),
+        duration=duration if duration is not None else (root.float("duration", positive=True)
+                                                        if root.has("duration") else 0.0),
         control_dt=root.float("control_dt", 1e-3, positive=True),
         terrain=parse_terrain(root.section("terrain", {})),
         pushes=pushes,
@@ -109,4 +110,8 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         root.raw("duration", None)
     params = root.section("params", {})
     root.finish()
-    return _KINDS[kind](spec, params, robot)
+    scen = _KINDS[kind](spec, params, robot)
+    if spec.duration <= 0:
+        if not hasattr(type(scen), "planned_duration"):
+            raise root.error("duration", "is required")
+    return scen

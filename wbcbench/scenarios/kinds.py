@@ -94,3 +94,88 @@ def _min_jerk(s: float) -> tuple[float, float, float]:
     if s >= 1:
         return 1.0, 0.0, 0.0
     return (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3)
+
+
+@register_kind
+class WalkScenario(Scenario):
+    """Walk on flat ground: a footstep plan, ZMP preview control (Kajita 2003) for the CoM, quintic swing feet.
+
+    params: steps (number of steps before the final one), step_length [m], single_support and
+    double_support [s], initial_double_support / final_double_support [s], apex [m] (swing apex height),
+    first_side (left|right), step_width (default: the feet's initial separation), lateral / yaw per step.
+    The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
+    walk; metrics then compare with where the plan is at that time).
+    """
+
+    kind = "walk"
+
+    def parse(self, params):
+        self.n_steps = params.int("steps", min=0)
+        self.step_length = params.float("step_length")
+        self.single = params.float("single_support", positive=True)
+        self.double = params.float("double_support", positive=True)
+        self.initial_ds = params.float("initial_double_support", 3.5, positive=True)
+        self.final_ds = params.float("final_double_support", 2.0, positive=True)
+        self.apex = params.float("apex", 0.05, min=0.0)
+        self.first = params.str("first_side", "right", choices=["left", "right"])
+        self.width = params.float("step_width", 0.0, min=0.0)
+        self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
+
+    def setup(self, q0, com0):
+        import pinocchio as pin
+
+        from ..errors import ConfigError
+        from ..planning import (PatternGeneratorConfig, SoleRectangle, StepTiming, generate_walk,
+                                straight_walk)
+        super().setup(q0, com0)
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, q0)
+        feet = {s: data.oMf[self.robot.sole_frame_id(s)] for s in Side}
+        mid = (feet[Side.LEFT].translation + feet[Side.RIGHT].translation) / 2
+        sep = self.width or float(np.linalg.norm(feet[Side.LEFT].translation - feet[Side.RIGHT].translation))
+        sole = self.robot.profile.sole
+        try:
+            plan = straight_walk(self.n_steps, self.step_length, foot_separation=sep,
+                                 timing=StepTiming(self.single, self.double, self.initial_ds, self.final_ds),
+                                 sole=SoleRectangle(sole.length, sole.width, *sole.center),
+                                 first_side=Side(self.first), start=(mid[0], mid[1], mid[2], 0.0))
+            self.walk = generate_walk(plan, PatternGeneratorConfig(
+                com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
+                preview_horizon=self.preview_horizon), p_world_com_init=com0)
+        except ValueError as exc:
+            raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
+        self.plan = plan
+        self.base_offset = q0[:3] - com0
+
+    @property
+    def planned_duration(self) -> float:
+        return self.walk.duration
+
+    def references(self, t):
+        w = self.walk
+        k = min(int(round(t / w.dt)), w.n_ticks - 1)
+        feet, rot = {}, {}
+        contacts = []
+        for s in Side:
+            f = w.feet[s]
+            if f.in_contact[k]:
+                contacts.append(s)
+            else:
+                feet[s] = (f.p_world_sole[k], f.v_world_sole[k], f.a_world_sole[k])
+                rot[s] = f.R_world_sole[k]
+        return References(t=t, contacts=frozenset(contacts), com=w.p_world_com[k], com_vel=w.v_world_com[k],
+                          com_acc=w.a_world_com[k], feet=feet, feet_rotation=rot, zmp=w.p_world_zmp_ref[k])
+
+    def metrics(self, log):
+        com = channel(log, "com")
+        ref = channel(log, "com_ref")
+        err = np.linalg.norm(com - ref, axis=1)
+        t_end = log["t"][-1]
+        k = min(int(round(t_end / self.walk.dt)), self.walk.n_ticks - 1)
+        planned_base = self.walk.p_world_com[k] + self.base_offset
+        base = np.array([log["q.x"][-1], log["q.y"][-1]])
+        start = np.array([log["q.x"][0], log["q.y"][0]])
+        return {"com_rms_error_m": float(np.sqrt(np.mean(err ** 2))), "com_max_error_m": float(err.max()),
+                "final_position_error_m": float(np.linalg.norm(base - planned_base[:2])),
+                "distance_m": float(np.linalg.norm(base - start)),
+                "planned_distance_m": float(np.linalg.norm(planned_base[:2] - start))}

@@ -1,0 +1,56 @@
+"""Walking on flat ground (shortened walks: 2 steps and the final step) and walk-plan validation."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wbcbench.runner import run
+
+SCEN = Path(__file__).parents[1] / "wbcbench" / "scenarios"
+
+
+@pytest.mark.parametrize("scenario", ["walk-20cm-quick", "walk-20cm-fast-quick", "walk-60cm-quick"])
+def test_tsid_torque_walks(talos, tmp_path, scenario):
+    res = run(scenario, "tsid-torque", talos, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    m = s["metrics"]
+    assert m["final_position_error_m"] < 0.05
+    assert m["distance_m"] == pytest.approx(m["planned_distance_m"], abs=0.05)
+    assert m["planned_distance_m"] > 0.35
+    # both feet were lifted at some point (it walked, it did not slide)
+    for side in ("left", "right"):
+        assert np.any(res.log[f"in_contact_ref_{side}"] == 0)
+        lifted = (res.log[f"in_contact_ref_{side}"] == 0).astype(int)
+        edges = np.flatnonzero(np.diff(lifted))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            mid = slice(start + (stop - start) // 4, stop - (stop - start) // 4)  # middle half of the swing
+            assert np.all(np.abs(res.log[f"contact_{side}.fz"][mid]) < 1.0)
+
+
+def _bad_walk(tmp_path, old, new):
+    text = (SCEN / "walk-20cm.yaml").read_text()
+    assert old in text
+    p = tmp_path / "walk.yaml"
+    p.write_text(text.replace(old, new))
+    return p
+
+
+@pytest.mark.parametrize("old,new,needle", [
+    ("  steps: 6\n", "  steps: 6\n  step_width: 0.05\n", "overlap"),
+    ("step_length: 0.20", "step_length: 1.50", "beyond max_length"),
+    ("single_support: 0.9", "single_support: -0.9", "single_support"),
+])
+def test_bad_walk_plans_are_rejected_before_running(tmp_path, old, new, needle):
+    p = _bad_walk(tmp_path, old, new)
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "wbcbench.cli", "run", str(p), "-c", "tsid-torque", "-o", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    line = proc.stderr.strip()
+    assert "\n" not in line and "Traceback" not in line
+    assert str(p) in line and needle in line.lower(), line
+    assert not (out / "log.parquet").exists()
