@@ -12,9 +12,12 @@ from wbcbench.runner import run
 SCEN = Path(__file__).parents[1] / "wbcbench" / "scenarios"
 
 
-@pytest.mark.parametrize("scenario", ["walk-20cm-quick", "walk-20cm-fast-quick", "walk-60cm-quick"])
-def test_tsid_torque_walks(talos, tmp_path, scenario):
-    res = run(scenario, "tsid-torque", talos, out=tmp_path)
+@pytest.mark.parametrize("controller,scenario", [
+    ("tsid-torque", "walk-20cm-quick"), ("tsid-torque", "walk-20cm-fast-quick"), ("tsid-torque", "walk-60cm-quick"),
+    ("tsid-position", "walk-20cm-quick"), ("tsid-position", "walk-20cm-fast-quick"),
+])
+def test_walks(talos, tmp_path, controller, scenario):
+    res = run(scenario, controller, talos, out=tmp_path)
     s = res.summary
     assert not s["fell"], s["fall_reason"]
     m = s["metrics"]

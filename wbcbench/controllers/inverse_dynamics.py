@@ -23,6 +23,7 @@ mode holds the last integrated posture with zero velocity. Both events are count
 
 from __future__ import annotations
 
+from dataclasses import replace
 from time import perf_counter
 
 import numpy as np
@@ -101,8 +102,9 @@ class InverseDynamicsController(Controller):
         self.hard = {t.name for t in self.spec.tasks if t.priority == 0}
         c = self.spec.contacts
         sole = robot.profile.sole
+        length, width = c.model_sole or (sole.length, sole.width)
         self.contacts = {
-            s: _ContactState(Contact6D(m, robot.profile.feet[s].frame, length=sole.length, width=sole.width,
+            s: _ContactState(Contact6D(m, robot.profile.feet[s].frame, length=length, width=width,
                                        center=sole.center, kp=c.kp, kd=c.kd, mu=c.mu,
                                        min_normal_force=c.min_normal_force, max_normal_force=c.max_normal_force,
                                        name=f"contact_{s.value}"))
@@ -132,6 +134,15 @@ class InverseDynamicsController(Controller):
         self.q_int = None
         self.v_int = None
         self.t = 0.0
+        self.stabilizer = None
+        if self.spec.stabilizer is not None and mode is not ActuationMode.TORQUE:
+            from ..estimation import BalanceEstimator
+            from ..stabilizers import DcmStabilizer
+
+            self.estimator = BalanceEstimator(robot, dt)
+            self.stabilizer_gains = self.spec.stabilizer
+            self.stabilizer = True
+        self.stab_log = np.full(6, np.nan)
 
     # ------------------------------------------------------------------ lifecycle
     def reset(self, meas: Measurement, refs: References) -> None:
@@ -139,6 +150,12 @@ class InverseDynamicsController(Controller):
         self.q_int, self.v_int = q.copy(), np.zeros(self.nv) if self.mode is not ActuationMode.TORQUE else v
         m, d = self.model, self.data
         update_kinematics(m, d, q, np.zeros(self.nv))
+        if self.stabilizer is not None:
+            from ..stabilizers import DcmStabilizer
+
+            self.estimator.reset()
+            ground = min(pin.updateFramePlacement(m, d, self.robot.sole_frame_id(s)).translation[2] for s in Side)
+            self.dcm = DcmStabilizer(self.stabilizer_gains, dt=self.dt, com_height=float(d.com[0][2] - ground))
         for t in self.tasks:
             if isinstance(t, PostureTask):
                 t.set_reference(self.robot.q0)
@@ -191,6 +208,8 @@ class InverseDynamicsController(Controller):
         t0 = perf_counter()
         update_kinematics(m, d, q, v)
         self._t_pin = perf_counter() - t0
+        if self.stabilizer is not None and refs.zmp is not None and refs.com is not None:
+            refs = self._stabilize(meas, refs)
         self._set_references(refs)
         self._update_contacts(t, refs)
         active = [s for s in Side if self.contacts[s].active]
@@ -213,6 +232,19 @@ class InverseDynamicsController(Controller):
         self.v_int = self.v_int + dv * self.dt
         self.q_int = pin.integrate(m, self.q_int, self.v_int * self.dt)
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
+
+    def _stabilize(self, meas: Measurement, refs: References) -> References:
+        """DCM PI + CoM admittance (paper Eq. 3-4) on the measured ZMP and the support-anchored CoM."""
+        est = self.estimator
+        est.update(meas, self.q_int)
+        if not np.all(np.isfinite(est.zmp)):
+            return refs
+        out = self.dcm.step(p_com_ref=refs.com, v_com_ref=refs.com_vel, a_com_ref=refs.com_acc, p_zmp_ref=refs.zmp,
+                            p_com=est.com, v_com=est.com_vel, p_zmp=est.zmp)
+        self.stab_log[:2] = out.p_world_zmp_measured
+        self.stab_log[2:4] = out.p_world_zmp_desired
+        self.stab_log[4:6] = out.p_world_dcm
+        return replace(refs, com=out.p_world_com, com_vel=out.v_world_com, com_acc=out.a_world_com)
 
     def _set_references(self, refs: References) -> None:
         if refs.com is not None:
@@ -347,11 +379,12 @@ class InverseDynamicsController(Controller):
     def log_channels(self) -> dict[str, list[str]]:
         w = ["fx", "fy", "fz", "mx", "my", "mz"]
         return {"qp_status": [], "tau_cmd": self.robot.joint_names,
+                "stabilizer": ["zmp_x", "zmp_y", "zmp_des_x", "zmp_des_y", "dcm_x", "dcm_y"],
                 "wrench_qp_left": w, "wrench_qp_right": w,
                 "contact_active": ["left", "right"]}
 
     def log_values(self) -> list:
-        return [self.qp_status, self.tau, self.wrench[Side.LEFT], self.wrench[Side.RIGHT],
+        return [self.qp_status, self.tau, self.stab_log, self.wrench[Side.LEFT], self.wrench[Side.RIGHT],
                 [float(self.contacts[s].active) for s in Side]]
 
     def status(self) -> dict:

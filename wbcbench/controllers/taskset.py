@@ -40,7 +40,9 @@ class TaskSpec:
 class ContactSpec:
     """Gains and limits shared by the sole contacts: motion gains (LOCAL x y z roll pitch yaw), friction
     coefficient, normal force bounds [N], and the time [s] over which a leaving/arriving contact's maximum
-    normal force is ramped."""
+    normal force is ramped. `model_sole` (length, width) [m] replaces the profile's sole rectangle in the
+    controller's model: position controllers relax it so a stabilizer moving the CoM does not saturate the
+    model's CoP limits (SIM-NOTES); None keeps the real sole."""
 
     kp: float
     kd: float
@@ -48,6 +50,7 @@ class ContactSpec:
     min_normal_force: float = 0.0
     max_normal_force: float = 2000.0
     transition_time: float = 0.05
+    model_sole: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,7 @@ class TaskSetSpec:
     regularization_wrench: float = 1e-5
     joint_limit_horizon: float = 0.01
     solver: str = "daqp"
+    stabilizer: "DcmGains | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -159,7 +163,10 @@ def load_taskset(path: str | Path, robot: Robot) -> TaskSetSpec:
     contacts = ContactSpec(kp=c.float("kp", min=0.0), kd=c.float("kd", min=0.0), mu=c.float("mu", 0.3, positive=True),
                            min_normal_force=c.float("min_normal_force", 0.0, min=0.0),
                            max_normal_force=c.float("max_normal_force", 2000.0, positive=True),
-                           transition_time=c.float("transition_time", 0.05, min=0.0))
+                           transition_time=c.float("transition_time", 0.05, min=0.0),
+                           model_sole=tuple(c.vector("model_sole", length=2)) if c.has("model_sole") else None)
+    if contacts.model_sole is not None and min(contacts.model_sole) <= 0:
+        raise c.error("model_sole", "length and width must be > 0")
     if contacts.max_normal_force < contacts.min_normal_force:
         raise c.error("max_normal_force", "must be >= min_normal_force")
     c.finish()
@@ -168,11 +175,23 @@ def load_taskset(path: str | Path, robot: Robot) -> TaskSetSpec:
     sw.data.setdefault("frame", "left_foot")
     swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
+    stab = None
+    if root.has("stabilizer"):
+        from ..stabilizers import DcmGains
+
+        st = root.section("stabilizer")
+        cutoff = st.raw("zmp_cutoff_hz", None)
+        stab = DcmGains(kp_adm=st.float("kp_adm", min=0.0), kp_dcm=st.float("kp_dcm", min=0.0),
+                        ki_dcm=st.float("ki_dcm", min=0.0), kz_dcm=st.float("kz_dcm", min=0.0),
+                        integral_limit=st.float("integral_limit", 0.1, positive=True),
+                        zmp_cutoff_hz=None if cutoff is None else st.float("zmp_cutoff_hz", positive=True))
+        st.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
-                       solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), file=file)
+                       solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
+                       file=file)
     reg.finish()
     root.finish()
     return spec

@@ -1,8 +1,10 @@
 """State estimation from raw measurements: contact wrenches from ankle F/T sensors, CoP, ZMP and DCM.
 
-Pure numpy, independent of the simulator: every function takes one sample or one row per control tick.
+Independent of the simulator: every function takes one sample or one row per control tick (pure numpy);
+`BalanceEstimator` (balance.py) adds the robot model to anchor the CoM on the support foot.
 """
 
+from .balance import BalanceEstimator
 from .dcm import dcm, lipm_omega
 from .wrench import GRAVITY_WORLD, FootMass, Wrench, contact_wrench_from_ft, ft_from_contact_wrench
 from .zmp import (
@@ -15,6 +17,7 @@ from .zmp import (
 )
 
 __all__ = [
+    "BalanceEstimator",
     "DEFAULT_MIN_NORMAL_FORCE",
     "GRAVITY_WORLD",
     "CenterOfPressure",

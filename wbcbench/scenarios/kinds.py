@@ -25,12 +25,21 @@ class SwayScenario(Scenario):
         self.frequency = params.float("frequency", 0.5, positive=True)
         self.settle = params.float("skip_for_error", 0.0, min=0.0)
 
+    def setup(self, q0, com0):
+        import pinocchio as pin
+        super().setup(q0, com0)
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, q0)
+        self.ground = min(data.oMf[self.robot.sole_frame_id(s)].translation[2] for s in Side)
+
     def references(self, t: float) -> References:
         w = 2 * np.pi * self.frequency
         s, c = np.sin(w * t), np.cos(w * t)
         a = self.amplitude
-        return References(t=t, contacts=frozenset(Side), com=self.com0 + a * s, com_vel=a * w * c,
-                          com_acc=-a * w * w * s)
+        com, acc = self.com0 + a * s, -a * w * w * s
+        # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
+        zmp = np.array([*(com[:2] - (com[2] - self.ground) / 9.81 * acc[:2]), self.ground])
+        return References(t=t, contacts=frozenset(Side), com=com, com_vel=a * w * c, com_acc=acc, zmp=zmp)
 
     def metrics(self, log):
         com = channel(log, "com")
