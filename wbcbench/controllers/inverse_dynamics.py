@@ -23,7 +23,6 @@ mode holds the last integrated posture with zero velocity. Both events are count
 
 from __future__ import annotations
 
-from dataclasses import replace
 from time import perf_counter
 
 import numpy as np
@@ -33,6 +32,7 @@ from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
 from ..sim.model import ActuationMode
+from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import (AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, acceleration_rows,
                      update_kinematics)
 from ..types import Command, Measurement, References
@@ -136,13 +136,7 @@ class InverseDynamicsController(Controller):
         self.t = 0.0
         self.stabilizer = None
         if self.spec.stabilizer is not None and mode is not ActuationMode.TORQUE:
-            from ..estimation import BalanceEstimator
-            from ..stabilizers import DcmStabilizer
-
-            self.estimator = BalanceEstimator(robot, dt)
-            self.stabilizer_gains = self.spec.stabilizer
-            self.stabilizer = True
-        self.stab_log = np.full(6, np.nan)
+            self.stabilizer = BalanceStabilizer(robot, self.spec.stabilizer, dt)
 
     # ------------------------------------------------------------------ lifecycle
     def reset(self, meas: Measurement, refs: References) -> None:
@@ -151,11 +145,7 @@ class InverseDynamicsController(Controller):
         m, d = self.model, self.data
         update_kinematics(m, d, q, np.zeros(self.nv))
         if self.stabilizer is not None:
-            from ..stabilizers import DcmStabilizer
-
-            self.estimator.reset()
-            ground = min(pin.updateFramePlacement(m, d, self.robot.sole_frame_id(s)).translation[2] for s in Side)
-            self.dcm = DcmStabilizer(self.stabilizer_gains, dt=self.dt, com_height=float(d.com[0][2] - ground))
+            self.stabilizer.reset(q)
         for t in self.tasks:
             if isinstance(t, PostureTask):
                 t.set_reference(self.robot.q0)
@@ -208,8 +198,8 @@ class InverseDynamicsController(Controller):
         t0 = perf_counter()
         update_kinematics(m, d, q, v)
         self._t_pin = perf_counter() - t0
-        if self.stabilizer is not None and refs.zmp is not None and refs.com is not None:
-            refs = self._stabilize(meas, refs)
+        if self.stabilizer is not None:
+            refs = self.stabilizer.correct(meas, refs, self.q_int)
         self._set_references(refs)
         self._update_contacts(t, refs)
         active = [s for s in Side if self.contacts[s].active]
@@ -232,19 +222,6 @@ class InverseDynamicsController(Controller):
         self.v_int = self.v_int + dv * self.dt
         self.q_int = pin.integrate(m, self.q_int, self.v_int * self.dt)
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
-
-    def _stabilize(self, meas: Measurement, refs: References) -> References:
-        """DCM PI + CoM admittance (paper Eq. 3-4) on the measured ZMP and the support-anchored CoM."""
-        est = self.estimator
-        est.update(meas, self.q_int)
-        if not np.all(np.isfinite(est.zmp)):
-            return refs
-        out = self.dcm.step(p_com_ref=refs.com, v_com_ref=refs.com_vel, a_com_ref=refs.com_acc, p_zmp_ref=refs.zmp,
-                            p_com=est.com, v_com=est.com_vel, p_zmp=est.zmp)
-        self.stab_log[:2] = out.p_world_zmp_measured
-        self.stab_log[2:4] = out.p_world_zmp_desired
-        self.stab_log[4:6] = out.p_world_dcm
-        return replace(refs, com=out.p_world_com, com_vel=out.v_world_com, com_acc=out.a_world_com)
 
     def _set_references(self, refs: References) -> None:
         if refs.com is not None:
@@ -379,12 +356,13 @@ class InverseDynamicsController(Controller):
     def log_channels(self) -> dict[str, list[str]]:
         w = ["fx", "fy", "fz", "mx", "my", "mz"]
         return {"qp_status": [], "tau_cmd": self.robot.joint_names,
-                "stabilizer": ["zmp_x", "zmp_y", "zmp_des_x", "zmp_des_y", "dcm_x", "dcm_y"],
+                "stabilizer": BalanceStabilizer.LOG_LABELS,
                 "wrench_qp_left": w, "wrench_qp_right": w,
                 "contact_active": ["left", "right"]}
 
     def log_values(self) -> list:
-        return [self.qp_status, self.tau, self.stab_log, self.wrench[Side.LEFT], self.wrench[Side.RIGHT],
+        stab = self.stabilizer.log if self.stabilizer is not None else np.full(6, np.nan)
+        return [self.qp_status, self.tau, stab, self.wrench[Side.LEFT], self.wrench[Side.RIGHT],
                 [float(self.contacts[s].active) for s in Side]]
 
     def status(self) -> dict:

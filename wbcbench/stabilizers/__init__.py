@@ -2,6 +2,8 @@
 
 `dcm`: the DCM PI controller and CoM admittance of the position-controlled schemes (paper 000 Eq. 2-4,
 after Caron et al. 2019).
+`balance` (imported explicitly, it needs the robot model): `BalanceStabilizer`, the estimator and DCM
+stabilizer wired in front of a position-controlled whole-body controller.
 """
 
 from .dcm import (
