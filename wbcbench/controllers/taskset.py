@@ -24,7 +24,9 @@ MASK_LENGTH = {"com": 3, "frame": 6, "angular_momentum": 3}
 @dataclass(frozen=True)
 class TaskSpec:
     """One task. `kp`/`kd` are per-axis arrays (posture: per joint, resolved from joint-name prefixes);
-    `kd` None means 2 sqrt(kp). `priority` 0 makes the task a hard equality constraint, 1 a weighted cost."""
+    `kd` None means 2 sqrt(kp). `priority`: for the inverse-dynamics QP, 0 makes the task a hard equality
+    constraint and 1 a weighted cost; for the hierarchical IK it is the task's level (0 is the feet, tasks of
+    one level are weighted against each other)."""
 
     name: str
     type: str
@@ -115,7 +117,7 @@ def _gain_vector(sec: Section, key: str, n: int, robot: Robot | None, posture: b
     return val
 
 
-def _parse_task(sec: Section, robot: Robot, name: str | None = None) -> TaskSpec:
+def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priority: int = 1) -> TaskSpec:
     name = name or sec.str("name")
     ttype = sec.str("type", choices=TASK_TYPES)
     n = robot.na if ttype == "posture" else MASK_LENGTH[ttype]
@@ -141,26 +143,28 @@ def _parse_task(sec: Section, robot: Robot, name: str | None = None) -> TaskSpec
     kp = _gain_vector(sec, "kp", n, robot, ttype == "posture")
     kd = _gain_vector(sec, "kd", n, robot, ttype == "posture", default=None)
     priority = sec.int("priority", 1, min=0)
-    if priority > 1:
-        raise sec.error("priority", "must be 0 (hard constraint) or 1 (weighted cost)")
+    if priority > max_priority:
+        raise sec.error("priority", f"must be between 0 and {max_priority} for this controller "
+                        + ("(0: hard constraint, 1: weighted cost)" if max_priority == 1 else "(0 is the feet)"))
     sec.finish()
     return TaskSpec(name=name, type=ttype, weight=weight, kp=kp, kd=kd, mask=mask, frame=frame, priority=priority)
 
 
-def load_taskset(path: str | Path, robot: Robot) -> TaskSetSpec:
-    """Parse and validate a task-set file for `robot`; errors name the file and key."""
+def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskSetSpec:
+    """Parse and validate a task-set file for `robot`; errors name the file and key. `max_priority` is the
+    largest priority the controller accepts (1 for the weighted QP; the number of levels for the IK)."""
     file = str(path)
     root = Section(load_yaml(path), file)
     tasks = []
     names = set()
     for i, raw in enumerate(root.list("tasks")):
-        t = _parse_task(Section(raw, file, f"tasks[{i}]"), robot)
+        t = _parse_task(Section(raw, file, f"tasks[{i}]"), robot, max_priority=max_priority)
         if t.name in names:
             raise ConfigError(f"task name '{t.name}' used twice", file=file, key=f"tasks[{i}].name")
         names.add(t.name)
         tasks.append(t)
     c = root.section("contacts")
-    contacts = ContactSpec(kp=c.float("kp", min=0.0), kd=c.float("kd", min=0.0), mu=c.float("mu", 0.3, positive=True),
+    contacts = ContactSpec(kp=c.float("kp", min=0.0), kd=c.float("kd", 0.0, min=0.0), mu=c.float("mu", 0.3, positive=True),
                            min_normal_force=c.float("min_normal_force", 0.0, min=0.0),
                            max_normal_force=c.float("max_normal_force", 2000.0, positive=True),
                            transition_time=c.float("transition_time", 0.05, min=0.0),
@@ -173,7 +177,7 @@ def load_taskset(path: str | Path, robot: Robot) -> TaskSetSpec:
     sw = root.section("swing_foot")
     sw.data.setdefault("type", "frame")
     sw.data.setdefault("frame", "left_foot")
-    swing = _parse_task(sw, robot, name="swing_foot")
+    swing = _parse_task(sw, robot, name="swing_foot", max_priority=max_priority)
     reg = root.section("regularization", {})
     stab = None
     if root.has("stabilizer"):
