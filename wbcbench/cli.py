@@ -1,4 +1,5 @@
-"""The command line: `wbcbench run SCENARIO --controller NAME [--robot R] [--mode M] [--duration S] [--out DIR]`."""
+"""The command line: `wbcbench run SCENARIO --controller NAME [--robot R] [--mode M] [--duration S] [--out DIR]`,
+`wbcbench list`, and the report commands `reproduce`, `report`, `compare` (wbcbench/report/commands.py)."""
 
 from __future__ import annotations
 
@@ -36,6 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
+    from .report.commands import add_subcommands
+    add_subcommands(sub)
     return p
 
 
@@ -71,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "run":
             return _cmd_run(args)
+        from .report.commands import COMMANDS, run_command
+        if args.command in COMMANDS:
+            return run_command(args)
     except WbcError as exc:
         print(f"wbcbench: error: {exc}", file=sys.stderr)
         return 2

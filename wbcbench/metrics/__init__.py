@@ -4,6 +4,7 @@
 - energy: E_m, E_m+ and the costs of transport C_et, C_mt (Eq. 10).
 - pgm: gait stages from contact flags and the passivity gait measure (Eq. 11-12).
 - timing: controller compute time per tick.
+- from_log: all of the above for one run, from its log and the robot model (`compute_run_metrics`).
 """
 
 from .energy import (
@@ -14,6 +15,15 @@ from .energy import (
     horizontal_distance,
     joint_power,
     mechanical_energy,
+)
+from .from_log import (
+    MIN_COT_DISTANCE_M,
+    PAPER_MASS_KG,
+    ankle_joints,
+    compute_run_metrics,
+    contact_zmp,
+    ft_contact_wrenches,
+    measured_zmp,
 )
 from .pgm import (
     GaitSegment,
@@ -27,16 +37,23 @@ from .timing import TimingStats, timing_stats
 from .tracking import tracking_error_stats
 
 __all__ = [
-    "STANDARD_GRAVITY",
     "CostOfTransport",
     "GaitSegment",
     "GaitStage",
+    "MIN_COT_DISTANCE_M",
     "MechanicalEnergy",
+    "PAPER_MASS_KG",
     "PassivityGaitMeasure",
+    "STANDARD_GRAVITY",
     "TimingStats",
+    "ankle_joints",
+    "compute_run_metrics",
+    "contact_zmp",
     "cost_of_transport",
+    "ft_contact_wrenches",
     "horizontal_distance",
     "joint_power",
+    "measured_zmp",
     "mechanical_energy",
     "passivity_gait_measure",
     "split_gait_stages",

@@ -1,0 +1,131 @@
+"""Reports: the paper's numbers as data, report/compare from run directories, reproduce on a tiny matrix."""
+
+import io
+import json
+import shutil
+
+import pytest
+from rich.console import Console
+
+from wbcbench.cli import main
+from wbcbench.report import PAPER_TABLES, compare, compare_rows, paper_value, report, reproduce
+from wbcbench.report import matrix
+from wbcbench.report.paper import CONTROLLERS, SCENARIOS
+
+
+def strict_json(path):
+    def no_constants(name):
+        raise ValueError(f"non-standard JSON constant {name}")
+    return json.loads(path.read_text(), parse_constant=no_constants)
+
+
+# ------------------------------------------------------------------------------------------ paper data
+def test_paper_tables_are_complete_and_consistent():
+    assert sorted(PAPER_TABLES) == [f"table{i}" for i in range(2, 9)]
+    for t in PAPER_TABLES.values():
+        assert t.cells(), t.id
+        for c, s in t.cells():
+            assert c in CONTROLLERS and s in SCENARIOS
+            assert set(t.values[c][s]) == {m.key for m in t.metrics}, (t.id, c, s)
+    # ZMP, CoM and feet statistics: mean and std never above the peak
+    for tid in ("table2", "table3", "table4", "table5"):
+        t = PAPER_TABLES[tid]
+        for c, s in t.cells():
+            v = t.values[c][s]
+            for key in v:
+                if key.endswith(".mean") or key.endswith(".std"):
+                    assert v[key] <= v[key.rsplit(".", 1)[0] + ".peak"], (tid, c, s, key)
+    # the published costs of transport are E / (m g D) with m g = 981 N (D = 1.2 m and 3.6 m walks)
+    t6 = PAPER_TABLES["table6"]
+    for c, s in t6.cells():
+        d = {"walk-20cm": 1.2, "walk-60cm": 3.6}.get(s)
+        if d:
+            v = t6.values[c][s]
+            assert v["E_m"] / (981 * d) == pytest.approx(v["C_et"], abs=0.006), (c, s)
+            assert v["E_m_plus"] / (981 * d) == pytest.approx(v["C_mt"], abs=0.006), (c, s)
+    assert paper_value("table2", "tsid-torque", "walk-20cm", "zmp_error_m.y.mean") == 0.011
+    assert paper_value("table8", "tsid-torque", "walk-60cm", "compute_time_ms.peak") == 6.0
+    assert paper_value("table7", "ik", "walk-60cm", "pgm.double_support") is None  # "-" in the paper
+
+
+# ------------------------------------------------------------------------------------------ report
+def test_report_from_two_run_dirs(two_runs, tmp_path):
+    out = tmp_path / "rep"
+    res = report(list(two_runs), out)
+    assert res.errors == []
+    md = (out / "report.md").read_text()
+    assert "ours" in md and "paper" in md and "missing" in md
+    assert "| 0.019 |" in md  # Table 2, IK x mean, the paper's number
+    assert "<table>" in (out / "report.html").read_text()
+    results = strict_json(out / "results.json")
+    leaf = results["tables"]["table2"]["values"]["ik"]["walk-20cm"]["zmp_error_m.x.mean"]
+    assert leaf == {"ours": "missing", "paper": 0.019, "unit": "m"}
+    assert set(results["sanity"]["joint-pd"]) == {"stand", "sway"}
+    assert results["metrics"]["joint-pd"]["sway"]["com_error_m"]["y"]["peak"] > 0
+    assert (out / "figures" / "sanity_sway.png").stat().st_size > 1000
+
+
+def test_truncated_or_missing_log_is_one_line_and_others_still_report(two_runs, tmp_path, capsys):
+    good, src = two_runs
+    bad = tmp_path / "bad-run"
+    shutil.copytree(src, bad)
+    log = bad / "log.parquet"
+    log.write_bytes(log.read_bytes()[: log.stat().st_size // 2])
+    out = tmp_path / "rep"
+    assert main(["report", str(good), str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(log) in err[0] and "truncated" in err[0] and "Traceback" not in err[0]
+    results = strict_json(out / "results.json")
+    assert [r["scenario"] for r in results["runs"]] == ["stand"]
+    assert str(log) in results["errors"][0]
+
+    log.unlink()
+    assert main(["compare", str(good), str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(log) in err[0] and "missing" in err[0]
+
+
+def test_compare_two_runs(two_runs):
+    a, b = two_runs
+    rows = {r.key: r for r in compare_rows(a, b)}
+    assert (rows["summary.scenario"].a, rows["summary.scenario"].b) == ("stand", "sway")
+    e = rows["metrics.E_m"]
+    assert e.diff == pytest.approx(e.b - e.a)
+    buf = io.StringIO()
+    compare(a, b, Console(file=buf, width=200))
+    assert "metrics.E_m" in buf.getvalue() and "B - A" in buf.getvalue()
+
+
+# ------------------------------------------------------------------------------------------ reproduce
+@pytest.mark.parametrize("jobs", [1, 2], ids=["inline", "2-processes"])
+def test_reproduce_tiny_matrix_marks_absent_scenarios_missing(monkeypatch, tmp_path, jobs):
+    monkeypatch.setattr(matrix, "PAPER_MATRIX", (("tsid-torque", "walk-20cm"), ("ik", "stairs")))
+    monkeypatch.setattr(matrix, "FAST_MATRIX", ())
+    monkeypatch.setattr(matrix, "SANITY_SCENARIOS", ("stand", "push"))
+    monkeypatch.setattr(matrix, "SANITY_CONTROLLERS", ("joint-pd",))
+    monkeypatch.setattr(matrix, "QUICK_SANITY_CAP_S", 0.2)
+    # whatever exists in the registry by now, the walks are absent here
+    monkeypatch.setattr(matrix, "available_scenarios", lambda: ["stand", "push"])
+    res = reproduce(tmp_path / "rep", quick=True, jobs=jobs, progress=jobs == 1)
+    results = strict_json(tmp_path / "rep" / "results.json")
+    assert results["wall_time_s"] == pytest.approx(res.wall_time_s) and res.wall_time_s > 0
+    status = {(r["controller"], r["scenario"]): (r["status"], r["reason"]) for r in results["runs"]}
+    assert status[("tsid-torque", "walk-20cm")] == ("missing", "scenario 'walk-20cm' does not exist yet")
+    assert status[("ik", "stairs")][0] == "missing"
+    assert status[("joint-pd", "stand")] == ("ok", None) and status[("joint-pd", "push")][0] == "ok"
+    t2 = results["tables"]["table2"]["values"]
+    assert t2["tsid-torque"]["walk-20cm"]["zmp_error_m.x.mean"] == {"ours": "missing", "paper": 0.026, "unit": "m"}
+    assert results["sanity"]["joint-pd"]["stand"]["metrics"]["duration_s"] == pytest.approx(0.2)
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "missing" in md and "wall time of the full run" in md
+    assert (tmp_path / "rep" / "runs" / "sanity-stand-joint-pd" / "log.parquet").exists()
+
+
+def test_cli_lists_report_commands(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for name in ("reproduce", "report", "compare"):
+        assert name in out
+    assert main(["reproduce", "--jobs", "0", "--out", "x"]) == 2
+    assert "--jobs" in capsys.readouterr().err

@@ -1,0 +1,63 @@
+"""The report subcommands of the command line: `reproduce`, `report` and `compare`.
+
+    wbcbench reproduce [--quick] [--jobs N] --out DIR
+    wbcbench report RUN_DIR... --out DIR
+    wbcbench compare RUN_A RUN_B
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+COMMANDS = ("reproduce", "report", "compare")
+
+
+def add_subcommands(sub: argparse._SubParsersAction) -> None:
+    """Register the report subcommands on the CLI's subparsers."""
+    r = sub.add_parser("reproduce", help="run the paper's matrix in parallel and write report.md/html, "
+                                         "results.json and figures")
+    r.add_argument("--out", "-o", required=True, help="report directory (run directories go to DIR/runs)")
+    r.add_argument("--quick", action="store_true", help="shortened walks and sanity runs (minutes, not an hour)")
+    r.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores available)")
+    r.add_argument("--no-sanity", action="store_true", help="skip the standing scenarios' sanity section")
+    r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
+    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories (from `wbcbench run`)")
+    p.add_argument("--out", "-o", required=True, help="report directory")
+    c = sub.add_parser("compare", help="two runs' summaries and metrics side by side")
+    c.add_argument("run_a", metavar="A", help="run directory A")
+    c.add_argument("run_b", metavar="B", help="run directory B")
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Execute a report subcommand. Domain errors propagate to the CLI (one line, exit 2)."""
+    from rich.console import Console
+
+    from ..errors import WbcError
+    from .compare import compare
+    from .reproduce import report, reproduce
+
+    console = Console()
+    if args.command == "reproduce":
+        if args.jobs is not None and args.jobs < 1:
+            raise WbcError(f"--jobs must be >= 1, got {args.jobs}")
+        res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
+                        sanity=not args.no_sanity)
+        counts: dict[str, int] = {}
+        for o in res.outcomes:
+            counts[o.status] = counts.get(o.status, 0) + 1
+        console.print(f"{len(res.outcomes)} cells: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())))
+        console.print(f"wall time {res.wall_time_s:.1f} s; report: {res.out_dir / 'report.md'}, "
+                      f"{res.out_dir / 'report.html'}, {res.out_dir / 'results.json'}")
+        return 0
+    if args.command == "report":
+        res = report(args.run_dirs, args.out)
+        for e in res.errors:
+            print(f"wbcbench: error: {e}", file=sys.stderr)
+        console.print(f"{len(res.outcomes)} run(s) reported in {res.out_dir / 'report.md'}")
+        return 2 if res.errors else 0
+    if args.command == "compare":
+        compare(args.run_a, args.run_b, console)
+        return 0
+    raise ValueError(f"not a report command: {args.command}")

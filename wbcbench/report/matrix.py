@@ -1,0 +1,104 @@
+"""What `reproduce` runs: the paper's matrix of controllers x scenarios, plus a sanity section.
+
+Names that do not exist (yet) in the scenario or controller registries become MISSING jobs: nothing is run
+and nothing is invented for them. The module-level constants are the defaults; tests may monkeypatch them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .paper import CONTROLLERS
+from .runs import QUICK_SUFFIX
+
+PAPER_MATRIX: tuple[tuple[str, str], ...] = (
+    *((c, s) for s in ("walk-20cm", "platforms", "stairs") for c in CONTROLLERS),
+    ("tsid-torque", "walk-60cm"),
+)
+"""(controller, scenario) pairs with published numbers (Tables 2-8)."""
+
+FAST_MATRIX: tuple[tuple[str, str], ...] = tuple((c, "walk-20cm-fast") for c in CONTROLLERS)
+"""The faster 20 cm walk (single/double 0.711/0.089 s): reported as working, no numbers published."""
+
+SANITY_SCENARIOS: tuple[str, ...] = ("stand", "sway", "push", "one-foot")
+"""Standing scenarios run with every available controller (the "sanity" section)."""
+
+SANITY_CONTROLLERS: tuple[str, ...] | None = None
+"""Controllers for the sanity section; None = every registered controller."""
+
+QUICK_WALK_CAP_S = 6.0
+"""--quick: duration cap [s] of a walk that has no "<name>-quick" scenario file."""
+
+QUICK_SANITY_CAP_S = 4.0
+"""--quick: duration cap [s] of the sanity runs (long enough for the push at 1 s and one-foot's lift)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One cell of the matrix.
+
+    Attributes:
+        section: "paper", "fast" or "sanity".
+        controller: controller registry name.
+        scenario: scenario key in the report.
+        scenario_run: scenario file to run (a "-quick" variant in quick mode when it exists); None if missing.
+        duration_cap_s: duration override [s], None = the scenario's own duration.
+        missing: why it cannot run (unknown scenario or controller), None if it can.
+    """
+
+    section: str
+    controller: str
+    scenario: str
+    scenario_run: str | None
+    duration_cap_s: float | None
+    missing: str | None
+
+    @property
+    def name(self) -> str:
+        return f"{self.section}-{self.scenario}-{self.controller}"
+
+
+def available_scenarios() -> list[str]:
+    from ..scenarios import available_scenarios as _scen
+
+    return _scen()
+
+
+def available_controllers() -> list[str]:
+    from ..controllers.base import available_controllers as _ctrl
+
+    return list(_ctrl())
+
+
+def section_of(scenario: str) -> str:
+    if any(s == scenario for _, s in PAPER_MATRIX):
+        return "paper"
+    if any(s == scenario for _, s in FAST_MATRIX):
+        return "fast"
+    return "sanity"
+
+
+def _job(section: str, controller: str, scenario: str, quick: bool, cap: float | None,
+         scenarios: list[str], controllers: list[str]) -> Job:
+    missing = []
+    if scenario not in scenarios:
+        missing.append(f"scenario '{scenario}' does not exist yet")
+    if controller not in controllers:
+        missing.append(f"controller '{controller}' does not exist yet")
+    if missing:
+        return Job(section, controller, scenario, None, None, "; ".join(missing))
+    if quick and scenario + QUICK_SUFFIX in scenarios:
+        return Job(section, controller, scenario, scenario + QUICK_SUFFIX, None, None)
+    return Job(section, controller, scenario, scenario, cap if quick else None, None)
+
+
+def plan_jobs(quick: bool = False, sanity: bool = True) -> list[Job]:
+    """The jobs of a reproduction: paper matrix, fast walk, then (if `sanity`) the sanity section."""
+    scenarios, controllers = available_scenarios(), available_controllers()
+    jobs = [_job("paper", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in PAPER_MATRIX]
+    jobs += [_job("fast", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in FAST_MATRIX]
+    if sanity:
+        sanity_ctrls = list(SANITY_CONTROLLERS) if SANITY_CONTROLLERS is not None else controllers
+        jobs += [_job("sanity", c, s, quick, QUICK_SANITY_CAP_S, scenarios, controllers)
+                 for s in SANITY_SCENARIOS for c in sanity_ctrls]
+    return jobs

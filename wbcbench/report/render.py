@@ -1,0 +1,308 @@
+"""report.md and report.html from results.json content: the paper's tables with our number beside the
+paper's ("ours" / "paper"), the fast walk, the sanity section, the figures and the list of runs."""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+
+from .figures import FigureInfo
+from .paper import CONTROLLER_LABELS, SCENARIO_LABELS
+from .tables import ERROR_VALUE, MISSING_VALUE, dig
+
+
+@dataclass
+class RenderTable:
+    """A table ready to print: title, header cells, rows of cells (strings), notes under it."""
+
+    title: str
+    header: list[str]
+    rows: list[list[str]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def fmt(v, unit: str = "") -> str:
+    """A value in a table cell: numbers to a precision fit for their unit, states as words."""
+    if v is None:
+        return "n/a"
+    if isinstance(v, str):
+        return v
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    v = float(v)
+    if unit == "J":
+        return f"{v:.1f}"
+    if unit == "m":
+        return f"{v:.3f}" if abs(v) >= 0.001 or v == 0 else f"{v:.1e}"
+    if unit in ("ms",):
+        return f"{v:.2f}" if abs(v) >= 0.01 else f"{v:.1e}"
+    if v == 0:
+        return "0"
+    if abs(v) >= 1000:
+        return f"{v:.0f}"
+    if v == int(v) and abs(v) < 1000:
+        return f"{v:.1f}"
+    if abs(v) >= 0.01:
+        return f"{v:.3g}"
+    return f"{v:.2e}"
+
+
+def _ctrl(controller: str, status: str) -> str:
+    name = CONTROLLER_LABELS.get(controller, controller)
+    if status in (MISSING_VALUE, "ok"):
+        return name
+    return f"{name} [{status}]"
+
+
+def _pair(leaf: dict | None) -> list[str]:
+    if leaf is None:
+        return ["-", "-"]
+    return [fmt(leaf["ours"], leaf.get("unit", "")), fmt(leaf["paper"], leaf.get("unit", ""))]
+
+
+def _stats_table(res: dict, tid: str, groups: list[tuple[str, str]]) -> RenderTable:
+    """ZMP / CoM / feet tables: rows (controller or body, axis), columns Average / Std / Peaks x ours / paper.
+
+    groups: (label, metric prefix), e.g. ("CoM", "com_error_m"); empty label = the controller.
+    """
+    t = res["tables"][tid]
+    first = "Body" if any(g for g, _ in groups) else "Control scheme"
+    header = [first, "Axis"] + [f"{c} {w}" for c in ("Average", "Std", "Peaks") for w in ("ours", "paper")]
+    table = RenderTable(f"Table {t['number']}: {t['title']} [m]", header)
+    for controller, per_scen in t["values"].items():
+        for scenario, row in per_scen.items():
+            for label, prefix in groups:
+                for axis in ("x", "y"):
+                    cells = []
+                    for stat in ("mean", "std", "peak"):
+                        cells += _pair(row.get(f"{prefix}.{axis}.{stat}"))
+                    who = label if label else _ctrl(controller, row["status"])
+                    if label and row["status"] != "ok":
+                        who += f" [{row['status']}]"
+                    table.rows.append([who, f"{axis}-axis", *cells])
+    if t.get("notes"):
+        table.notes.append(t["notes"])
+    return table
+
+
+def _energy_table(res: dict) -> RenderTable:
+    t = res["tables"]["table6"]
+    metrics = [("E_m", "E_m [J]"), ("E_m_plus", "E_m+ [J]"), ("C_et", "C_et [J/kg/m]"), ("C_mt", "C_mt [J/kg/m]")]
+    header = ["Control scheme", "Simulation"] + [f"{lab} {w}" for _, lab in metrics for w in ("ours", "paper")]
+    header += ["C_et ours (model mass)", "C_mt ours (model mass)"]
+    table = RenderTable(f"Table {t['number']}: {t['title']}", header)
+    for label, vals in t["paper_reference_rows"].items():
+        cells = []
+        for key, _ in metrics:
+            cells += ["-", fmt(vals.get(key, "-"))]
+        table.rows.append([f"{label} (paper only)", "-", *cells, "-", "-"])
+    for controller, per_scen in t["values"].items():
+        for scenario, row in per_scen.items():
+            cells = []
+            for key, _ in metrics:
+                cells += _pair(row.get(key))
+            cells += [fmt(row["C_et_robot_mass"]["ours"]), fmt(row["C_mt_robot_mass"]["ours"])]
+            table.rows.append([_ctrl(controller, row["status"]), SCENARIO_LABELS.get(scenario, scenario), *cells])
+    table.notes.append(t["notes"])
+    return table
+
+
+def _pgm_table(res: dict) -> RenderTable:
+    t = res["tables"]["table7"]
+    metrics = [("pgm.double_support", "Double S."), ("pgm.single_support", "Single S."),
+               ("pgm.flying_foot", "Flying F.")]
+    header = ["Control scheme", "Simulation"] + [f"{lab} {w}" for _, lab in metrics for w in ("ours", "paper")]
+    table = RenderTable(f"Table {t['number']}: {t['title']}", header)
+    for label, vals in t["paper_reference_rows"].items():
+        cells = []
+        for key, _ in metrics:
+            cells += ["-", fmt(vals.get(key, "-"))]
+        table.rows.append([f"{label} (paper only)", "-", *cells])
+    for controller, per_scen in t["values"].items():
+        for scenario, row in per_scen.items():
+            cells = []
+            for key, _ in metrics:
+                cells += _pair(row.get(key))
+            table.rows.append([_ctrl(controller, row["status"]), SCENARIO_LABELS.get(scenario, scenario), *cells])
+    table.notes.append("PGM = 1 - RMS(stance/flying ankle torque) / RMS(all joint torques) per gait stage of the "
+                       "scenario's contact schedule; ankles = the two joints above each sole.")
+    return table
+
+
+def _time_table(res: dict) -> RenderTable:
+    t = res["tables"]["table8"]
+    scen = ["walk-20cm", "walk-60cm", "platforms", "stairs"]
+    header = ["Control scheme", "Statistic"] + [f"{SCENARIO_LABELS[s]} {w}" for s in scen for w in ("ours", "paper")]
+    table = RenderTable(f"Table {t['number']}: {t['title']} [ms]", header)
+    for controller, per_scen in t["values"].items():
+        for stat, key in (("Average", "compute_time_ms.mean"), ("Peaks", "compute_time_ms.peak")):
+            cells = []
+            for s in scen:
+                cells += _pair(per_scen[s].get(key)) if s in per_scen else ["-", "-"]
+            table.rows.append([CONTROLLER_LABELS.get(controller, controller), stat, *cells])
+    table.notes.append(t["notes"])
+    return table
+
+
+def _fast_table(res: dict) -> RenderTable:
+    fw = res["fast_walk"]
+    header = ["Control scheme", "Status", "ZMP x Average ours", "ZMP x Peaks ours", "ZMP y Average ours",
+              "ZMP y Peaks ours", "paper"]
+    table = RenderTable("Fast 20 cm walk (single/double support 0.711/0.089 s)", header)
+    for controller, v in fw["values"].items():
+        z = v.get("zmp_error_m") or {}
+        status = v["status"] + (f": {v['reason']}" if v.get("reason") else "")
+        table.rows.append([CONTROLLER_LABELS.get(controller, controller), status,
+                           fmt(dig(z, "x.mean"), "m"), fmt(dig(z, "x.peak"), "m"),
+                           fmt(dig(z, "y.mean"), "m"), fmt(dig(z, "y.peak"), "m"), v["paper"]])
+    table.notes.append(fw["note"])
+    return table
+
+
+def _sanity_table(res: dict) -> RenderTable:
+    header = ["Controller", "Scenario", "Status", "Simulated [s]", "CoM y error Average [m]", "CoM y error Peaks [m]",
+              "ZMP F/T vs contact peak [m]", "E_m [J]", "PGM double S.", "Compute mean [ms]",
+              "Compute p99 [ms]", "Compute max [ms]"]
+    table = RenderTable("Sanity: standing scenarios with every available controller (no published numbers)",
+                        header)
+    runs = {(r["controller"], r["scenario"]): r for r in res["runs"]}
+    for controller, per_scen in res["sanity"].items():
+        for scenario, v in per_scen.items():
+            m = v.get("metrics") or {}
+            r = runs.get((controller, scenario), {})
+            status = v["status"] + (f": {v['reason']}" if v.get("reason") else "")
+            zv = [dig(m, f"zmp_ft_vs_contact_m.{a}.peak") for a in ("x", "y")]
+            zv = [z for z in zv if z is not None]
+            ct = m.get("compute_time_us") or {}
+            table.rows.append([
+                controller, scenario, status, fmt(r.get("sim_time_s")),
+                fmt(dig(m, "com_error_m.y.mean"), "m"), fmt(dig(m, "com_error_m.y.peak"), "m"),
+                fmt(max(zv) if zv else None, "m"), fmt(m.get("E_m"), "J"), fmt(dig(m, "pgm.double_support")),
+                *(fmt(ct[k] * 1e-3 if ct.get(k) is not None else None, "ms") for k in ("mean", "p99", "max"))])
+    table.notes.append("'ZMP F/T vs contact' is the largest difference between the ZMP from the ankle F/T sensors "
+                       "and the ZMP of MuJoCo's ground-truth contact forces: how far the estimate can be trusted.")
+    return table
+
+
+def _runs_table(res: dict) -> RenderTable:
+    table = RenderTable("Runs", ["Section", "Controller", "Scenario", "Run as", "Status", "Reason", "Simulated [s]",
+                                 "Wall [s]", "Run directory"])
+    for r in res["runs"]:
+        run_as = r["scenario_run"] or "-"
+        if r.get("duration_cap_s"):
+            run_as += f" (capped at {r['duration_cap_s']:g} s)"
+        table.rows.append([r["section"], r["controller"], r["scenario"], run_as, r["status"], r["reason"] or "",
+                           fmt(r.get("sim_time_s")), fmt(r.get("wall_time_s")), r["run_dir"] or "-"])
+    return table
+
+
+def build_tables(res: dict) -> list[RenderTable]:
+    """All tables of the report, in order."""
+    zmp = [("", "zmp_error_m")]
+    return [
+        _stats_table(res, "table2", zmp),
+        _stats_table(res, "table3", [("CoM", "com_error_m"), ("Left foot", "feet_error_m.left"),
+                                     ("Right foot", "feet_error_m.right")]),
+        _stats_table(res, "table4", zmp),
+        _stats_table(res, "table5", zmp),
+        _energy_table(res),
+        _pgm_table(res),
+        _time_table(res),
+        _fast_table(res),
+        _sanity_table(res),
+    ]
+
+
+def _preamble(res: dict) -> list[str]:
+    lines = [f"Paper: {res['paper']}.", "",
+             "Every table keeps the paper's layout; each number has two columns: **ours** (computed by wbcbench "
+             "from our MuJoCo runs) and **paper** (published). 'missing': that scenario or controller does not "
+             "exist in wbcbench yet, nothing was run. 'error': the run left no usable log. 'n/a': the run exists "
+             "but the metric is undefined or its inputs were not logged. [fell]: our run fell; its numbers cover "
+             "the log up to the fall.", ""]
+    meta = [f"command: {res['command']}"]
+    if res.get("quick") is not None:
+        meta.append(f"quick: {'yes' if res['quick'] else 'no'}")
+    if res.get("jobs"):
+        meta.append(f"parallel jobs: {res['jobs']}")
+    if res.get("wall_time_s") is not None:
+        what = "wall time of the full run" if res["command"].startswith("reproduce") else "time to remake the report"
+        meta.append(f"{what}: {res['wall_time_s']:.1f} s")
+    meta.append(f"generated: {res['generated_at']}")
+    lines.append("; ".join(meta) + ".")
+    if res.get("quick"):
+        lines += ["", "Quick mode: walks use their '-quick' scenario when one exists, else are cut at a duration "
+                  "cap; the numbers are therefore NOT comparable with the paper's full runs."]
+    return lines
+
+
+def to_markdown(res: dict, figures: list[FigureInfo]) -> str:
+    def esc(s: str) -> str:
+        return s.replace("|", "\\|").replace("\n", " ")
+
+    out = ["# wbcbench: reproduction of the TALOS whole-body controller benchmark", "", *_preamble(res), ""]
+    if res.get("errors"):
+        out += ["## Errors", ""] + [f"- {esc(e)}" for e in res["errors"]] + [""]
+    for t in build_tables(res) + [_runs_table(res)]:
+        out += [f"## {t.title}", ""]
+        if t.rows:
+            out.append("| " + " | ".join(esc(h) for h in t.header) + " |")
+            out.append("|" + "---|" * len(t.header))
+            out += ["| " + " | ".join(esc(c) for c in row) + " |" for row in t.rows]
+        else:
+            out.append("(no runs)")
+        out += [""] + [f"_{esc(n)}_" for n in t.notes] + ([""] if t.notes else [])
+    out += ["## Figures", ""]
+    if not figures:
+        out += ["(no figure: none of their runs exist yet)", ""]
+    for f in figures:
+        out += [f"### {f.title}", "", f"![{f.title}]({f.file})", "", f.caption, ""]
+    return "\n".join(out)
+
+
+def to_html(res: dict, figures: list[FigureInfo]) -> str:
+    e = html.escape
+    css = ("body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+           "table{border-collapse:collapse;margin:0.5em 0;font-size:13px}"
+           "th,td{border:1px solid #bbb;padding:3px 7px;text-align:right}"
+           "td:first-child,th:first-child,td.txt{text-align:left}"
+           "th.ours,td.ours{background:#eef6ee}th.paper,td.paper{background:#f2f2f8}"
+           "td.missing{color:#a33}p.note{font-size:12px;color:#444}img{max-width:100%}")
+    out = ["<!DOCTYPE html>", "<html><head><meta charset='utf-8'>",
+           "<title>wbcbench reproduction report</title>", f"<style>{css}</style></head><body>",
+           "<h1>wbcbench: reproduction of the TALOS whole-body controller benchmark</h1>"]
+    out += [f"<p>{e(line)}</p>".replace("**ours**", "<b>ours</b>").replace("**paper**", "<b>paper</b>")
+            for line in _preamble(res) if line]
+    if res.get("errors"):
+        out += ["<h2>Errors</h2><ul>"] + [f"<li>{e(x)}</li>" for x in res["errors"]] + ["</ul>"]
+    for t in build_tables(res) + [_runs_table(res)]:
+        out.append(f"<h2>{e(t.title)}</h2>")
+        if not t.rows:
+            out.append("<p>(no runs)</p>")
+        else:
+            out.append("<table><tr>")
+            for h in t.header:
+                cls = "ours" if h.endswith(" ours") else "paper" if h.endswith(" paper") else ""
+                out.append(f"<th class='{cls}'>{e(h)}</th>")
+            out.append("</tr>")
+            for row in t.rows:
+                out.append("<tr>")
+                for h, c in zip(t.header, row, strict=True):
+                    cls = "ours" if h.endswith(" ours") else "paper" if h.endswith(" paper") else "txt"
+                    if c in (MISSING_VALUE, ERROR_VALUE):
+                        cls += " missing"
+                    out.append(f"<td class='{cls}'>{e(c)}</td>")
+                out.append("</tr>")
+            out.append("</table>")
+        out += [f"<p class='note'>{e(n)}</p>" for n in t.notes]
+    out.append("<h2>Figures</h2>")
+    if not figures:
+        out.append("<p>(no figure: none of their runs exist yet)</p>")
+    for f in figures:
+        out += [f"<h3>{e(f.title)}</h3>", f"<img src='{e(f.file)}' alt='{e(f.title)}'>",
+                f"<p class='note'>{e(f.caption)}</p>"]
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+__all__ = ["RenderTable", "build_tables", "fmt", "to_html", "to_markdown"]

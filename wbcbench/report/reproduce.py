@@ -1,0 +1,257 @@
+"""`reproduce`: run the paper's matrix in parallel processes and write the report; `report`: the same report
+from existing run directories, without simulating.
+
+Output directory:
+    report.md, report.html   the paper's tables (ours beside the paper's), fast walk, sanity, figures, runs
+    results.json             every number, ours and the paper's (see wbcbench.report.tables)
+    figures/*.png            the paper's figures redrawn from our logs
+    runs/<section>-<scenario>-<controller>/   the run directories (reproduce only)
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import queue as queue_mod
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import WbcError
+from . import matrix
+from .figures import FigureInfo, draw_figures
+from .render import to_html, to_markdown
+from .runs import ERROR, FELL, MISSING, OK, ReportError, RunOutcome, load_run, read_run_log, run_metrics
+from .tables import build_results
+
+
+@dataclass
+class ReportResult:
+    """What `reproduce` / `report` wrote.
+
+    Attributes:
+        out_dir: the report directory.
+        results: the content of results.json.
+        outcomes: one per job or run directory.
+        figures: figures written.
+        errors: one line per run directory that could not be reported (report only).
+        wall_time_s: wall time of the whole call [s].
+    """
+
+    out_dir: Path
+    results: dict
+    outcomes: list[RunOutcome]
+    figures: list[FigureInfo] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    wall_time_s: float = 0.0
+
+
+def default_jobs() -> int:
+    """Number of cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+# ------------------------------------------------------------------------------------------- workers
+_SINK: Callable[[tuple], None] | None = None
+"""Where `execute` reports progress: a queue to the parent in a worker process, the progress bar inline."""
+
+
+def _init_worker(q) -> None:
+    global _SINK
+    _SINK = q.put_nowait
+
+
+def _send(*msg) -> None:
+    if _SINK is not None:
+        try:
+            _SINK(msg)
+        except Exception:  # progress is best effort
+            pass
+
+
+def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
+    """Run one job and compute its metrics (in a worker process or inline). Never raises for a run failure."""
+    base = dict(section=job.section, controller=job.controller, scenario=job.scenario,
+                scenario_run=job.scenario_run, duration_cap_s=job.duration_cap_s)
+    if job.missing:
+        return RunOutcome(status=MISSING, reason=job.missing, **base)
+    from ..runner import run
+
+    run_dir = Path(runs_root) / job.name
+    _send("start", job.name)
+    try:
+        result = run(job.scenario_run, job.controller, "talos", None, job.duration_cap_s, run_dir,
+                     progress=lambda f: _send("progress", job.name, f))
+    except WbcError as exc:
+        return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
+    except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)
+        return RunOutcome(status=ERROR, reason=f"{type(exc).__name__}: {exc}", run_dir=str(run_dir), **base)
+    finally:
+        _send("done", job.name)
+    summary = result.summary
+    status, reason = (FELL, summary.get("fall_reason")) if summary.get("fell") else (OK, None)
+    if not result.log:
+        return RunOutcome(status=ERROR, reason=reason or "no log row written", run_dir=str(run_dir),
+                          summary=summary, **base)
+    config = json.loads((run_dir / "config.json").read_text())
+    try:
+        metrics = run_metrics(run_dir, summary, config, result.log)
+    except Exception as exc:
+        return RunOutcome(status=ERROR, reason=f"metrics failed: {type(exc).__name__}: {exc}",
+                          run_dir=str(run_dir), summary=summary, **base)
+    return RunOutcome(status=status, reason=reason, run_dir=str(run_dir), summary=summary, metrics=metrics, **base)
+
+
+# ------------------------------------------------------------------------------------------- execution
+def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool) -> list[RunOutcome]:
+    global _SINK
+    runnable = [j for j in jobs if not j.missing]
+    results: dict[str, RunOutcome] = {j.name: execute(j, str(runs_root)) for j in jobs if j.missing}
+    prog = None
+    if progress and runnable:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                        TimeElapsedColumn(), transient=False)
+        prog.start()
+        total = prog.add_task(f"[bold]reproduce: {len(runnable)} runs on {n_jobs} processes", total=len(runnable))
+    tasks: dict[str, int] = {}
+
+    def on_message(msg) -> None:
+        if prog is None:
+            return
+        kind, name = msg[0], msg[1]
+        if kind == "start" and name not in tasks:
+            tasks[name] = prog.add_task(f"  {name}", total=1.0)
+        elif kind == "progress" and name in tasks:
+            prog.update(tasks[name], completed=msg[2])
+        elif kind == "done" and name in tasks:
+            prog.update(tasks[name], completed=1.0, visible=False)
+
+    def finished(job: matrix.Job, outcome: RunOutcome) -> None:
+        results[job.name] = outcome
+        if prog is not None:
+            prog.advance(total)
+            if outcome.status != OK:
+                why = f" ({outcome.reason})" if outcome.reason else ""
+                prog.console.print(f"  {job.name}: {outcome.status}{why}")
+
+    try:
+        if n_jobs <= 1:
+            _SINK = on_message
+            try:
+                for job in runnable:
+                    finished(job, execute(job, str(runs_root)))
+            finally:
+                _SINK = None
+        else:
+            ctx = mp.get_context("spawn")
+            q = ctx.Queue()
+            with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx, initializer=_init_worker,
+                                     initargs=(q,)) as pool:
+                pending = {pool.submit(execute, job, str(runs_root)): job for job in runnable}
+                try:
+                    while pending:
+                        done, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                        while True:
+                            try:
+                                on_message(q.get_nowait())
+                            except queue_mod.Empty:
+                                break
+                        for fut in done:
+                            job = pending.pop(fut)
+                            try:
+                                outcome = fut.result()
+                            except Exception as exc:  # a worker died (e.g. killed, out of memory)
+                                outcome = RunOutcome(job.section, job.controller, job.scenario, ERROR,
+                                                     reason=f"worker failed: {type(exc).__name__}: {exc}",
+                                                     scenario_run=job.scenario_run,
+                                                     duration_cap_s=job.duration_cap_s)
+                            finished(job, outcome)
+                except KeyboardInterrupt:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
+    finally:
+        if prog is not None:
+            prog.stop()
+    return [results[j.name] for j in jobs]
+
+
+def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: str, quick: bool | None = None,
+                 jobs: int | None = None, started_at: float | None = None,
+                 errors: list[str] | None = None) -> tuple[dict, list[FigureInfo]]:
+    """Write results.json, report.md, report.html and the figures; returns (results, figures).
+
+    `started_at` (a `time.perf_counter()` value) makes results["wall_time_s"] the time since then, figures
+    included.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = draw_figures(outcomes, out / "figures")
+    wall = None if started_at is None else time.perf_counter() - started_at
+    results = build_results(outcomes, command=command, quick=quick, jobs=jobs, wall_time_s=wall, errors=errors)
+    results["figures"] = [f.file for f in figures]
+    (out / "results.json").write_text(json.dumps(results, indent=1, allow_nan=False))
+    (out / "report.md").write_text(to_markdown(results, figures))
+    (out / "report.html").write_text(to_html(results, figures))
+    return results, figures
+
+
+def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
+              *, sanity: bool = True) -> ReportResult:
+    """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
+
+    Args:
+        out_dir: report directory (created); run directories go to out_dir/runs/.
+        quick: shorten every walk ("<name>-quick" scenario if it exists, else a duration cap) and the sanity
+            runs; see `wbcbench.report.matrix`.
+        jobs: number of worker processes (default: the cores this process may use); 1 runs inline.
+        progress: show a rich progress bar.
+        sanity: also run the standing scenarios with every available controller.
+
+    Returns:
+        ReportResult; the full run's wall time is in results["wall_time_s"].
+    """
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    runs_root = out / "runs"
+    runs_root.mkdir(parents=True, exist_ok=True)
+    n_jobs = default_jobs() if jobs is None else int(jobs)
+    if n_jobs < 1:
+        raise WbcError(f"--jobs must be >= 1, got {jobs}")
+    plan = matrix.plan_jobs(quick=quick, sanity=sanity)
+    outcomes = _run_jobs(plan, runs_root, n_jobs, progress)
+    results, figures = write_report(outcomes, out, command="reproduce --quick" if quick else "reproduce",
+                                    quick=quick, jobs=n_jobs, started_at=t0)
+    return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
+
+
+def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
+    """Remake the tables and figures from existing run directories, without simulating.
+
+    A run directory that cannot be read (missing or truncated log, missing summary) is left out with a
+    one-line error in `ReportResult.errors` (and in the report); the others still report.
+
+    Raises:
+        ReportError: no run directory given.
+    """
+    if not run_dirs:
+        raise ReportError("no run directory given")
+    t0 = time.perf_counter()
+    outcomes, errors = [], []
+    for d in run_dirs:
+        try:
+            outcomes.append(load_run(d))
+        except ReportError as exc:
+            errors.append(str(exc))
+    results, figures = write_report(outcomes, out_dir, command="report", errors=errors, started_at=t0)
+    return ReportResult(Path(out_dir), results, outcomes, figures, errors, results["wall_time_s"])
+
+
+__all__ = ["ReportResult", "default_jobs", "execute", "read_run_log", "report", "reproduce", "write_report"]

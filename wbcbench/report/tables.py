@@ -1,0 +1,100 @@
+"""results.json: every number, ours beside the paper's, keyed by table, controller, scenario and metric.
+
+A leaf is {"ours": value, "paper": value, "unit": ...}. Our value is a number, None (the run exists but the
+metric is undefined or its inputs were not logged), "missing" (no such scenario or controller yet: nothing
+run) or "error" (the run produced no usable log). When our run fell, `status` says so beside the value.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+
+from ..metrics.from_log import PAPER_MASS_KG, json_ready
+from .paper import FAST_WALK_NOTE, PAPER_CITATION, PAPER_REFERENCE_ROWS, PAPER_TABLES, MetricSpec
+from .runs import ERROR, MISSING, RunOutcome
+
+MISSING_VALUE = "missing"
+ERROR_VALUE = "error"
+
+
+def dig(d: dict, path: str):
+    """d["a"]["b"]["c"] for path "a.b.c"; None if any level is absent."""
+    cur = d
+    for part in path.split("."):
+        if not isinstance(cur, dict) or part not in cur:
+            return None
+        cur = cur[part]
+    return cur
+
+
+def index_outcomes(outcomes: Iterable[RunOutcome]) -> dict[tuple[str, str], RunOutcome]:
+    """(controller, scenario) -> outcome; a later outcome for the same cell replaces an earlier one."""
+    return {(o.controller, o.scenario): o for o in outcomes}
+
+
+def ours(outcome: RunOutcome | None, spec: MetricSpec):
+    """Our value of a published metric, in the paper's unit, or the reason there is none."""
+    if outcome is None or outcome.status == MISSING:
+        return MISSING_VALUE
+    if outcome.status == ERROR or not outcome.metrics:
+        return ERROR_VALUE
+    v = dig(outcome.metrics, spec.ours_path)
+    return None if not isinstance(v, (int, float)) else v * spec.scale
+
+
+def table_results(table_id: str, cells: dict[tuple[str, str], RunOutcome]) -> dict:
+    """One published table with our numbers: values[controller][scenario][metric] = {ours, paper, unit}."""
+    t = PAPER_TABLES[table_id]
+    values: dict = {}
+    for controller, scenario in t.cells():
+        o = cells.get((controller, scenario))
+        row = {"status": o.status if o else MISSING_VALUE}
+        for spec in t.metrics:
+            row[spec.key] = {"ours": ours(o, spec), "paper": t.values[controller][scenario][spec.key],
+                             "unit": spec.unit}
+        if table_id == "table6":  # the model-mass costs of transport, ours only
+            for key in ("C_et", "C_mt"):
+                row[f"{key}_robot_mass"] = {"ours": ours(o, MetricSpec(key, key, "J/kg/m")), "paper": None,
+                                            "unit": "J/kg/m"}
+        values.setdefault(controller, {})[scenario] = row
+    return {"number": t.number, "title": t.title, "notes": t.notes, "values": values,
+            "paper_reference_rows": PAPER_REFERENCE_ROWS.get(table_id, {})}
+
+
+def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | None = None,
+                  jobs: int | None = None, wall_time_s: float | None = None,
+                  errors: list[str] | None = None) -> dict:
+    """The whole results.json content (JSON-ready: NaN already replaced by None)."""
+    cells = index_outcomes(outcomes)
+    results = {
+        "paper": PAPER_CITATION,
+        "note": ("'paper' values are the published numbers of paper 000 (Tables 2-8); 'ours' are computed by "
+                 "wbcbench from our MuJoCo runs. Costs of transport compared with the paper use m = "
+                 f"{PAPER_MASS_KG:g} kg (see Table 6 notes)."),
+        "generated_at": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "command": command,
+        "quick": quick,
+        "jobs": jobs,
+        "wall_time_s": wall_time_s,
+        "runs": [o.brief() for o in outcomes],
+        "errors": list(errors or []),
+        "tables": {tid: table_results(tid, cells) for tid in PAPER_TABLES},
+        "fast_walk": {
+            "note": FAST_WALK_NOTE,
+            "values": {o.controller: {"status": o.status, "reason": o.reason,
+                                      "zmp_error_m": dig(o.metrics, "zmp_error_m"),
+                                      "paper": "reported as working (no numbers)"}
+                       for o in outcomes if o.section == "fast"},
+        },
+        "sanity": {},
+        "metrics": {},
+    }
+    for o in outcomes:
+        if o.section == "sanity":
+            results["sanity"].setdefault(o.controller, {})[o.scenario] = {
+                "status": o.status, "reason": o.reason, "scenario_metrics": (o.summary or {}).get("metrics"),
+                "metrics": o.metrics or None}
+        if o.metrics:
+            results["metrics"].setdefault(o.controller, {})[o.scenario] = o.metrics
+    return json_ready(results)
