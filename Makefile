@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test bench clean
+.PHONY: run test bench reproduce clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -12,14 +12,20 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# The flagship comparison: the paper's controller x scenario matrix, shortened walks, with the report
+# (reports/quick/report.md, report.html, results.json, figures/). `make reproduce` runs the full-length one.
 run: $(STAMP)
-	$(BIN)/wbcbench run stand --controller joint-pd --mode torque --duration 5
+	$(BIN)/wbcbench reproduce --quick --out reports/quick
+
+reproduce: $(STAMP)
+	$(BIN)/wbcbench reproduce --out reports/full
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sim.py
+	$(BIN)/python benchmarks/bench_controllers.py
 
 clean:
-	rm -rf $(VENV) runs
+	rm -rf $(VENV) runs reports
