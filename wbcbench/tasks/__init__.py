@@ -21,6 +21,7 @@ from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.kinematics import update_kinematics, update_kinematics_velocity_level
 from wbcbench.tasks.posture_task import PostureTask
 from wbcbench.tasks.rows import Inequality, Rows
+from wbcbench.tasks.self_collision import RepulsionPoint, SelfCollisionTask
 from wbcbench.tasks.task import Task
 
 __all__ = [
@@ -31,7 +32,9 @@ __all__ = [
     "Inequality",
     "PostureTask",
     "ReferenceNotSetError",
+    "RepulsionPoint",
     "Rows",
+    "SelfCollisionTask",
     "Task",
     "TaskConfigError",
     "UnknownNameError",
