@@ -22,6 +22,11 @@ def test_walks(talos, tmp_path, controller, scenario):
     assert not s["fell"], s["fall_reason"]
     m = s["metrics"]
     assert m["final_position_error_m"] < 0.05
+    # the paper's metrics are in every walking run's summary
+    for axis in ("x", "y"):
+        assert 0 <= m["zmp_error_m"][axis]["mean"] < 0.1
+    assert m["C_et"] > 0 and m["C_mt"] > 0 and m["E_m"] >= m["E_m_plus"] > 0
+    assert all(0 <= m["pgm"][k] <= 1 for k in ("double_support", "single_support", "flying_foot"))
     assert m["distance_m"] == pytest.approx(m["planned_distance_m"], abs=0.05)
     assert m["planned_distance_m"] > 0.35
     # both feet were lifted at some point (it walked, it did not slide)

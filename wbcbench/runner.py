@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from .controllers.base import Controller, make_controller
+from .metrics.from_log import compute_run_metrics
 from .errors import ConfigError, WbcError
 from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
@@ -170,7 +171,10 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     if rec.rows_written:
         log = read_log(run_dir / "log.parquet")
         try:
-            summary["metrics"] = {**_common_metrics(log), **scen.metrics(log)}
+            scen_metrics = scen.metrics(log)
+            paper = compute_run_metrics(log, robot, dt=spec.control_dt,
+                                        distance_planned_m=scen_metrics.get("planned_distance_m"))
+            summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics}
         except Exception as exc:  # metrics must never lose the run
             summary["metrics_error"] = f"{type(exc).__name__}: {exc}"
     if error:

@@ -32,6 +32,14 @@ def render_summary(console: Console, s: dict, run_dir: Path) -> None:
         t.add_row(k, _fmt(v))
     for k, v in s.get("metrics", {}).items():
         if isinstance(v, dict):
+            if k in ("zmp_error_m", "com_error_m") and all(isinstance(x, dict) for x in v.values()):
+                t.add_row(k + " (mean/std/peak)", "  ".join(
+                    f"{ax} {_fmt(st.get('mean'))}/{_fmt(st.get('std'))}/{_fmt(st.get('peak'))}" for ax, st in v.items()))
+            elif k == "pgm":
+                t.add_row("PGM (double/single/flying)", "/".join(_fmt(v.get(x)) for x in
+                                                                 ("double_support", "single_support", "flying_foot")))
+            continue
+        if k in ("n_ticks", "mass_kg", "duration_s", "distance_planned_m"):
             continue
         t.add_row(k, _fmt(v))
     t.add_row("run directory", str(run_dir))
