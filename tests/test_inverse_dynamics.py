@@ -208,3 +208,25 @@ def test_position_mode_feeds_back_the_integrated_state(talos):
     ctrl2.step(meas, refs)
     assert np.allclose(ctrl.q_int, ctrl2.q_int, atol=1e-12)
     assert np.allclose(cmd.q, q1[7:])
+
+
+def test_named_frame_targets_drive_their_task(talos):
+    """References.targets sets a named frame task's reference: a weighted hand task pulls the hand."""
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    hand = TaskSpec(name="left_hand", type="frame", weight=100.0, kp=np.full(6, 100.0), kd=None,
+                    frame=talos.profile.hands[Side.LEFT], mask=(True, True, True, False, False, False))
+    sim, ctrl, meas = _controller(talos, taskset=replace(spec, tasks=spec.tasks + (hand,)))
+    target = ctrl.task_by_name["left_hand"].placement(ctrl.model, ctrl.data)
+    target.translation += np.array([0.1, 0.0, 0.1])
+    refs = References(t=0.0, targets={"left_hand": target})
+    fid = talos.model.getFrameId(talos.profile.hands[Side.LEFT])
+    d = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, d, meas.q)
+    e0 = np.linalg.norm(d.oMf[fid].translation - target.translation)
+    for _ in range(1000):
+        cmd = ctrl.step(meas, refs)
+        sim.apply(cmd)
+        sim.step()
+        meas = sim.measure()
+    pin.framesForwardKinematics(talos.model, d, meas.q)
+    assert np.linalg.norm(d.oMf[fid].translation - target.translation) < 0.2 * e0

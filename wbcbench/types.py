@@ -54,6 +54,8 @@ class References:
     feet: per swinging/moving foot, (position (3,), velocity (3,), acceleration (3,)) of the sole frame origin
         in the world; orientation held at its current/start value unless `feet_rotation` gives it.
     zmp: (3,) planned ZMP [m], world frame (walking scenarios).
+    targets: references for the controller's named frame tasks (e.g. teleoperation hands and head):
+        task name -> pin.SE3, or (pin.SE3, velocity (6,), acceleration (6,)) in LOCAL_WORLD_ALIGNED axes.
     """
 
     t: float
@@ -64,3 +66,4 @@ class References:
     feet: dict = field(default_factory=dict)
     feet_rotation: dict = field(default_factory=dict)
     zmp: np.ndarray | None = None
+    targets: dict = field(default_factory=dict)

@@ -49,6 +49,7 @@ class IKController(Controller):
         m = self.model = robot.model
         self.data = m.createData()
         self.tasks = [build_task(robot, t) for t in self.spec.tasks]
+        self.task_by_name = {t.name: t for t in self.tasks}
         priorities = sorted({t.priority for t in self.spec.tasks})
         if 0 in priorities:
             from ..errors import ConfigError
@@ -113,6 +114,10 @@ class IKController(Controller):
             if wanted and not self.in_contact[s]:
                 self.contacts[s].set_reference_to_current(m, d)  # touch-down where the model's foot is
             self.in_contact[s] = wanted
+        for name, target in refs.targets.items():
+            task = self.task_by_name.get(name)
+            if task is not None:
+                task.set_reference(*(target[:2] if isinstance(target, tuple) else (target,)))
         for s, (p, vel, _acc) in refs.feet.items():
             R = refs.feet_rotation.get(s, self.swing[s].reference.rotation)
             self.swing[s].set_reference(pin.SE3(R, np.asarray(p)), np.concatenate([vel, np.zeros(3)]))

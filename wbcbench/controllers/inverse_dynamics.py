@@ -114,6 +114,7 @@ class InverseDynamicsController(Controller):
                                    kp=sw.kp, kd=sw.kd, mask=sw.mask) for s in Side}
         self.solver = make_solver(self.spec.solver)
         self.relaxed_solver = make_solver(self.spec.solver)
+        self.torque_solver = make_solver(self.spec.solver)
         lo, hi = robot.position_limits
         self.q_lo, self.q_hi = lo, hi
         self.v_max = robot.velocity_limit
@@ -228,6 +229,14 @@ class InverseDynamicsController(Controller):
             for t in self.com_task_refs:
                 t.set_reference(refs.com, refs.com_vel if refs.com_vel is not None else np.zeros(3),
                                 refs.com_acc if refs.com_acc is not None else np.zeros(3))
+        for name, target in refs.targets.items():
+            task = self.task_by_name.get(name)
+            if task is None:
+                continue
+            if isinstance(target, tuple):
+                task.set_reference(*target)
+            else:
+                task.set_reference(target)
         for s, (p, vel, acc) in refs.feet.items():
             sw = self.swing[s]
             R = refs.feet_rotation.get(s, sw.reference.rotation)
@@ -288,9 +297,8 @@ class InverseDynamicsController(Controller):
         A_eq[:] = 0.0
         A_eq[:6, :nv] = d.M[:6]
         b_eq[:6] = -d.nle[:6]
-        # ---- inequalities: wrench cones, torque limits; bounds: joint limits as accelerations
-        C[:] = 0.0
-        C[18 * nc:, :nv] = d.M[6:]
+        # ---- inequalities: wrench cones (torque limits added lazily below); bounds: joint limits
+        C[:18 * nc] = 0.0
         Jc = self._Jc
         Jc.clear()
         r = 6
@@ -306,30 +314,44 @@ class InverseDynamicsController(Controller):
             Cr, ur = c.force_rows()
             C[18 * i:18 * i + 18, cols] = Cr
             hi[18 * i:18 * i + 18] = ur
-            C[18 * nc:, cols] = -A[:, 6:].T
         for A, b in zip(hard_A, hard_b):
             A_eq[r:r + A.shape[0], :nv] = A
             b_eq[r:r + A.shape[0]] = b
             r += A.shape[0]
-        lo[18 * nc:] = -self.tau_max - d.nle[6:]
-        hi[18 * nc:] = self.tau_max - d.nle[6:]
         qj, vj = q[7:], v[6:]
         h = self.spec.joint_limit_horizon
         a_hi = np.minimum(2 * (self.q_hi - qj - vj * h) / h**2, (self.v_max - vj) / self.dt)
         a_lo = np.maximum(2 * (self.q_lo - qj - vj * h) / h**2, (-self.v_max - vj) / self.dt)
         lb[6:nv] = np.minimum(a_lo, a_hi)
         ub[6:nv] = a_hi
+        k = 18 * nc
+        cones = (C[:k], lo[:k], hi[:k]) if nc else (None, None, None)
         t0 = perf_counter()
-        res = self.solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub))
+        # Torque limits are lazy constraints: solve without them, and only if the optimum violates one solve
+        # again with all of them (then the optimum is exactly the full problem's).
+        res = self.solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, *cones, lb, ub))
+        if res.ok:
+            tau = d.M[6:] @ res.x[:nv] + d.nle[6:]
+            for i in range(nc):
+                tau -= Jc[i][:, 6:].T @ res.x[nv + 6 * i: nv + 6 * i + 6]
+            if np.all(np.abs(tau) <= self.tau_max * (1 + 1e-9)):
+                self._t_solve = perf_counter() - t0
+                self.qp_status = QP_OK
+                return res.x
+            C[k:] = 0.0
+            C[k:, :nv] = d.M[6:]
+            for i in range(nc):
+                C[k:, nv + 6 * i: nv + 6 * i + 6] = -Jc[i][:, 6:].T
+            lo[k:] = -self.tau_max - d.nle[6:]
+            hi[k:] = self.tau_max - d.nle[6:]
+            res = self.torque_solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub))
         self._t_solve = perf_counter() - t0
         if res.ok:
             self.qp_status = QP_OK
             return res.x
         # relaxed: keep the contact rows, drop joint and torque limits
         self.n_relaxed += 1
-        k = 18 * nc
-        res = self.relaxed_solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, C[:k] if nc else None,
-                                                           lo[:k] if nc else None, hi[:k] if nc else None))
+        res = self.relaxed_solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, *cones))
         if res.ok:
             self.qp_status = QP_RELAXED
             return res.x
