@@ -62,3 +62,12 @@ def test_bad_walk_plans_are_rejected_before_running(tmp_path, old, new, needle):
     assert "\n" not in line and "Traceback" not in line
     assert str(p) in line and needle in line.lower(), line
     assert not (out / "log.parquet").exists()
+
+
+def test_g1_walks_with_the_generic_task_set(g1, tmp_path):
+    """Nothing TALOS-specific in the walking stack: G1 walks with the default task set and its profile."""
+    res = run("walk-20cm-quick", "tsid-torque", g1, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["final_position_error_m"] < 0.05
+    assert s["metrics"]["distance_m"] > 0.35
