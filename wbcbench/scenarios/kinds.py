@@ -111,7 +111,8 @@ class WalkScenario(Scenario):
 
     params: steps (number of steps before the final one), step_length [m], single_support and
     double_support [s], initial_double_support / final_double_support [s], apex [m] (swing apex height),
-    first_side (left|right), step_width (default: the feet's initial separation), lateral / yaw per step.
+    first_side (left|right), step_width (default: the feet's initial separation), max_step_length [m] (the
+    reach limit the plan is checked against, default 0.65).
     The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
     walk; metrics then compare with where the plan is at that time).
     """
@@ -129,12 +130,13 @@ class WalkScenario(Scenario):
         self.first = params.str("first_side", "right", choices=["left", "right"])
         self.width = params.float("step_width", 0.0, min=0.0)
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
+        self.max_step_length = params.float("max_step_length", 0.65, positive=True)
 
     def setup(self, q0, com0):
         import pinocchio as pin
 
         from ..errors import ConfigError
-        from ..planning import (PatternGeneratorConfig, SoleRectangle, StepTiming, generate_walk,
+        from ..planning import (PatternGeneratorConfig, ReachLimits, SoleRectangle, StepTiming, generate_walk,
                                 straight_walk)
         super().setup(q0, com0)
         data = self.robot.model.createData()
@@ -147,7 +149,8 @@ class WalkScenario(Scenario):
             plan = straight_walk(self.n_steps, self.step_length, foot_separation=sep,
                                  timing=StepTiming(self.single, self.double, self.initial_ds, self.final_ds),
                                  sole=SoleRectangle(sole.length, sole.width, *sole.center),
-                                 first_side=Side(self.first), start=(mid[0], mid[1], mid[2], 0.0))
+                                 first_side=Side(self.first), start=(mid[0], mid[1], mid[2], 0.0),
+                                 limits=ReachLimits(max_length=self.max_step_length))
             self.walk = generate_walk(plan, PatternGeneratorConfig(
                 com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
                 preview_horizon=self.preview_horizon), p_world_com_init=com0)
