@@ -23,14 +23,6 @@ def test_ik_sway_within_1cm(talos, tmp_path):
     assert res.log["com.y"].max() - res.log["com.y"].min() > 0.08
 
 
-def test_ik_walks(talos, tmp_path):
-    res = run("walk-20cm-quick", "ik", talos, out=tmp_path)
-    s = res.summary
-    assert not s["fell"], s["fall_reason"]
-    assert s["metrics"]["final_position_error_m"] < 0.05
-    assert s["metrics"]["distance_m"] > 0.35
-
-
 def _ik(talos):
     sim = Simulator(talos, mode="position")
     ctrl = IKController(talos, ActuationMode.POSITION, 1e-3)

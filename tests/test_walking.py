@@ -15,6 +15,7 @@ SCEN = Path(__file__).parents[1] / "wbcbench" / "scenarios"
 @pytest.mark.parametrize("controller,scenario", [
     ("tsid-torque", "walk-20cm-quick"), ("tsid-torque", "walk-20cm-fast-quick"), ("tsid-torque", "walk-60cm-quick"),
     ("tsid-position", "walk-20cm-quick"), ("tsid-position", "walk-20cm-fast-quick"),
+    ("ik", "walk-20cm-quick"), ("ik", "walk-20cm-fast-quick"),
 ])
 def test_walks(talos, tmp_path, controller, scenario):
     res = run(scenario, controller, talos, out=tmp_path)
