@@ -25,6 +25,33 @@ from .pattern_generator import PatternGeneratorConfig, ZmpTransfer, generate_wal
 from .preview_control import PreviewControlError, PreviewGains, cart_table, preview_gains, simulate_preview
 from ..side import Side
 from .swing import SwingSample, SwingTrajectory, quintic_blend
+from .terrain import (
+    ContactSurface,
+    ContactTerrain,
+    OrientedBox,
+    boxes_to_yaml,
+    platform_boxes,
+    rpy_matrix,
+    stairs_boxes,
+)
+from .contact_planner import (
+    ContactPlan,
+    ContactPlannerConfig,
+    Foothold,
+    contacts_from_placements,
+    find_foothold,
+    locate_foot,
+    plan_contacts,
+)
+from .centroidal import (
+    CentroidalConfig,
+    CentroidalPlanError,
+    CentroidalReport,
+    CentroidalTrajectory,
+    ContactWrenchTrajectory,
+    plan_centroidal,
+)
+from .multicontact import MultiContactWalk, generate_multicontact_walk, plan_swing, swing_penetration, terrain_walk
 from .trajectory import (
     ContactEvent,
     ContactEventKind,
@@ -70,6 +97,32 @@ __all__ = [
     "ContactSchedule",
     "ContactEvent",
     "ContactEventKind",
+    # uneven terrain
+    "OrientedBox",
+    "ContactSurface",
+    "ContactTerrain",
+    "rpy_matrix",
+    "stairs_boxes",
+    "platform_boxes",
+    "boxes_to_yaml",
+    "ContactPlannerConfig",
+    "Foothold",
+    "ContactPlan",
+    "find_foothold",
+    "locate_foot",
+    "plan_contacts",
+    "contacts_from_placements",
+    "CentroidalConfig",
+    "CentroidalPlanError",
+    "CentroidalReport",
+    "ContactWrenchTrajectory",
+    "CentroidalTrajectory",
+    "plan_centroidal",
+    "MultiContactWalk",
+    "plan_swing",
+    "swing_penetration",
+    "generate_multicontact_walk",
+    "terrain_walk",
     # geometry
     "convex_hull",
     "polygon_margin",
