@@ -191,3 +191,78 @@ class WalkScenario(Scenario):
                 "final_position_error_m": float(np.linalg.norm(base - planned_base[:2])),
                 "distance_m": float(np.linalg.norm(base - start)),
                 "planned_distance_m": float(np.linalg.norm(planned_base[:2] - start))}
+
+
+@register_kind
+class TerrainWalkScenario(WalkScenario):
+    """Walk across uneven terrain (tilted platforms, stairs): the scene's boxes become contact surfaces, a
+    foothold planner (or explicit placements) gives the contact sequence, a centroidal QP the CoM and contact
+    wrenches, and terrain-clearing swings the feet (wbcbench.planning.multicontact).
+
+    params: goal [x, y] (final feet midpoint) or placements [[side, x, y], ...]; single_support,
+    double_support, initial_double_support, final_double_support [s]; swing_clearance [m]; friction (mu of
+    the planner, default 0.5); max_step_length / max_step_height [m].
+    """
+
+    kind = "terrain-walk"
+
+    def parse(self, params):
+        self.goal = params.vector("goal", length=2) if params.has("goal") else None
+        raw = params.list("placements", [])
+        self.placements = []
+        for i, p in enumerate(raw):
+            if not (isinstance(p, list) and len(p) in (3, 4) and p[0] in ("left", "right")):
+                raise params.error("placements", f"entry {i} must be [left|right, x, y(, yaw)], got {p!r}")
+            self.placements.append((Side(p[0]), *map(float, p[1:])))
+        if self.goal is None and not self.placements:
+            raise params.error("goal", "give a goal [x, y] or explicit placements")
+        self.single = params.float("single_support", positive=True)
+        self.double = params.float("double_support", positive=True)
+        self.initial_ds = params.float("initial_double_support", 1.5, positive=True)
+        self.final_ds = params.float("final_double_support", 2.0, positive=True)
+        self.clearance = params.float("swing_clearance", 0.05, min=0.0)
+        self.friction = params.float("friction", 0.5, positive=True)
+        self.max_step_length = params.float("max_step_length", 0.30, positive=True)
+        self.max_step_height = params.float("max_step_height", 0.15, positive=True)
+
+    def setup(self, q0, com0):
+        import pinocchio as pin
+
+        from ..errors import ConfigError
+        from ..planning import Footstep, SoleRectangle, StepTiming
+        from ..planning.centroidal import CentroidalConfig
+        from ..planning.contact_planner import ContactPlannerConfig, contacts_from_placements, plan_contacts
+        from ..planning.multicontact import generate_multicontact_walk
+        from ..planning.terrain import ContactTerrain
+        Scenario.setup(self, q0, com0)
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, q0)
+        start = {}
+        for s in Side:
+            # the planner starts from level feet: position and heading of the soles (TALOS' half-sitting has a
+            # 1.7 mrad ankle roll the contacts absorb)
+            M = data.oMf[self.robot.sole_frame_id(s)]
+            yaw = float(np.arctan2(M.rotation[1, 0], M.rotation[0, 0]))
+            start[s] = Footstep.from_xyz_yaw(s, *M.translation, yaw=yaw)
+        sole = self.robot.profile.sole
+        rect = SoleRectangle(sole.length, sole.width, *sole.center)
+        timing = StepTiming(self.single, self.double, self.initial_ds, self.final_ds)
+        ground = min(f.p_world_sole[2] for f in start.values())
+        try:
+            terrain = ContactTerrain.from_terrain(self.spec.terrain)
+            sep = float(np.linalg.norm(start[Side.LEFT].p_world_sole[:2] - start[Side.RIGHT].p_world_sole[:2]))
+            cfg = ContactPlannerConfig(max_step_length=self.max_step_length, max_step_height=self.max_step_height,
+                                       foot_separation=sep)
+            if self.placements:
+                plan = contacts_from_placements(terrain, start, self.placements, timing=timing, sole=rect, config=cfg)
+            else:
+                plan = plan_contacts(terrain, start, self.goal, timing=timing, sole=rect, config=cfg)
+            walk = generate_multicontact_walk(
+                plan, CentroidalConfig(mass=self.robot.mass, com_height=float(com0[2] - ground),
+                                       friction=self.friction, dt=self.spec.control_dt),
+                swing_clearance=self.clearance, p_world_com_init=com0)
+        except ValueError as exc:
+            raise ConfigError(f"invalid terrain walk: {exc}", file=self.spec.file, key="params") from None
+        self.contact_plan = plan
+        self.walk = walk.walk
+        self.base_offset = q0[:3] - com0

@@ -1,0 +1,63 @@
+"""Uneven terrain in simulation: stairs and tilted platforms (shortened), planner errors before running."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.runner import run
+from wbcbench.side import Side
+
+SCEN = Path(__file__).parents[1] / "wbcbench" / "scenarios"
+
+
+def _final_soles(robot, log):
+    q = np.column_stack([log[c] for c in log if c.startswith("q.")])[-1]
+    d = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, d, q)
+    return {s: d.oMf[robot.sole_frame_id(s)] for s in Side}
+
+
+@pytest.mark.parametrize("controller", ["tsid-torque", "ik"])
+def test_climbs_the_first_stairs(talos, tmp_path, controller):
+    res = run("stairs-quick", controller, talos, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["final_position_error_m"] < 0.05
+    # both feet end on the second tread (20 cm up)
+    for side, M in _final_soles(talos, res.log).items():
+        assert M.translation[2] == pytest.approx(0.20, abs=0.01), side
+
+
+def test_crosses_tilted_platforms_torque(talos, tmp_path):
+    res = run("platforms-quick", "tsid-torque", talos, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["final_position_error_m"] < 0.05
+    # the feet end on the second platform, tilted with its 15 degree slope
+    for side, M in _final_soles(talos, res.log).items():
+        pitch = pin.rpy.matrixToRpy(M.rotation)[1]
+        assert abs(abs(pitch) - np.radians(15)) < np.radians(2), (side, pitch)
+
+
+@pytest.mark.parametrize("old,new,needle", [
+    ("goal: [1.95, 0.0]", "goal: [80.0, 0.0]", "off the terrain"),
+    ("goal: [1.95, 0.0]", "goal: [9.0, 0.0]", "no reachable next surface"),
+    ("height: 0.10,", "height: 0.40,", "no reachable"),
+])
+def test_planner_errors_before_simulation(tmp_path, old, new, needle):
+    text = (SCEN / "stairs.yaml").read_text()
+    assert old in text
+    p = tmp_path / "scene.yaml"
+    p.write_text(text.replace(old, new))
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "wbcbench.cli", "run", str(p), "-c", "tsid-torque", "-o", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    line = proc.stderr.strip()
+    assert "\n" not in line and "Traceback" not in line
+    assert needle in line, line
+    assert not (out / "log.parquet").exists()
