@@ -289,3 +289,68 @@ def test_kkt_certificate():
     q = QPProblem(np.eye(2), np.ones(2), lb=np.zeros(2), ub=np.ones(2))  # min at the lower corner
     assert _kkt_optimal(q, np.zeros(2), 1e-9)
     assert not _kkt_optimal(q, np.array([0.0, -1.0]), 1e-9)  # infeasible
+
+
+def _cascade_only(n: int) -> HierarchicalSolver:
+    """The level-by-level algorithm alone (the closed-form path of equality hierarchies switched off)."""
+    solver = HierarchicalSolver(n)
+    solver._solve_equalities = lambda *args: None
+    return solver
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 2**32 - 1), last=st.sampled_from(["none", "fills", "more"]))
+def test_closed_form_matches_the_cascade(seed, last):
+    """Equality hierarchies whose bounds do not bind: the closed form (one factorisation) gives the cascade's x,
+    residuals, ranks and paths; the same levels solved again after their rows changed in place (as a
+    controller does every tick) give the new answer."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 16))
+    sizes = [int(rng.integers(1, max(2, n // 3))) for _ in range(int(rng.integers(1, 4)))]
+    while sum(sizes) > n - 1:
+        sizes.pop()
+    if last == "fills":
+        sizes.append(n - sum(sizes) + int(rng.integers(1, 4)))  # over-determined: takes all the freedom left
+    elif last == "more":
+        sizes += [n - sum(sizes) + 2, 2]  # ... and a level after it, locked
+    sizes = [s for s in sizes if s > 0] or [1]
+    buffer = rng.standard_normal((sum(sizes), n))
+    rhs = rng.standard_normal(sum(sizes))
+    levels, start = [], 0
+    for k, m in enumerate(sizes):
+        levels.append(Level((EqualityTask(f"t{k}", buffer[start:start + m], rhs[start:start + m]),), f"l{k}"))
+        start += m
+    levels = tuple(levels)
+    lb, ub = np.full(n, -1e6), np.full(n, 1e6)
+    solver, cascade = HierarchicalSolver(n), _cascade_only(n)
+    for _ in range(2):
+        result, reference = solver.solve(levels, lb, ub), cascade.solve(levels, lb, ub)
+        assert result.ok and reference.ok
+        np.testing.assert_allclose(result.x, reference.x, atol=1e-8 * _scale(reference.x), rtol=0)
+        np.testing.assert_allclose([r.residual for r in result.levels], [r.residual for r in reference.levels],
+                                   atol=1e-8, rtol=1e-8)
+        assert [(r.rank, r.freedom, r.path, r.met) for r in result.levels] == \
+            [(r.rank, r.freedom, r.path, r.met) for r in reference.levels]
+        assert result.final_path is reference.final_path
+        buffer += 0.1 * rng.standard_normal(buffer.shape)  # new rows, same arrays
+        rhs += rng.standard_normal(rhs.shape)
+
+
+def test_closed_form_leaves_binding_bounds_and_rank_deficiency_to_the_cascade():
+    rng = np.random.default_rng(21)
+    levels, lb, ub = _talos_like(rng, 1e3)
+    free = HierarchicalSolver(38).solve(levels, lb, ub)
+    np.testing.assert_allclose(free.x, _cascade_only(38).solve(levels, lb, ub).x, atol=1e-9)
+    tight = 0.5 * np.abs(free.x).max()  # the unbounded answer violates these bounds
+    lb2, ub2 = np.maximum(lb, -tight), np.minimum(ub, tight)
+    result = HierarchicalSolver(38).solve(levels, lb2, ub2)
+    np.testing.assert_allclose(result.x, _cascade_only(38).solve(levels, lb2, ub2).x, atol=1e-8)
+    assert np.all(result.x <= ub2 + 1e-9) and np.all(result.x >= lb2 - 1e-9)
+    # the CoM-height row repeats a foot row (rank 0 in the null space above): reported as the cascade does
+    feet = levels[0].tasks[0]
+    dup = Level((EqualityTask("com_z", feet.A[:1].copy(), feet.b[:1].copy()),))
+    deficient = (levels[0], dup) + tuple(levels[2:])
+    result = HierarchicalSolver(38).solve(deficient, lb, ub)
+    reference = _cascade_only(38).solve(deficient, lb, ub)
+    assert result.levels[1].rank == reference.levels[1].rank == 0
+    np.testing.assert_allclose(result.x, reference.x, atol=1e-8)

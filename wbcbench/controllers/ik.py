@@ -22,11 +22,12 @@ import numpy as np
 import pinocchio as pin
 
 from ..qp import EqualityTask, HierarchicalSolver, Level
+from ..qp.levels import Task as LevelTask
 from ..robots import Robot
 from ..side import Side
 from ..sim.model import ActuationMode
 from ..stabilizers.balance import BalanceStabilizer
-from ..tasks import Contact6D, FrameTask, update_kinematics_velocity_level, velocity_rows
+from ..tasks import Contact6D, FrameTask, TaskStack, update_kinematics_velocity_level
 from ..types import Command, Measurement, References
 from .base import Controller, register
 from .inverse_dynamics import build_task
@@ -77,6 +78,11 @@ class IKController(Controller):
         self.unmet_levels = -1
         self.v = np.zeros(m.nv)
         self._t_pin = self._t_solve = 0.0
+        self._sides = tuple(Side)
+        # per contact state (left, right in contact): the stack of every task's rows and the levels handed to the
+        # solver, whose tasks are views of the stack's rows (see _levels_for)
+        self._plans: dict[tuple[bool, ...], list] = {}
+        self._limits: tuple = (None, None, None)
 
     def reset(self, meas: Measurement, refs: References) -> None:
         m, d = self.model, self.data
@@ -109,35 +115,36 @@ class IKController(Controller):
         if refs.com is not None:
             for t in self.com_tasks:
                 t.set_reference(refs.com, refs.com_vel if refs.com_vel is not None else np.zeros(3))
-        for s in Side:
-            wanted = s in refs.contacts
+        contacts = refs.contacts
+        key = []
+        for s in self._sides:
+            wanted = s in contacts
             if wanted and not self.in_contact[s]:
                 self.contacts[s].set_reference_to_current(m, d)  # touch-down where the model's foot is
             self.in_contact[s] = wanted
+            key.append(wanted)
         for name, target in refs.targets.items():
             task = self.task_by_name.get(name)
             if task is not None:
                 task.set_reference(*(target[:2] if isinstance(target, tuple) else (target,)))
         for s, (p, vel, _acc) in refs.feet.items():
-            R = refs.feet_rotation.get(s, self.swing[s].reference.rotation)
+            R = refs.feet_rotation.get(s)
+            if R is None:
+                R = self.swing[s].reference.rotation
             self.swing[s].set_reference(pin.SE3(R, np.asarray(p)), np.concatenate([vel, np.zeros(3)]))
-        # levels
-        feet = []
-        for s in Side:
-            task = self.contacts[s] if self.in_contact[s] else self.swing[s]
-            A, b = velocity_rows(task, m, d)
-            feet.append(EqualityTask(task.name, A, b))
-        levels = [Level(tuple(feet), "feet")]
-        for lv, name in zip(self.levels, self.level_names[1:]):
-            tasks = []
-            for task in lv:
-                A, b = velocity_rows(task, m, d)
-                tasks.append(EqualityTask(task.name, A, b, task.weight))
-            levels.append(Level(tuple(tasks), name))
+        # levels: every task's rows, refreshed in place
+        levels = self._levels_for(tuple(key))
         # bounds: joint position limits as velocities, velocity limits
-        qj = self.q_int[7:]
-        self.lower[6:] = np.maximum((self.q_lo - qj) / self.dt, -self.v_max)
-        self.upper[6:] = np.minimum((self.q_hi - qj) / self.dt, self.v_max)
+        # (both rows at once: [q_lo; q_hi] stacked, rebuilt when a limit attribute is replaced)
+        limits = self._limits
+        if limits[0] is not self.q_lo or limits[1] is not self.q_hi or limits[2] is not self.v_max:
+            limits = self._limits = (self.q_lo, self.q_hi, self.v_max, np.stack([self.q_lo, self.q_hi]),
+                                     -self.v_max, np.empty((2, self.robot.na)))
+        T = limits[5]
+        np.subtract(limits[3], self.q_int[7:], out=T)
+        T /= self.dt
+        np.maximum(T[0], limits[4], out=self.lower[6:])
+        np.minimum(T[1], self.v_max, out=self.upper[6:])
         np.minimum(self.lower, self.upper, out=self.lower)
         t0 = perf_counter()
         res = self.solver.solve(levels, self.lower, self.upper)
@@ -154,6 +161,35 @@ class IKController(Controller):
         self.v = res.x
         self.q_int = pin.integrate(m, self.q_int, self.v * self.dt)
         return Command(q=self.q_int[7:].copy(), v=self.v[6:].copy())
+
+    def _levels_for(self, in_contact: tuple[bool, ...]) -> tuple[Level, ...]:
+        """The levels of this tick (feet, then the task set's levels), their rows evaluated.
+
+        The rows of every task come from one :class:`~wbcbench.tasks.TaskStack` (per contact state), evaluated
+        in place each tick; the levels are built once per stack layout with light containers whose arrays are
+        views of the stack's rows: the solver gets the same levels object every tick, with this tick's rows
+        (so the levels of a tick are valid until the next step)."""
+        plan = self._plans.get(in_contact)
+        if plan is None:
+            feet = [self.contacts[s] if c else self.swing[s] for s, c in zip(self._sides, in_contact, strict=True)]
+            tasks = feet + [t for lv in self.levels for t in lv]
+            plan = self._plans[in_contact] = [TaskStack(tasks, self.model.nv), None, None, len(feet)]
+        stack = plan[0]
+        A, b = stack.velocity_rows(self.model, self.data)
+        slices = stack.slices
+        if plan[1] is not slices:  # new layout (first tick, or a gain, weight or mask changed): new views
+            items = iter(zip(stack.tasks, slices, strict=True))
+            feet: list[LevelTask] = [EqualityTask._trusted(t.name, A[sl], b[sl]) for t, sl in
+                                     (next(items) for _ in range(plan[3]))]
+            levels = [Level._trusted(tuple(feet), "feet")]
+            for lv, name in zip(self.levels, self.level_names[1:], strict=True):
+                tasks: list[LevelTask] = []
+                for _ in lv:
+                    t, sl = next(items)
+                    tasks.append(EqualityTask._trusted(t.name, A[sl], b[sl], t.weight))
+                levels.append(Level._trusted(tuple(tasks), name))
+            plan[1], plan[2] = slices, tuple(levels)
+        return plan[2]
 
     @property
     def last_timing_us(self) -> dict[str, float]:

@@ -28,13 +28,13 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
 from ..sim.model import ActuationMode
 from ..stabilizers.balance import BalanceStabilizer
-from ..tasks import (AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, acceleration_rows,
-                     update_kinematics)
+from ..tasks import AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, TaskStack, update_kinematics
 from ..types import Command, Measurement, References
 from .base import Controller, register
 from .taskset import TaskSetSpec, TaskSpec, load_taskset, taskset_path
@@ -56,6 +56,14 @@ def build_task(robot: Robot, spec: TaskSpec):
     if spec.type == "angular_momentum":
         # the paper's "Kp am" is the rate gain of dh = -Kp h, the task library's kd
         return AngularMomentumTask(m, name=spec.name, weight=spec.weight, kd=spec.kp, mask=spec.mask)
+    if spec.type == "self_collision":
+        from ..tasks import RepulsionPoint, SelfCollisionTask
+
+        rep = spec.repulsors
+        points = [RepulsionPoint(p.frame, p.radius, p.offset, p.name) for p in rep.points]
+        return SelfCollisionTask(m, rep.frame, points, radius=rep.radius, offset=rep.offset, exponent=rep.exponent,
+                                 normalized=rep.normalized, kp=spec.kp, kd=spec.kd, weight=spec.weight,
+                                 mask=spec.mask, name=spec.name)
     raise ValueError(f"unknown task type {spec.type}")
 
 
@@ -85,6 +93,58 @@ class _ContactState:
         return s >= 1.0 and self.ramp_to == 0.0
 
 
+class _QPLayout:
+    """Named views of the QP buffers and of the task stack's rows for one set of active contacts and one stack
+    layout, made once, so that a tick only computes (x = [dv; w_1; ...], rows of the stack: contacts, hard tasks,
+    then the weighted tasks). The QPProblem objects are built once too: their arrays are refilled in place."""
+
+    __slots__ = ("slices", "k", "Aw", "bw", "A_cost", "b_cost", "sw_column", "minus_sw", "H_dv", "H_diag_dv",
+                 "g_dv", "A_eq_M", "A_eq_w", "A_eq_J", "b_eq_h", "b_eq_J", "A_hard", "b_hard", "Jc_base_T",
+                 "Jc_joints_T", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks", "u_blocks",
+                 "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque", "problem_relaxed")
+
+    def __init__(self, ctrl: InverseDynamicsController, active: tuple[Side, ...], stack: TaskStack, n_hard: int,
+                 A: np.ndarray, b: np.ndarray):
+        nv, nc, d = ctrl.nv, len(active), ctrl.data
+        self.slices = stack.slices
+        me = self.slices[n_hard - 1].stop if n_hard else 0
+        B = ctrl._buffers(nc, 6 + me)
+        H, g, A_eq, b_eq, C, lo, hi, lb, ub = (B["H"], B["g"], B["A_eq"], B["b_eq"], B["C"], B["l"], B["u"],
+                                               B["lb"], B["ub"])
+        sw = stack.sqrt_weights[me:]
+        self.A_cost, self.b_cost = A[me:], b[me:]
+        self.sw_column, self.minus_sw = sw[:, None], -sw
+        self.Aw, self.bw = np.empty(self.A_cost.shape), np.empty(self.b_cost.shape)
+        self.H_dv, self.H_diag_dv, self.g_dv = B["H_dv"], B["H_diag_dv"], B["g_dv"]
+        self.A_eq_M, self.A_eq_w, self.A_eq_J = A_eq[:6, :nv], A_eq[:6, nv:], A_eq[6:, :nv]
+        self.b_eq_h, self.b_eq_J = b_eq[:6], b_eq[6:]
+        self.A_hard, self.b_hard = A[:me], b[:me]
+        Jc = A[:6 * nc]
+        self.Jc_base_T, self.Jc_joints_T = Jc[:, :6].T, Jc[:, 6:].T
+        self.M_base, self.M_joints = d.M[:6], d.M[6:]  # views of pinocchio's data, refreshed by each update
+        self.nle_base, self.nle_joints = d.nle[:6], d.nle[6:]
+        self.cones = B["cones"]
+        self.cones[:] = [(None, None)] * nc
+        self.C_blocks = [C[18 * i:18 * i + 18, nv + 6 * i:nv + 6 * i + 6] for i in range(nc)]
+        self.u_blocks = [hi[18 * i:18 * i + 18] for i in range(nc)]
+        self.k = k = 18 * nc
+        self.C, self.l, self.u = C, lo, hi
+        self.lb_joints, self.ub_joints = lb[6:nv], ub[6:nv]
+        cones = (C[:k], lo[:k], hi[:k]) if nc else (None, None, None)
+        self.problem = QPProblem._trusted(H, g, A_eq, b_eq, *cones, lb, ub)
+        self.problem_torque = QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub)
+        self.problem_relaxed = QPProblem._trusted(H, g, A_eq, b_eq, *cones)
+
+    def torques(self, x: np.ndarray) -> np.ndarray:
+        """tau = M_a dv + h_a - J_c,a^T w for a QP solution x."""
+        nv = self.M_joints.shape[1]
+        tau = self.M_joints @ x[:nv]
+        tau += self.nle_joints
+        if self.k:
+            tau -= self.Jc_joints_T @ x[nv:]
+        return tau
+
+
 class InverseDynamicsController(Controller):
     """TSID-like weighted-QP inverse dynamics; see the module docstring."""
 
@@ -112,20 +172,24 @@ class InverseDynamicsController(Controller):
         sw = self.spec.swing_foot
         self.swing = {s: FrameTask(m, robot.profile.feet[s].frame, name=f"swing_{s.value}", weight=sw.weight,
                                    kp=sw.kp, kd=sw.kd, mask=sw.mask) for s in Side}
-        self.solver = make_solver(self.spec.solver)
-        self.relaxed_solver = make_solver(self.spec.solver)
-        self.torque_solver = make_solver(self.spec.solver)
+        # Each QP first tries the active set of its previous optimum, accepted only with a KKT certificate, and
+        # otherwise goes to the backend solved cold (see ActiveSetGuessSolver): standing or walking, the active
+        # set rarely changes from one tick to the next.
+        self.solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
+        self.relaxed_solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
+        self.torque_solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
         lo, hi = robot.position_limits
         self.q_lo, self.q_hi = lo, hi
         self.v_max = robot.velocity_limit
         self.tau_max = robot.effort_limit
         self.fallback_pd = None
-        self._buf: dict[int, dict] = {}
-        self._Jc: list[np.ndarray] = []
+        self._sides = tuple(Side)
+        self._buf: dict[tuple[int, int], dict] = {}
+        self._stacks: dict[tuple[Side, ...], tuple[TaskStack, int]] = {}
+        self._layouts: dict[tuple[Side, ...], _QPLayout] = {}
         self._t_pin = self._t_solve = 0.0
-        max_rows = sum(t.dim for t in self.tasks) + 12
-        self._Ac = np.zeros((max_rows, self.nv))
-        self._bc = np.zeros(max_rows)
+        self._limits_src: tuple = (None, None, None)
+        self._tau_lim_src = None
         self.n_relaxed = 0
         self.n_fallback = 0
         self.qp_status = QP_OK
@@ -194,7 +258,6 @@ class InverseDynamicsController(Controller):
     # ------------------------------------------------------------------ one tick
     def step(self, meas: Measurement, refs: References) -> Command:
         m, d = self.model, self.data
-        t = meas.t
         q, v = self._state(meas)
         t0 = perf_counter()
         update_kinematics(m, d, q, v)
@@ -202,25 +265,25 @@ class InverseDynamicsController(Controller):
         if self.stabilizer is not None:
             refs = self.stabilizer.correct(meas, refs, self.q_int)
         self._set_references(refs)
-        self._update_contacts(t, refs)
-        active = [s for s in Side if self.contacts[s].active]
-        x = self._solve(q, v, active)
+        self._update_contacts(meas.t, refs)
+        contacts = self.contacts
+        active = tuple(s for s in self._sides if contacts[s].active)
+        solved = self._solve(q, v, active)
+        if solved is None:
+            return self._fallback(meas, list(active))
+        x, tau = solved
         nv = self.nv
-        if x is None:
-            return self._fallback(meas, active)
-        dv = x[:nv]
-        self.dv = dv
-        for s in Side:
-            self.wrench[s][:] = 0.0
+        self.dv = x[:nv]
         for i, s in enumerate(active):
             self.wrench[s] = x[nv + 6 * i: nv + 6 * i + 6]
-        tau = d.M[6:] @ dv + d.nle[6:]
-        for i, s in enumerate(active):
-            tau -= self._Jc[i][:, 6:].T @ self.wrench[s]
+        if len(active) < 2:
+            for s in self._sides:
+                if s not in active:
+                    self.wrench[s][:] = 0.0
         self.tau = tau
         if self.mode is ActuationMode.TORQUE:
             return Command(tau=tau)
-        self.v_int = self.v_int + dv * self.dt
+        self.v_int = self.v_int + self.dv * self.dt
         self.q_int = pin.integrate(m, self.q_int, self.v_int * self.dt)
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
 
@@ -239,122 +302,141 @@ class InverseDynamicsController(Controller):
                 task.set_reference(target)
         for s, (p, vel, acc) in refs.feet.items():
             sw = self.swing[s]
-            R = refs.feet_rotation.get(s, sw.reference.rotation)
+            R = refs.feet_rotation.get(s)
+            if R is None:
+                R = sw.reference.rotation
             sw.set_reference(pin.SE3(R, np.asarray(p)), np.concatenate([vel, np.zeros(3)]),
                              np.concatenate([acc, np.zeros(3)]))
 
-    def _buffers(self, nc: int) -> dict:
-        """Preallocated QP arrays for `nc` active contacts (allocated once per contact count)."""
-        buf = self._buf.get(nc)
+    def _task_stack(self, active: tuple[Side, ...]) -> tuple[TaskStack, int]:
+        """The task stack for a set of active contacts (built once per set) and its number of constraint tasks.
+
+        Rows: the active contacts' motion rows and the priority-0 tasks (equality constraints) first, then the
+        weighted tasks of priority 1 and the swing tasks of the free feet (the cost), zero weights left out."""
+        entry = self._stacks.get(active)
+        if entry is None:
+            hard = [self.contacts[s].contact for s in active] + [t for t in self.tasks if t.name in self.hard]
+            soft = [t for t in self.tasks if t.name not in self.hard]
+            soft += [self.swing[s] for s in self._sides if s not in active]
+            entry = self._stacks[active] = (TaskStack(hard + soft, self.nv, skip_zero_weight=soft), len(hard))
+        return entry
+
+    def _buffers(self, nc: int, n_eq: int) -> dict:
+        """Preallocated QP arrays for `nc` active contacts and `n_eq` equality rows (allocated once per shape).
+
+        Constant parts are written here once: the wrench block of H (diagonal regularisation), the zero
+        blocks of g and A_eq, the -inf lower bounds of the wrench cones, the infinite bounds of the base and
+        the wrenches."""
+        key = (nc, n_eq)
+        buf = self._buf.get(key)
         if buf is None:
             nv, na = self.nv, self.robot.na
             n = nv + 6 * nc
-            n_eq = 6 + 6 * nc + sum(len(t.rows) for t in self.tasks if t.name in self.hard)
+            H = np.zeros((n, n))
+            H.reshape(-1)[nv * (n + 1)::n + 1] = self.spec.regularization_wrench
+            g = np.zeros(n)
             buf = {
-                "H": np.zeros((n, n)), "g": np.zeros(n),
+                "H": H, "H_dv": H[:nv, :nv], "H_diag_dv": H.reshape(-1)[:nv * (n + 1):n + 1],
+                "g": g, "g_dv": g[:nv],
                 "A_eq": np.zeros((n_eq, n)), "b_eq": np.zeros(n_eq),
                 "C": np.zeros((18 * nc + na, n)),
                 "l": np.concatenate([np.full(18 * nc, -np.inf), np.zeros(na)]),
                 "u": np.zeros(18 * nc + na),
                 "lb": np.full(n, -np.inf), "ub": np.full(n, np.inf),
-                "reg": np.concatenate([np.full(nv, self.spec.regularization_dv),
-                                       np.full(6 * nc, self.spec.regularization_wrench)]),
+                "cones": [(None, None)] * nc,
             }
-            self._buf[nc] = buf
+            self._buf[key] = buf
         return buf
 
-    def _solve(self, q: np.ndarray, v: np.ndarray, active: list[Side]) -> np.ndarray | None:
+    def _limit_rows(self) -> tuple[np.ndarray, ...]:
+        """[q_hi; q_lo], [v_max; -v_max] (2, na) and two work rows; rebuilt when a limit attribute is replaced
+        (tests and users assign new arrays to q_lo, q_hi, v_max)."""
+        src = self._limits_src
+        if src[0] is not self.q_hi or src[1] is not self.q_lo or src[2] is not self.v_max:
+            na = self.robot.na
+            self._limits = (np.stack([self.q_hi, self.q_lo]), np.stack([self.v_max, -self.v_max]),
+                            np.empty((2, na)), np.empty((2, na)))
+            self._limits_src = (self.q_hi, self.q_lo, self.v_max)
+        return self._limits
+
+    def _torque_limit(self) -> np.ndarray:
+        """tau_max (1 + 1e-9), the accepted torques without the torque rows; rebuilt when tau_max is replaced."""
+        if self._tau_lim_src is not self.tau_max:
+            self._tau_lim, self._tau_lim_src = self.tau_max * (1 + 1e-9), self.tau_max
+        return self._tau_lim
+
+    def _solve(self, q: np.ndarray, v: np.ndarray, active: tuple[Side, ...]) -> tuple[np.ndarray, np.ndarray] | None:
+        """Assemble and solve the QP; (x, tau) or None when even the relaxed QP fails."""
         m, d = self.model, self.data
-        nv, nc = self.nv, len(active)
-        na = nv - 6
-        n = nv + 6 * nc
-        B = self._buffers(nc)
-        H, g, A_eq, b_eq, C, lo, hi, lb, ub = (B[k] for k in ("H", "g", "A_eq", "b_eq", "C", "l", "u", "lb", "ub"))
-        # ---- cost: stack sqrt(w)-scaled rows, one product for the Hessian
-        Ac, bc = self._Ac, self._bc
-        k = 0
-        hard_A, hard_b = [], []
-        swing = [self.swing[s] for s in Side if not self.contacts[s].active]
-        for task in self.tasks + swing:
-            if task.weight == 0.0 and task.name not in self.hard:
-                continue
-            A, b = acceleration_rows(task, m, d)
-            if task.name in self.hard:
-                hard_A.append(A)
-                hard_b.append(b)
-                continue
-            r = A.shape[0]
-            sw = np.sqrt(task.weight)
-            np.multiply(A, sw, out=Ac[k:k + r])
-            np.multiply(b, -sw, out=bc[k:k + r])
-            k += r
-        H[:] = 0.0
-        np.matmul(Ac[:k].T, Ac[:k], out=H[:nv, :nv])
-        H.flat[::n + 1] += B["reg"]
-        g[:] = 0.0
-        np.matmul(Ac[:k].T, bc[:k], out=g[:nv])
-        # ---- equalities: floating-base dynamics, contact motion, hard tasks
-        A_eq[:] = 0.0
-        A_eq[:6, :nv] = d.M[:6]
-        b_eq[:6] = -d.nle[:6]
+        nv = self.nv
+        stack, n_hard = self._task_stack(active)
+        A, b = stack.acceleration_rows(m, d)  # the same arrays (refilled) while the stack's layout holds
+        L = self._layouts.get(active)
+        if L is None or L.slices is not stack.slices:  # first time, or the stack's layout changed
+            L = self._layouts[active] = _QPLayout(self, active, stack, n_hard, A, b)
+        # ---- cost: sqrt(w)-scaled rows of every weighted task, one product for the Hessian
+        Aw = L.Aw
+        np.multiply(L.A_cost, L.sw_column, out=Aw)
+        np.multiply(L.b_cost, L.minus_sw, out=L.bw)
+        np.matmul(Aw.T, Aw, out=L.H_dv)
+        L.H_diag_dv += self.spec.regularization_dv
+        np.matmul(Aw.T, L.bw, out=L.g_dv)
+        # ---- equalities: floating-base dynamics, contact motion, hard tasks (stack rows: contacts first)
+        L.A_eq_M[...] = L.M_base
+        np.negative(L.Jc_base_T, out=L.A_eq_w)
+        L.A_eq_J[...] = L.A_hard
+        np.negative(L.nle_base, out=L.b_eq_h)
+        L.b_eq_J[...] = L.b_hard
         # ---- inequalities: wrench cones (torque limits added lazily below); bounds: joint limits
-        C[:18 * nc] = 0.0
-        Jc = self._Jc
-        Jc.clear()
-        r = 6
+        cones = L.cones
         for i, s in enumerate(active):
-            c = self.contacts[s].contact
-            A, b = acceleration_rows(c, m, d)
-            Jc.append(A)
-            cols = slice(nv + 6 * i, nv + 6 * i + 6)
-            A_eq[:6, cols] = -A[:, :6].T
-            A_eq[r:r + 6, :nv] = A
-            b_eq[r:r + 6] = b
-            r += 6
-            Cr, ur = c.force_rows()
-            C[18 * i:18 * i + 18, cols] = Cr
-            hi[18 * i:18 * i + 18] = ur
-        for A, b in zip(hard_A, hard_b):
-            A_eq[r:r + A.shape[0], :nv] = A
-            b_eq[r:r + A.shape[0]] = b
-            r += A.shape[0]
-        qj, vj = q[7:], v[6:]
+            Cr, ur = self.contacts[s].contact.force_rows()
+            C_prev, u_prev = cones[i]
+            if Cr is not C_prev:
+                L.C_blocks[i][...] = Cr
+            if ur is not u_prev:
+                L.u_blocks[i][...] = ur
+            cones[i] = (Cr, ur)
+        # a_hi = min(2 (q_hi - q - v h) / h^2, (v_max - v) / dt), a_lo likewise: both rows at once
+        QL, VL, T, U = self._limit_rows()
+        vj = v[6:]
         h = self.spec.joint_limit_horizon
-        a_hi = np.minimum(2 * (self.q_hi - qj - vj * h) / h**2, (self.v_max - vj) / self.dt)
-        a_lo = np.maximum(2 * (self.q_lo - qj - vj * h) / h**2, (-self.v_max - vj) / self.dt)
-        lb[6:nv] = np.minimum(a_lo, a_hi)
-        ub[6:nv] = a_hi
-        k = 18 * nc
-        cones = (C[:k], lo[:k], hi[:k]) if nc else (None, None, None)
+        s_ = vj * h
+        s_ += q[7:]
+        np.subtract(QL, s_, out=T)
+        T *= 2 / h**2
+        np.subtract(VL, vj, out=U)
+        U /= self.dt
+        np.minimum(T[0], U[0], out=L.ub_joints)
+        np.maximum(T[1], U[1], out=T[1])
+        np.minimum(T[1], L.ub_joints, out=L.lb_joints)
         t0 = perf_counter()
         # Torque limits are lazy constraints: solve without them, and only if the optimum violates one solve
         # again with all of them (then the optimum is exactly the full problem's).
-        res = self.solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, *cones, lb, ub))
+        res = self.solver.solve(L.problem)
         if res.ok:
-            tau = d.M[6:] @ res.x[:nv] + d.nle[6:]
-            for i in range(nc):
-                tau -= Jc[i][:, 6:].T @ res.x[nv + 6 * i: nv + 6 * i + 6]
-            if np.all(np.abs(tau) <= self.tau_max * (1 + 1e-9)):
+            tau = L.torques(res.x)
+            if (np.abs(tau) <= self._torque_limit()).all():
                 self._t_solve = perf_counter() - t0
                 self.qp_status = QP_OK
-                return res.x
+                return res.x, tau
+            k, C, lo, hi = L.k, L.C, L.l, L.u
             C[k:] = 0.0
-            C[k:, :nv] = d.M[6:]
-            for i in range(nc):
-                C[k:, nv + 6 * i: nv + 6 * i + 6] = -Jc[i][:, 6:].T
-            lo[k:] = -self.tau_max - d.nle[6:]
-            hi[k:] = self.tau_max - d.nle[6:]
-            res = self.torque_solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub))
+            C[k:, :nv] = L.M_joints
+            np.negative(L.Jc_joints_T, out=C[k:, nv:])
+            lo[k:] = -self.tau_max - L.nle_joints
+            hi[k:] = self.tau_max - L.nle_joints
+            res = self.torque_solver.solve(L.problem_torque)
         self._t_solve = perf_counter() - t0
         if res.ok:
             self.qp_status = QP_OK
-            return res.x
+            return res.x, L.torques(res.x)
         # relaxed: keep the contact rows, drop joint and torque limits
         self.n_relaxed += 1
-        res = self.relaxed_solver.solve(QPProblem._trusted(H, g, A_eq, b_eq, *cones))
+        res = self.relaxed_solver.solve(L.problem_relaxed)
         if res.ok:
             self.qp_status = QP_RELAXED
-            return res.x
+            return res.x, L.torques(res.x)
         self.n_fallback += 1
         self.qp_status = QP_FALLBACK
         return None

@@ -1,13 +1,15 @@
 """QP layer: a problem container, two backends behind one interface, a weighted builder, a hierarchical solver.
 
 - :class:`QPProblem`: ``min 1/2 x^T H x + g^T x`` s.t. ``A_eq x = b_eq``, ``l <= C x <= u``, ``lb <= x <= ub``.
-- :class:`QPSolver` with :class:`DaqpSolver` (default) and :class:`ProxsuiteSolver`; :func:`make_solver` by name.
+- :class:`QPSolver` with :class:`DaqpSolver` (default) and :class:`ProxsuiteSolver`; :func:`make_solver` by name;
+  :class:`ActiveSetGuessSolver` in front of one for QPs solved again and again (a controller's tick).
 - :class:`QPResult` with a :class:`QPStatus`; ``x`` is None unless the solve is optimal.
 - :class:`WeightedQP`: cost terms ``w ||A x - b||^2`` plus constraints, assembled into a :class:`QPProblem`.
 - :class:`HierarchicalSolver`: strict (lexicographic) priorities over :class:`Level` of
   :class:`EqualityTask` and :class:`InequalityTask`, under hard bounds.
 """
 
+from wbcbench.qp.active_set_guess import ActiveSetGuessSolver
 from wbcbench.qp.daqp_solver import DaqpSolver
 from wbcbench.qp.hierarchical import HierarchicalResult, HierarchicalSolver, LevelPath, LevelReport
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level
@@ -20,6 +22,7 @@ from wbcbench.qp.weighted import WeightedQP
 
 __all__ = [
     "DEFAULT_SOLVER",
+    "ActiveSetGuessSolver",
     "DaqpSolver",
     "EqualityTask",
     "HierarchicalResult",

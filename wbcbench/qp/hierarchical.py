@@ -28,6 +28,12 @@ Then ``Z`` shrinks to the null space of the rows this level fixed (rank-revealin
 ``rank_tol * ||rows||_F``). A level whose target is out of reach is met as well as possible in the
 least-squares sense and reported ``met = False``; the levels below still use whatever freedom is left.
 
+Closed form (``fast_path``, no damping): a hierarchy of equality tasks whose first levels are met exactly and
+whose next level, if any, takes all the freedom left (the IK's feet, CoM, waist, then posture) is one
+least-squares problem with equality constraints, solved with one LAPACK call and accepted when the bounds do
+not bind and the rank tests pass (``HierarchicalSolver._solve_equalities``); otherwise the cascade above runs.
+The same levels handed again (a tuple of :class:`Level`, rows updated in place) reuse their checks and layout.
+
 Damping: ``damping = lambda > 0`` adds ``lambda^2 ||z||^2`` to every level's cost (a damped
 pseudo-inverse on the fast path, the same Tikhonov term in the QP), trading exactness (bias about
 ``lambda^2 / sigma^2``) for bounded steps near singular configurations. With ``lambda = 0`` (default) each
@@ -40,11 +46,12 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.linalg import lapack
 from scipy.optimize import nnls
 
 from wbcbench.qp._nullspace import least_squares_step, project
@@ -58,6 +65,10 @@ __all__ = ["HierarchicalSolver", "HierarchicalResult", "LevelReport", "LevelPath
 
 FloatArray = npt.NDArray[np.float64]
 
+
+_CLOSED_FORM_RANK_TOL = 1e-6
+"""Relative rank threshold of the closed-form path (see ``HierarchicalSolver._solve_equalities``): a thousand
+times the cascade's default ``rank_tol``, so that the two agree on which levels have full rank."""
 
 _SLACK_AS_EQUALITY = 1e-6
 """Optimal slacks above this (or 1000 x feasibility_tol), in weighted task units, turn their inequality rows
@@ -164,6 +175,31 @@ class HierarchicalResult:
         return "\n".join(lines)
 
 
+_REPORT_SLOTS = tuple(getattr(LevelReport, f.name).__set__ for f in fields(LevelReport))
+
+
+def _level_report(index: int, name: str, residual: float, task_residuals: Mapping[str, float], met: bool, rank: int,
+                  freedom: int, path: LevelPath, qp_status: QPStatus | None, qp_iterations: int,
+                  qp_attempts: int) -> LevelReport:
+    """``LevelReport(...)`` without the frozen dataclass' ``__init__``, which sets each field through
+    ``object.__setattr__``: the slot descriptors set them directly (half the time; the closed-form path makes
+    one per level every tick)."""
+    report = object.__new__(LevelReport)
+    s = _REPORT_SLOTS
+    s[0](report, index)
+    s[1](report, name)
+    s[2](report, residual)
+    s[3](report, task_residuals)
+    s[4](report, met)
+    s[5](report, rank)
+    s[6](report, freedom)
+    s[7](report, path)
+    s[8](report, qp_status)
+    s[9](report, qp_iterations)
+    s[10](report, qp_attempts)
+    return report
+
+
 @dataclass(slots=True)
 class _Carried:
     """Inequality rows of the levels above, relaxed by their optimal slacks: lo <= C x <= hi."""
@@ -235,10 +271,19 @@ class HierarchicalSolver:
         self.met_tol = float(met_tol)
         self.fast_path = bool(fast_path)
         self._solvers: dict[tuple[int | str, int], QPSolver] = {}
+        self._checked_levels: tuple[Level, ...] | None = None
+        self._checked_bounds: tuple[FloatArray | None, FloatArray | None] = (None, None)
+        self._plan_levels: tuple[Level, ...] | None = None
+        self._plan: _ClosedFormPlan | None = None
 
     # ------------------------------------------------------------------ input
 
     def _levels(self, levels: Sequence[Level | Sequence[Task] | Task]) -> tuple[Level, ...]:
+        # A tuple of Level objects is immutable (frozen levels, task tuples, frozen tasks): the one checked
+        # last time needs no new check (a controller hands the same levels every tick, their rows updated in
+        # place).
+        if levels is self._checked_levels:
+            return levels
         out = []
         for k, level in enumerate(levels):
             if isinstance(level, Level):
@@ -263,9 +308,22 @@ class HierarchicalSolver:
                         f"HierarchicalSolver: level {k} ('{level.name}'), task '{task.name}': "
                         f"{task.n_cols} columns, expected n = {self.n}"
                     )
-        return tuple(out)
+        out = tuple(out)
+        if type(levels) is tuple and all(a is b for a, b in zip(levels, out)):
+            self._checked_levels = levels
+        return out
 
     def _bounds(self, lower: Any, upper: Any) -> tuple[FloatArray, FloatArray]:
+        # the usual case: the caller's (n,) float64 arrays (shape and type checked once per pair of arrays), no
+        # NaN and ordered: one comparison
+        if lower is self._checked_bounds[0] and upper is self._checked_bounds[1] and lower is not None:
+            if (lower <= upper).all():
+                return lower, upper
+        elif (type(lower) is np.ndarray and type(upper) is np.ndarray and lower.dtype == upper.dtype == np.float64
+              and lower.shape == upper.shape == (self.n,)):
+            self._checked_bounds = (lower, upper)
+            if (lower <= upper).all():
+                return lower, upper
         bounds = []
         for value, fill, side in ((lower, -np.inf, "lower"), (upper, np.inf, "upper")):
             if value is None:
@@ -274,10 +332,13 @@ class HierarchicalSolver:
             array = np.asarray(value, dtype=np.float64)
             if array.shape != (self.n,):
                 raise ValueError(f"HierarchicalSolver: {side} bounds must have shape ({self.n},), got {array.shape}")
-            if np.isnan(array).any():
-                raise ValueError(f"HierarchicalSolver: {side} bounds contain NaN")
             bounds.append(array)
         lb, ub = bounds
+        if (lb <= ub).all():  # no NaN, ordered: the usual case in one comparison
+            return lb, ub
+        for array, side in ((lb, "lower"), (ub, "upper")):
+            if np.isnan(array).any():
+                raise ValueError(f"HierarchicalSolver: {side} bounds contain NaN")
         bad = np.flatnonzero(lb > ub)
         if bad.size:
             i = int(bad[0])
@@ -327,6 +388,10 @@ class HierarchicalSolver:
         """
         levels = self._levels(levels)
         lb, ub = self._bounds(lower, upper)
+        if self.fast_path and self.damping == 0.0:
+            result = self._solve_equalities(levels, lb, ub)
+            if result is not None:
+                return result
         st = _State(self.n, lb, ub, self.feasibility_tol)
         steps = [self._level(k, level, st) for k, level in enumerate(levels)]
         final_path = self._min_norm(st)
@@ -337,6 +402,110 @@ class HierarchicalSolver:
         ok = final_path is not LevelPath.FAILED and all(step[0] is not LevelPath.FAILED for step in steps)
         reports = tuple(self._report(k, level, x, *steps[k]) for k, level in enumerate(levels))
         return HierarchicalResult(x, reports, ok, violation, final_path)
+
+    def _solve_equalities(self, levels: tuple[Level, ...], lb: FloatArray, ub: FloatArray) -> HierarchicalResult | None:
+        """The closed-form path of a hierarchy of equality tasks whose bounds do not bind; None when it does not
+        apply (then the level-by-level cascade runs).
+
+        It applies when the first levels' rows, stacked (``P``, at most n rows), have full row rank, and the
+        levels after them are either none or one level that uses up all the freedom left (full column rank in
+        the null space of ``P``) followed by levels that can only be evaluated. Every row of ``P`` is then met
+        exactly, so the optimal set of those levels is ``{P x = b_P}`` and the hierarchy is one problem:
+
+        - no level after ``P``: ``x`` = the minimum-norm solution of ``P x = b_P`` (the implicit last level),
+          one LQ factorisation (LAPACK ``dgels``);
+        - one level ``(A, c)`` after: ``min ||A x - c||  s.t.  P x = b_P``, a least-squares problem with
+          equality constraints, one generalised RQ factorisation (LAPACK ``dgglse``).
+
+        The answer is the cascade's (to rounding) when it satisfies the bounds within ``feasibility_tol``, which
+        is checked; otherwise, or when a rank test fails, None. The rank tests are stricter than the cascade's:
+        every diagonal entry of the triangular factors must exceed ``_CLOSED_FORM_RANK_TOL`` (1e-6) times the
+        Frobenius norm of its rows (the cascade counts a direction from ``rank_tol`` = 1e-9 of its level's norm,
+        on a pivoted factorisation); a hierarchy nearer to rank deficiency takes the cascade.
+        """
+        n = self.n
+        plan = self._plan if levels is self._plan_levels else None
+        if plan is None:
+            plan = _ClosedFormPlan.of(levels, n)
+            if levels is self._checked_levels:  # the same immutable levels again next tick: keep the plan
+                self._plan_levels, self._plan = levels, plan
+        if plan.n_prefix == 0:
+            return None
+        counts, n_prefix, r = plan.counts, plan.n_prefix, plan.r
+        if plan.A is not None:  # the tasks' rows lie one after the other in memory: views, no copy
+            A, b, P, b_P, A_k, c_k = plan.A, plan.b, plan.P, plan.b_P, plan.A_k, plan.c_k
+        else:
+            A = np.concatenate([t.A if w == 1.0 else math.sqrt(w) * t.A for t, w in plan.tasks]) if \
+                len(plan.tasks) > 1 else plan.tasks[0][0].A
+            b = np.concatenate([t.b if w == 1.0 else math.sqrt(w) * t.b for t, w in plan.tasks]) if \
+                len(plan.tasks) > 1 else plan.tasks[0][0].b
+            k_end = r + counts[n_prefix] if n_prefix < len(counts) else r
+            P, b_P, A_k, c_k = A[:r], b[:r], A[r:k_end], b[r:k_end]
+        d = n - r
+        tol = _CLOSED_FORM_RANK_TOL * _frobenius(P)
+        if n_prefix == len(levels):
+            # min ||x|| s.t. P x = b_P: LQ of P (full row rank), L on and below the diagonal of lq[:r, :r]
+            padded = np.zeros(n)
+            padded[:r] = b_P
+            lq, sol, info = lapack.dgels(P, padded)
+            if info != 0 or not np.abs(lq.diagonal()[:r]).min() > tol:
+                return None
+            x = sol
+            final_path = LevelPath.NULLSPACE if d else LevelPath.LOCKED
+        else:
+            # A_k is (m_k, n) with m_k > d: T (d, d) from A_k in the null space of P, R (r, r) from P
+            T, R, _, x, info = lapack.dgglse(A_k, P, c_k, b_P)
+            if info != 0 or not np.abs(R.diagonal(d)).min() > tol:
+                return None
+            if d and not np.abs(T.diagonal()[:d]).min() > _CLOSED_FORM_RANK_TOL * _frobenius(A_k):
+                return None
+            final_path = LevelPath.LOCKED
+        ftol = self.feasibility_tol
+        high, low = (x - ub).max(), (lb - x).max()
+        if not (high <= ftol and low <= ftol):  # a bound binds (or x is not finite)
+            if not np.isfinite(x).all():
+                for level in levels:  # invalid rows handed over unchecked: say which
+                    for task in level.tasks:
+                        if type(task) is EqualityTask:
+                            task._validate()
+            return None
+        violation = float(max(0.0, low, high))
+        if violation > 0.0:
+            x = np.clip(x, lb, ub)
+        # reports: residuals of every task at x, rank and freedom of every level
+        e = A @ x
+        e -= b
+        e *= e
+        sums = np.add.reduceat(e, plan.starts).tolist()
+        reports = []
+        i = 0
+        freedom = n
+        for k, level in enumerate(levels):
+            task_residuals: dict[str, float] = {}
+            total = 0.0
+            for task in level.tasks:
+                w = task.weight
+                if w == 1.0:
+                    sq = sums[i]
+                    i += 1
+                else:  # weighted rows were scaled; weight 0 has no rows: evaluate it directly
+                    if w > 0.0:
+                        i += 1
+                    res = task.residual(x)
+                    sq = float(res @ res)
+                task_residuals[task.name] = math.sqrt(sq)
+                total += w * sq
+            residual = math.sqrt(total)
+            if k < n_prefix:
+                rank, path = counts[k], LevelPath.NULLSPACE
+            elif freedom:  # the level after P takes all the freedom left
+                rank, path = freedom, LevelPath.NULLSPACE
+            else:
+                rank, path = 0, LevelPath.LOCKED
+            reports.append(_level_report(k, level.name, residual, task_residuals, residual <= self.met_tol, rank,
+                                         freedom, path, None, 0, 0))
+            freedom -= rank
+        return HierarchicalResult(x, tuple(reports), True, violation, final_path)
 
     def _level(self, k: int, level: Level, st: _State) -> tuple[LevelPath, int, int, QPStatus | None, int, int]:
         """Solve one level in place on ``st``; returns (path, rank, freedom, qp status, iterations, attempts)."""
@@ -454,8 +623,7 @@ _TINY = float(np.finfo(float).tiny)
 
 
 def _frobenius(A: FloatArray) -> float:
-    flat = A.reshape(-1)
-    return max(math.sqrt(float(flat @ flat)), _TINY)
+    return max(math.sqrt(float(np.vdot(A, A))), _TINY)
 
 
 def _stack(level: Level) -> tuple[FloatArray | None, FloatArray | None, _Carried | None]:
@@ -527,6 +695,76 @@ def _kkt_optimal(problem: QPProblem, v: FloatArray, tol: float, kkt_tol: float =
 def _violation(rows: _Carried, x: FloatArray) -> FloatArray:
     cx = rows.C @ x
     return cx - np.clip(cx, rows.lo, rows.hi)
+
+
+@dataclass(slots=True)
+class _ClosedFormPlan:
+    """The shape of a hierarchy for ``HierarchicalSolver._solve_equalities``, kept while the same levels are
+    solved again: tasks with rows (and their weights), rows per level, the leading levels whose rows fit in n
+    (``n_prefix``, 0 when the path does not apply), and views spanning all rows when they are adjacent in
+    memory (a controller's stack of task rows)."""
+
+    tasks: list[tuple[EqualityTask, float]]
+    counts: list[int]
+    n_prefix: int
+    r: int
+    starts: npt.NDArray[np.intp]
+    A: FloatArray | None
+    b: FloatArray | None
+    P: FloatArray | None = None
+    b_P: FloatArray | None = None
+    A_k: FloatArray | None = None
+    c_k: FloatArray | None = None
+
+    @classmethod
+    def of(cls, levels: tuple[Level, ...], n: int) -> _ClosedFormPlan:
+        tasks: list[tuple[EqualityTask, float]] = []
+        counts: list[int] = []
+        none = cls([], [], 0, 0, np.zeros(0, dtype=np.intp), None, None)
+        for level in levels:
+            count = 0
+            for task in level.tasks:
+                if type(task) is not EqualityTask:
+                    return none
+                if task.weight > 0.0:
+                    tasks.append((task, task.weight))
+                    count += task.A.shape[0]
+            if count == 0:
+                return none
+            counts.append(count)
+        if not tasks:
+            return none
+        r = n_prefix = 0
+        for count in counts:
+            if r + count > n:
+                break
+            r += count
+            n_prefix += 1
+        sizes = [t.A.shape[0] for t, _ in tasks]
+        starts = np.cumsum([0] + sizes[:-1]).astype(np.intp)
+        if all(w == 1.0 for _, w in tasks):
+            A, b = _span([t.A for t, _ in tasks]), _span([t.b for t, _ in tasks])
+            if A is not None and b is not None:
+                k_end = r + counts[n_prefix] if n_prefix < len(counts) else r
+                return cls(tasks, counts, n_prefix, r, starts, A, b, A[:r], b[:r], A[r:k_end], b[r:k_end])
+        return cls(tasks, counts, n_prefix, r, starts, None, None)
+
+
+def _span(arrays: list[FloatArray]) -> FloatArray | None:
+    """A read-only view covering ``arrays`` (C-contiguous float64 blocks of equal trailing shape) when they lie
+    one after the other in memory, else None."""
+    first = arrays[0]
+    if first.dtype != np.float64:
+        return None
+    end = first.__array_interface__["data"][0]
+    for a in arrays:
+        if a.dtype != np.float64 or not a.flags.c_contiguous or a.shape[1:] != first.shape[1:]:
+            return None
+        if a.__array_interface__["data"][0] != end:
+            return None
+        end += a.nbytes
+    rows = sum(a.shape[0] for a in arrays)
+    return np.lib.stride_tricks.as_strided(first, shape=(rows, *first.shape[1:]), writeable=False)
 
 
 class _State:

@@ -76,6 +76,23 @@ class EqualityTask:
         object.__setattr__(self, "b", _vector(self.b, owner, "b", A.shape[0]))
         object.__setattr__(self, "weight", _weight(self.weight, owner))
 
+    @classmethod
+    def _trusted(cls, name: str, A: FloatArray, b: FloatArray, weight: float = 1.0) -> EqualityTask:
+        """Build without validation, for internal callers that guarantee the invariants (a non-empty name,
+        finite float64 ``A`` (m, n) and ``b`` (m,), a finite weight >= 0), e.g. a controller handing the same
+        task rows to the solver every tick."""
+        self = object.__new__(cls)
+        setter = object.__setattr__
+        setter(self, "name", name)
+        setter(self, "A", A)
+        setter(self, "b", b)
+        setter(self, "weight", float(weight))
+        return self
+
+    def _validate(self) -> None:
+        """Run the constructor's checks (raises ValueError naming the task)."""
+        self.__post_init__()
+
     @property
     def n_rows(self) -> int:
         return self.A.shape[0]
@@ -176,6 +193,15 @@ class Level:
         object.__setattr__(self, "tasks", tasks)
         if not self.name:
             object.__setattr__(self, "name", "+".join(t.name for t in tasks))
+
+    @classmethod
+    def _trusted(cls, tasks: tuple[Task, ...], name: str) -> Level:
+        """Build without validation (a non-empty tuple of tasks with unique names and equal column counts, a
+        name), for internal callers that guarantee it."""
+        self = object.__new__(cls)
+        object.__setattr__(self, "tasks", tasks)
+        object.__setattr__(self, "name", name)
+        return self
 
     @property
     def equalities(self) -> tuple[EqualityTask, ...]:

@@ -7,6 +7,9 @@ Per tick::
     A, b = acceleration_rows(com, model, data)       # or velocity_rows(...) for IK
     C, u = contact.force_rows()                      # C w <= u on each contact wrench
 
+    stack = TaskStack([com, waist, posture], model.nv)   # once; then per tick, all rows in one go:
+    A, b = stack.acceleration_rows(model, data)      # same rows as stacking acceleration_rows(...)
+
 Conventions: task errors are ``reference (-) current``; frame tasks live in LOCAL_WORLD_ALIGNED (world axes,
 origin on the frame), contacts in the LOCAL contact frame (z = normal); wrenches are ``[f; tau]`` exerted by
 the environment on the robot, in the contact frame at its origin. Units SI.
@@ -22,6 +25,7 @@ from wbcbench.tasks.kinematics import update_kinematics, update_kinematics_veloc
 from wbcbench.tasks.posture_task import PostureTask
 from wbcbench.tasks.rows import Inequality, Rows
 from wbcbench.tasks.self_collision import RepulsionPoint, SelfCollisionTask
+from wbcbench.tasks.stack import TaskStack
 from wbcbench.tasks.task import Task
 
 __all__ = [
@@ -37,6 +41,7 @@ __all__ = [
     "SelfCollisionTask",
     "Task",
     "TaskConfigError",
+    "TaskStack",
     "UnknownNameError",
     "acceleration_rows",
     "update_kinematics",

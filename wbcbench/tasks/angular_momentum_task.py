@@ -59,6 +59,7 @@ class AngularMomentumTask(Task):
             name=name, axis_names=self.AXES, units=self.UNITS, weight=weight, kp=0.0, kd=kd, mask=mask
         )
         self._zero = val.frozen(np.zeros(3))
+        self._views: tuple | None = None
 
     def _gain(self, value: Any, key: str) -> FloatArray:
         gain = super()._gain(value, key)
@@ -94,3 +95,26 @@ class AngularMomentumTask(Task):
     def drift(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """``dAg_ang v``: momentum rate at zero joint acceleration (3,) [N m]."""
         return data.dAg[3:] @ data.v_in
+
+    # stacked evaluation (see Task._write_jacobian): only the selected axes, no temporaries
+    def _data_views(self, data: pin.Data) -> tuple:
+        """(data, rows, Ag, dAg): the angular rows of pinocchio's centroidal buffers restricted to the selected
+        axes, kept between ticks (fixed-size buffers of ``data``, which the tuple keeps alive); copies when the
+        selection is not a slice."""
+        views = self._views
+        if views is None or views[0] is not data or views[1] is not self._rows:
+            sel = self._selection
+            views = (data, self._rows, data.Ag[3:][sel], data.dAg[3:][sel])
+            if type(sel) is not slice:  # fancy indexing copied: nothing to keep
+                return views
+            self._views = views
+        return views
+
+    def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        out[...] = self._data_views(data)[2]
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        out.fill(0.0)
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        np.matmul(self._data_views(data)[3], data.v_in, out=out)

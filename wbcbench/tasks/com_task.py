@@ -53,6 +53,7 @@ class CoMTask(Task):
         self._mass = float(pin.computeTotalMass(model))
         self._inv_mass = 1.0 / self._mass
         self._p_ref: FloatArray | None = None
+        self._views: tuple | None = None
 
     @property
     def mass(self) -> float:
@@ -102,3 +103,33 @@ class CoMTask(Task):
     def drift(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """CoM acceleration at zero joint acceleration (3,) [m/s^2]."""
         return (data.dAg[:3] @ data.v_in) * self._inv_mass
+
+    # stacked evaluation (see Task._write_jacobian): only the selected axes, no temporaries
+    def _data_views(self, data: pin.Data) -> tuple | None:
+        """(data, rows, Ag, dAg, com) with the last three views of pinocchio's buffers restricted to the selected
+        axes, kept between ticks (``data.Ag``, ``data.dAg`` and ``data.com[0]`` are fixed-size buffers of ``data``,
+        which the tuple keeps alive); None when the selection is not a slice (indexing would copy)."""
+        views = self._views
+        if views is not None and views[0] is data and views[1] is self._rows:
+            return views
+        sel = self._selection
+        if type(sel) is not slice:
+            return None
+        self._views = views = (data, self._rows, data.Ag[sel], data.dAg[sel], data.com[0][sel])
+        return views
+
+    def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        views = self._data_views(data)
+        np.multiply(data.Ag[self._selection] if views is None else views[2], self._inv_mass, out=out)
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        if self._p_ref is None:
+            raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the task")
+        sel = self._selection
+        views = self._data_views(data)
+        np.subtract(self._p_ref[sel], data.com[0][sel] if views is None else views[4], out=out)
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        views = self._data_views(data)
+        np.matmul(data.dAg[self._selection] if views is None else views[3], data.v_in, out=out)
+        out *= self._inv_mass

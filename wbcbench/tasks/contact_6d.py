@@ -319,3 +319,18 @@ class Contact6D(Task):
     def drift(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """``J_dot v`` in LOCAL: spatial acceleration of the frame at zero joint acceleration (6,)."""
         return pin.getFrameAcceleration(model, data, self._frame_id, _LOCAL).vector
+
+    # stacked evaluation (see Task._write_jacobian): the contract's computations, one call less each
+    def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        J = pin.getFrameJacobian(model, data, self._frame_id, _LOCAL)
+        out[...] = J if self._all_selected else J[self._selection]
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        if self._M_ref is None:
+            raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the contact")
+        e = pin.log6(pin.updateFramePlacement(model, data, self._frame_id).actInv(self._M_ref)).vector
+        out[...] = e if self._all_selected else e[self._selection]
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        a = pin.getFrameAcceleration(model, data, self._frame_id, _LOCAL).vector
+        out[...] = a if self._all_selected else a[self._selection]

@@ -71,6 +71,7 @@ class FrameTask(Task):
         )
         self._p_ref: FloatArray | None = None
         self._R_ref: FloatArray | None = None
+        self._error_kind: tuple = (None, None)  # (rows, part of the error they select), see _write_error
 
     @property
     def frame(self) -> str:
@@ -132,6 +133,29 @@ class FrameTask(Task):
         e[:3] = self._p_ref - oMf.translation
         e[3:] = pin.log3(self._R_ref @ oMf.rotation.T)
         return e
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        """Stacked evaluation (see Task._write_error): only the translation or rotation part when the mask
+        selects only that part."""
+        rows, kind = self._error_kind
+        if rows is not self._rows:  # the mask changed: which part of the error it selects
+            sel = self._selection
+            kind = ("all" if self._all_selected else "other" if type(sel) is not slice
+                    else "rotation" if sel == slice(3, 6) else "translation" if sel == slice(0, 3) else "other")
+            self._error_kind = (self._rows, kind)
+        if kind == "other":
+            super()._write_error(model, data, out)
+            return
+        if self._R_ref is None or self._p_ref is None:
+            raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the task")
+        oMf = pin.updateFramePlacement(model, data, self._frame_id)
+        if kind == "rotation":
+            out[:] = pin.log3(self._R_ref @ oMf.rotation.T)
+        elif kind == "all":
+            out[:3] = self._p_ref - oMf.translation
+            out[3:] = pin.log3(self._R_ref @ oMf.rotation.T)
+        else:
+            np.subtract(self._p_ref, oMf.translation, out=out)
 
     def jacobian(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """LOCAL_WORLD_ALIGNED frame Jacobian, (6, nv)."""

@@ -27,6 +27,13 @@ def _unit(joint_type: str) -> str:
     )
 
 
+_SUBTRACTION_JOINTS = frozenset({
+    "JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+    "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned",
+})
+"""Joints whose ``pin.difference`` is ``q1 - q0`` on their single coordinate (bounded revolute, prismatic)."""
+
+
 class PostureTask(Task):
     """Track a reference configuration ``q_ref`` on a set of actuated joints.
 
@@ -50,6 +57,8 @@ class PostureTask(Task):
         UnknownNameError: a joint name is not in the model (the message lists close names).
         TaskConfigError: floating root or duplicate joint, invalid gain, mask or weight.
     """
+
+    _constant_jacobian = True
 
     def __init__(
         self,
@@ -105,6 +114,13 @@ class PostureTask(Task):
         self._unselected_q = unselected
         self._model = model  # only for Lie-group checks of q_ref; never mutated
         self._q_ref: FloatArray | None = None
+        # joints whose Lie-group difference is a subtraction (1-dof revolute and prismatic): the stacked error
+        # reads q directly (same numbers as pin.difference); None when a selected joint is of another kind
+        vector_space = all(model.joints[j].shortname() in _SUBTRACTION_JOINTS for j in self._joint_ids)
+        self._idx_q_axes = (
+            np.array([model.joints[j].idx_q for j in self._joint_ids], dtype=np.intp) if vector_space else None
+        )
+        self._error_index: tuple = (None, None, None)  # (rows, index into q or v, q_ref and its selection)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -183,3 +199,29 @@ class PostureTask(Task):
     def drift(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """Zero (dim,), read-only: joint coordinates have no drift."""
         return self._zero
+
+    # stacked evaluation (see Task._write_jacobian)
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        q_ref = self._q_ref
+        if q_ref is None:
+            raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the task")
+        rows, idx, ref = self._error_index
+        if rows is not self._rows:  # first call, or the mask changed: where the selected axes are
+            if self._idx_q_axes is None:
+                idx = self._idx_v if self._all_selected else self._idx_v[self._rows]
+            else:
+                iq = self._idx_q_axes if self._all_selected else self._idx_q_axes[self._rows]
+                contiguous = iq.size and iq[-1] - iq[0] + 1 == iq.size
+                idx = slice(int(iq[0]), int(iq[-1]) + 1) if contiguous else iq
+            ref = None
+        if self._idx_q_axes is None:
+            self._error_index = (self._rows, idx, None)
+            np.take(pin.difference(model, data.q_in, q_ref), idx, out=out)
+            return
+        if ref is None or ref[0] is not q_ref:  # set_reference stores a new array
+            ref = (q_ref, q_ref[idx])
+        self._error_index = (self._rows, idx, ref)
+        np.subtract(ref[1], data.q_in[idx], out=out)
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        out.fill(0.0)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -49,6 +49,13 @@ class Task(ABC):
     Raises:
         TaskConfigError: on any invalid argument (the message names the task and the key).
     """
+
+    _config_epoch: ClassVar[int] = 0
+    """Incremented by every weight, gain or mask setter of any task, so that a :class:`~wbcbench.tasks.TaskStack`
+    knows with one comparison per tick whether its cached layout (rows, gains, weights) is still valid."""
+
+    _constant_jacobian: ClassVar[bool] = False
+    """True when :meth:`jacobian` never changes (posture): a stack writes it once per layout, not per tick."""
 
     def __init__(
         self,
@@ -124,6 +131,7 @@ class Task(ABC):
     @weight.setter
     def weight(self, value: float) -> None:
         self._weight = val.as_weight(value, self.owner)
+        Task._config_epoch += 1
 
     def _gain(self, value: Any, key: str) -> FloatArray:
         """Normalise a gain given as a scalar or one value per axis (subclasses may accept more forms)."""
@@ -137,6 +145,7 @@ class Task(ABC):
     @kp.setter
     def kp(self, value: Any) -> None:
         self._kp = self._gain(value, "kp")
+        Task._config_epoch += 1
 
     @property
     def kd(self) -> FloatArray:
@@ -146,6 +155,7 @@ class Task(ABC):
     @kd.setter
     def kd(self, value: Any) -> None:
         self._kd = self._gain(value, "kd")
+        Task._config_epoch += 1
 
     @property
     def mask(self) -> npt.NDArray[np.bool_]:
@@ -161,6 +171,7 @@ class Task(ABC):
         self._selection: slice | npt.NDArray[np.intp] = (
             slice(int(self._rows[0]), int(self._rows[-1]) + 1) if contiguous else self._rows
         )
+        Task._config_epoch += 1
 
     @property
     def rows(self) -> npt.NDArray[np.intp]:
@@ -204,6 +215,27 @@ class Task(ABC):
     def _store_derivatives(self, derivatives: tuple[FloatArray, FloatArray]) -> None:
         """Store what :meth:`_check_derivatives` returned."""
         self._v_ref, self._a_ref = derivatives
+
+    # ------------------------------------------------------------------------------- stacked evaluation
+    # :class:`~wbcbench.tasks.TaskStack` fills preallocated buffers through these three hooks, once per tick.
+    # Each writes the rows selected by the mask into ``out`` (a view of shape (r, nv) or (r,), r = len(rows)),
+    # with the same values as ``jacobian(...)[selection]`` etc. The defaults go through the contract; the
+    # library's tasks override them to skip temporaries and the rows their mask drops.
+
+    def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        """``out[:] = jacobian(model, data)[selection]``."""
+        J = self.jacobian(model, data)
+        out[...] = J if self._all_selected else J[self._selection]
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        """``out[:] = error(model, data)[selection]``."""
+        e = self.error(model, data)
+        out[...] = e if self._all_selected else e[self._selection]
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        """``out[:] = drift(model, data)[selection]``."""
+        a = self.drift(model, data)
+        out[...] = a if self._all_selected else a[self._selection]
 
     def __repr__(self) -> str:
         selected = "".join("1" if m else "0" for m in self._mask)

@@ -1,0 +1,235 @@
+"""Several tasks' rows evaluated together, into buffers allocated once, every control tick.
+
+:func:`~wbcbench.tasks.acceleration_rows` and :func:`~wbcbench.tasks.velocity_rows` build one task's rows
+from its contract (error, Jacobian, velocity, drift), allocating a few arrays each. A controller that needs
+the rows of all its tasks every tick pays that, plus the Python around it, once per task. A
+:class:`TaskStack` keeps the stacked arrays and the stacked gains of a list of tasks and fills them in
+place: each task writes its selected Jacobian rows, error and drift into its slice of the buffers
+(``Task._write_jacobian`` / ``_write_error`` / ``_write_drift``), then the control law is applied to all rows
+at once, with the task velocities ``J v`` as one product of the stacked Jacobian with ``v`` (the task
+contract: ``velocity()`` is ``J v``).
+
+Same rows as stacking the per-task functions, to rounding (the velocity as ``J v`` rather than pinocchio's
+frame velocity differs by a few 1e-16 relative), in the order of the tasks given.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Sequence
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from wbcbench.tasks.rows import Rows
+from wbcbench.tasks.task import Task
+
+__all__ = ["TaskStack"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _read_only(array: FloatArray) -> FloatArray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+class TaskStack:
+    """The rows of several tasks, stacked: ``A`` (m, nv) and ``b`` (m,).
+
+    Acceleration level (:meth:`acceleration_rows`, after :func:`~wbcbench.tasks.update_kinematics`)::
+
+        A = [J_1[mask_1]; J_2[mask_2]; ...]
+        b = a_ref + Kd (v_ref - A v) + Kp e - J_dot v          (every row at once)
+
+    Velocity level (:meth:`velocity_rows`, after either kinematics update)::
+
+        b = v_ref + Kp e
+
+    The layout (row offsets, stacked gains and square-root weights, the constant Jacobian rows of posture
+    tasks) is built at the first evaluation and rebuilt whenever a weight, gain or mask of any task changes
+    (one integer comparison per evaluation, see ``Task._config_epoch``; when it changed, the stack's own tasks
+    are compared with the layout's, so new tasks elsewhere cost no rebuild). References are read from the tasks at
+    every evaluation (copied only when a ``set_reference`` replaced them).
+
+    Args:
+        tasks: the tasks, in row order.
+        nv: number of columns (the model's ``nv``).
+        skip_zero_weight: leave out the tasks whose weight is 0 (nothing they give counts in a weighted cost);
+            re-evaluated when a weight changes. True for every task, or the collection of tasks it applies to
+            (e.g. the cost tasks of a stack that also holds constraints).
+
+    The arrays returned are read-only views of the stack's buffers, overwritten by the next evaluation (copy
+    them to keep them). Not thread-safe.
+    """
+
+    def __init__(self, tasks: Sequence[Task], nv: int, *, skip_zero_weight: bool | Collection[Task] = False) -> None:
+        self._candidates = tuple(tasks)
+        self._nv = int(nv)
+        if isinstance(skip_zero_weight, bool):
+            self._skippable = frozenset(map(id, self._candidates)) if skip_zero_weight else frozenset()
+        else:
+            self._skippable = frozenset(map(id, skip_zero_weight))
+        self._epoch: int | None = None
+        self._pending_constant = False
+        self._layout_now()
+
+    # ------------------------------------------------------------------------------------------ layout
+    def _layout_now(self) -> None:
+        tasks = [t for t in self._candidates if not (t.weight == 0.0 and id(t) in self._skippable)]
+        sizes = [len(t.rows) for t in tasks]
+        m, nv = sum(sizes), self._nv
+        self._A = np.zeros((m, nv))
+        self._b = np.zeros(m)
+        self._e = np.zeros(m)
+        self._drift = np.zeros(m)
+        self._v_ref = np.zeros(m)
+        self._a_ref = np.zeros(m)
+        self._jv = np.zeros(m)
+        self._tmp = np.zeros(m)
+        kp, kd, sw = np.empty(m), np.empty(m), np.empty(m)
+        items: list[tuple] = []
+        slices: list[slice] = []
+        start = 0
+        for task, r in zip(tasks, sizes, strict=True):
+            rows = slice(start, start + r)
+            sel = task.selection
+            kp[rows] = task.kp[sel]
+            kd[rows] = task.kd[sel]
+            sw[rows] = math.sqrt(task.weight)
+            # (task, its hooks and row views; [last v_ref, last a_ref] seen); no Jacobian hook when constant
+            items.append((task, None if task._constant_jacobian else task._write_jacobian, self._A[rows],
+                          task._write_error, self._e[rows], task._write_drift, self._drift[rows],
+                          self._v_ref[rows], self._a_ref[rows], [None, None]))
+            slices.append(rows)
+            start += r
+        self._kp, self._kd, self._minus_kd = kp, kd, -kd
+        self._v_ref_zero = self._a_ref_zero = True  # the reference rows are zeros until filled
+        self._refs_changed = False
+        self._sqrt_weights = _read_only(sw)
+        self._items = items
+        self._tasks = tuple(tasks)
+        self._slices = tuple(slices)
+        self._A_out, self._b_out = _read_only(self._A), _read_only(self._b)
+        self._pending_constant = any(t._constant_jacobian for t in tasks)
+        self._layout_signature = self._signature()
+        self._epoch = Task._config_epoch
+
+    def _signature(self) -> tuple:
+        """What the layout depends on: each task's weight, gains and rows (setters store new arrays)."""
+        return tuple((t._weight, t._kp, t._kd, t._rows) for t in self._candidates)
+
+    def _update_layout(self) -> None:
+        """Some task's configuration changed (any task's, anywhere): rebuild the layout if one of ours did."""
+        signature = self._signature()
+        if len(signature) != len(self._layout_signature) or any(
+            a[0] != b[0] or a[1] is not b[1] or a[2] is not b[2] or a[3] is not b[3]
+            for a, b in zip(signature, self._layout_signature)
+        ):
+            self._layout_now()
+        else:
+            self._epoch = Task._config_epoch
+
+    def _refresh(self, model: pin.Model, data: pin.Data) -> None:
+        """Rebuild the layout if a task's configuration changed; write the constant Jacobian rows."""
+        if self._epoch != Task._config_epoch:
+            self._update_layout()
+        if self._pending_constant:
+            for task, rows in zip(self._tasks, self._slices, strict=True):
+                if task._constant_jacobian:
+                    task._write_jacobian(model, data, self._A[rows])
+            self._pending_constant = False
+
+    # ---------------------------------------------------------------------------------------- evaluation
+    def _fill(self, model: pin.Model, data: pin.Data, drift: bool) -> None:
+        for task, write_jacobian, J, write_error, e, write_drift, a, v_ref_rows, a_ref_rows, seen in self._items:
+            if write_jacobian is not None:
+                write_jacobian(model, data, J)
+            write_error(model, data, e)
+            v_ref = task._v_ref
+            if v_ref is not seen[0]:  # set_reference stores new (read-only) arrays: copy only when replaced
+                v_ref_rows[...] = v_ref if task._all_selected else v_ref[task._selection]
+                seen[0] = v_ref
+                self._refs_changed = True
+            if drift:
+                write_drift(model, data, a)
+                a_ref = task._a_ref
+                if a_ref is not seen[1]:
+                    a_ref_rows[...] = a_ref if task._all_selected else a_ref[task._selection]
+                    seen[1] = a_ref
+                    self._refs_changed = True
+        if self._refs_changed:
+            self._refs_changed = False
+            self._v_ref_zero = not self._v_ref.any()
+            self._a_ref_zero = not self._a_ref.any()
+
+    def acceleration_rows(self, model: pin.Model, data: pin.Data) -> Rows:
+        """Stacked ``J dv = a_ref + Kd (v_ref - J v) + Kp e - J_dot v`` (see
+        :func:`~wbcbench.tasks.acceleration_rows`); needs :func:`~wbcbench.tasks.update_kinematics` for the
+        current ``(q, v)`` (``v`` is read from ``data.v_in``).
+
+        Returns:
+            ``Rows(A (m, nv), b (m,))``, read-only views valid until the next evaluation.
+        """
+        if self._epoch != Task._config_epoch or self._pending_constant:
+            self._refresh(model, data)
+        self._fill(model, data, True)
+        b, tmp = self._b, self._tmp
+        np.matmul(self._A, data.v_in, out=self._jv)
+        # terms of zero references are skipped (the same numbers: 0 - Jv = -Jv, 0 + x = x)
+        if self._v_ref_zero:
+            np.multiply(self._jv, self._minus_kd, out=b)
+        else:
+            np.subtract(self._v_ref, self._jv, out=b)
+            b *= self._kd
+        if not self._a_ref_zero:
+            np.add(self._a_ref, b, out=b)
+        np.multiply(self._kp, self._e, out=tmp)
+        b += tmp
+        b -= self._drift
+        return Rows(self._A_out, self._b_out)
+
+    def velocity_rows(self, model: pin.Model, data: pin.Data) -> Rows:
+        """Stacked ``J v = v_ref + Kp e`` (see :func:`~wbcbench.tasks.velocity_rows`); needs either kinematics
+        update for the current ``q``.
+
+        Returns:
+            ``Rows(A (m, nv), b (m,))``, read-only views valid until the next evaluation.
+        """
+        if self._epoch != Task._config_epoch or self._pending_constant:
+            self._refresh(model, data)
+        self._fill(model, data, False)
+        b = self._b
+        np.multiply(self._kp, self._e, out=b)
+        if not self._v_ref_zero:
+            np.add(self._v_ref, b, out=b)
+        return Rows(self._A_out, self._b_out)
+
+    # ---------------------------------------------------------------------------------------- description
+    @property
+    def tasks(self) -> tuple[Task, ...]:
+        """The tasks in the current layout (without the zero-weight ones when they are skipped), in row order."""
+        if self._epoch != Task._config_epoch:
+            self._update_layout()
+        return self._tasks
+
+    @property
+    def slices(self) -> tuple[slice, ...]:
+        """Rows of each task of :attr:`tasks` in ``A`` and ``b``."""
+        if self._epoch != Task._config_epoch:
+            self._update_layout()
+        return self._slices
+
+    @property
+    def sqrt_weights(self) -> FloatArray:
+        """``sqrt(weight)`` of each row's task, (m,), read-only."""
+        if self._epoch != Task._config_epoch:
+            self._update_layout()
+        return self._sqrt_weights
+
+    @property
+    def n_rows(self) -> int:
+        """Number of stacked rows ``m``."""
+        return self.sqrt_weights.shape[0]
