@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
     from .report.commands import add_subcommands
     add_subcommands(sub)
+    from .teleop.commands import add_subcommand as add_teleop
+    add_teleop(sub)
     return p
 
 
@@ -77,6 +79,9 @@ def main(argv: list[str] | None = None) -> int:
         from .report.commands import COMMANDS, run_command
         if args.command in COMMANDS:
             return run_command(args)
+        if args.command == "teleop":
+            from .teleop.commands import run_command as run_teleop
+            return run_teleop(args)
     except WbcError as exc:
         print(f"wbcbench: error: {exc}", file=sys.stderr)
         return 2

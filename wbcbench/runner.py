@@ -10,7 +10,7 @@ import json
 import platform
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,10 +48,18 @@ def step_time_stats(us: np.ndarray) -> dict:
             "mean": float(us.mean())}
 
 
-def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos", mode: str | None = None,
-        duration: float | None = None, out: str | Path | None = None,
-        progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None) -> RunResult:
-    """Run one scenario with one controller; returns the summary (and the log, read back)."""
+def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
+        mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
+        progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
+        probes: Sequence = ()) -> RunResult:
+    """Run one scenario with one controller; returns the summary (and the log, read back).
+
+    `controller` is a registered name, or a controller already built for this robot at the scenario's
+    control_dt (its `mode` is used; `mode` must then be None or the same). `probes` observe the simulator:
+    each has `attach(sim) -> {channel: components}` (called once), `values() -> list` (after every tick,
+    logged in those channels) and `metrics(log) -> dict` (merged into the summary's metrics); e.g.
+    `wbcbench.sim.self_collision.SelfCollisionProbe`.
+    """
     robot = load_robot(robot) if isinstance(robot, str) else robot
     scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
     spec = scen.spec
@@ -60,7 +68,16 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     if substeps < 1 or abs(substeps * options.timestep - spec.control_dt) > 1e-12:
         raise ConfigError(f"control_dt {spec.control_dt} must be a multiple of the physics timestep "
                           f"{options.timestep}", file=spec.file, key="control_dt")
-    ctrl: Controller = make_controller(controller, robot, mode, spec.control_dt)
+    if isinstance(controller, Controller):
+        ctrl = controller
+        if ctrl.robot is not robot or abs(ctrl.dt - spec.control_dt) > 1e-12:
+            raise ConfigError(f"controller '{ctrl.name}' was built for another robot or control_dt "
+                              f"({ctrl.dt} s, scenario {spec.control_dt} s)", key="--controller")
+        if mode is not None and ctrl.mode.value != str(getattr(mode, "value", mode)):
+            raise ConfigError(f"mode '{mode}' differs from the controller's '{ctrl.mode.value}'", key="--mode")
+        controller = ctrl.name
+    else:
+        ctrl = make_controller(controller, robot, mode, spec.control_dt)
     sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes)
 
     if out is None:
@@ -72,7 +89,8 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
               "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
               "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
               "sim": {"timestep": options.timestep, "integrator": options.integrator,
-                      "noslip_iterations": options.noslip_iterations, "substeps": substeps},
+                      "noslip_iterations": options.noslip_iterations, "substeps": substeps,
+                      "self_collision": options.self_collision},
               "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
               "versions": _versions()}
     (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
@@ -96,6 +114,7 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
     s_time = rec.add_channel("controller_time_us")
     extra = ctrl.log_channels()
     s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
+    s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
 
     model, data = robot.model, robot.model.createData()
     q_true = sim.true_q()
@@ -143,6 +162,9 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
+            for slices, p in zip(s_probe, probes):
+                for sl, val in zip(slices, p.values()):
+                    row[sl] = val
             rec.commit()
             fs = sim.fall_status()
             if fs.fell:
@@ -174,7 +196,8 @@ def run(scenario: str | Scenario, controller: str, robot: str | Robot = "talos",
             scen_metrics = scen.metrics(log)
             paper = compute_run_metrics(log, robot, dt=spec.control_dt,
                                         distance_planned_m=scen_metrics.get("planned_distance_m"))
-            summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics}
+            probe_metrics = {k: v for p in probes for k, v in p.metrics(log).items()}
+            summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics, **probe_metrics}
         except Exception as exc:  # metrics must never lose the run
             summary["metrics_error"] = f"{type(exc).__name__}: {exc}"
     if error:

@@ -61,7 +61,7 @@ def register(cls: type[Controller]) -> type[Controller]:
 
 
 def available_controllers() -> dict[str, type[Controller]]:
-    from . import ik, inverse_dynamics, joint_pd  # noqa: F401  (registration side effect of importing the modules)
+    from . import ik, inverse_dynamics, joint_pd, teleop  # noqa: F401  (registration side effect of importing the modules)
     return dict(sorted(_REGISTRY.items()))
 
 

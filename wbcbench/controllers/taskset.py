@@ -3,6 +3,11 @@ on `type:`) or built in Python. The YAML parses into these frozen dataclasses, w
 
 Frames may be given symbolically, resolved through the robot profile: `base`, `torso`, `head`, `left_hand`,
 `right_hand`, `left_foot`, `right_foot`; any other string is a frame name of the model.
+
+Task types: `com`, `frame`, `posture`, `angular_momentum`, and `self_collision` (paper 004 Eq. 8-13): `side:
+left|right` picks the robot profile's `repulsors` set for that side (protected point, r_frame, exponent, the
+repulsion points and their radii); the task has one axis per repulsion point, so `kp`/`kd`/`mask` are a number
+or one value per point.
 """
 
 from __future__ import annotations
@@ -14,17 +19,18 @@ import numpy as np
 
 from ..config import Section, load_yaml
 from ..errors import ConfigError, UnknownNameError
-from ..robots import Robot, Side
+from ..robots import RepulsorSpec, Robot, Side
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
-TASK_TYPES = ("com", "frame", "posture", "angular_momentum")
+TASK_TYPES = ("com", "frame", "posture", "angular_momentum", "self_collision")
 MASK_LENGTH = {"com": 3, "frame": 6, "angular_momentum": 3}
 
 
 @dataclass(frozen=True)
 class TaskSpec:
     """One task. `kp`/`kd` are per-axis arrays (posture: per joint, resolved from joint-name prefixes);
-    `kd` None means 2 sqrt(kp). `priority`: for the inverse-dynamics QP, 0 makes the task a hard equality
+    `kd` None means 2 sqrt(kp). `repulsors` (self_collision tasks): the profile's repulsor set of the task's
+side. `priority`: for the inverse-dynamics QP, 0 makes the task a hard equality
     constraint and 1 a weighted cost; for the hierarchical IK it is the task's level (0 is the feet, tasks of
     one level are weighted against each other)."""
 
@@ -36,6 +42,7 @@ class TaskSpec:
     mask: tuple[bool, ...] | None = None
     frame: str | None = None
     priority: int = 1
+    repulsors: RepulsorSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,7 @@ class TaskSetSpec:
     joint_limit_horizon: float = 0.01
     solver: str = "daqp"
     stabilizer: "DcmGains | None" = None
+    teleop: "TeleopSpec | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -120,7 +128,16 @@ def _gain_vector(sec: Section, key: str, n: int, robot: Robot | None, posture: b
 def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priority: int = 1) -> TaskSpec:
     name = name or sec.str("name")
     ttype = sec.str("type", choices=TASK_TYPES)
-    n = robot.na if ttype == "posture" else MASK_LENGTH[ttype]
+    repulsors = None
+    if ttype == "self_collision":
+        side = Side(sec.str("side", choices=[s.value for s in Side]))
+        repulsors = robot.profile.repulsors.get(side)
+        if repulsors is None:
+            raise sec.error("side", f"the robot profile {robot.profile.file} has no `repulsors.{side.value}` "
+                                    "section (the repulsion points of a self_collision task come from the profile)")
+        n = len(repulsors.points)
+    else:
+        n = robot.na if ttype == "posture" else MASK_LENGTH[ttype]
     mask = None
     if ttype != "posture" and sec.has("mask"):
         m = sec.raw("mask")
@@ -131,8 +148,9 @@ def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priorit
         except (TypeError, ValueError):
             raise sec.error("mask", f"must be {n} zeros/ones, got {m!r}") from None
         if len(mask) != n or any(int(x) not in (0, 1) for x in m):
-            raise sec.error("mask", f"must have {n} entries of 0 or 1 (axes "
-                            f"{'x y z roll pitch yaw' if n == 6 else 'x y z'}), got {m!r}")
+            axes = ("one per repulsion point" if ttype == "self_collision" else
+                    "x y z roll pitch yaw" if n == 6 else "x y z")
+            raise sec.error("mask", f"must have {n} entries of 0 or 1 (axes {axes}), got {m!r}")
     frame = None
     if ttype == "frame":
         frame = resolve_frame(robot, sec.str("frame"))
@@ -147,7 +165,8 @@ def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priorit
         raise sec.error("priority", f"must be between 0 and {max_priority} for this controller "
                         + ("(0: hard constraint, 1: weighted cost)" if max_priority == 1 else "(0 is the feet)"))
     sec.finish()
-    return TaskSpec(name=name, type=ttype, weight=weight, kp=kp, kd=kd, mask=mask, frame=frame, priority=priority)
+    return TaskSpec(name=name, type=ttype, weight=weight, kp=kp, kd=kd, mask=mask, frame=frame, priority=priority,
+                    repulsors=repulsors)
 
 
 def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskSetSpec:
@@ -190,12 +209,17 @@ def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskS
                         integral_limit=st.float("integral_limit", 0.1, positive=True),
                         zmp_cutoff_hz=None if cutoff is None else st.float("zmp_cutoff_hz", positive=True))
         st.finish()
+    teleop = None
+    if root.has("teleop"):
+        from ..stabilizers.teleop import parse_teleop_section
+
+        teleop = parse_teleop_section(root.section("teleop"))
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       file=file)
+                       teleop=teleop, file=file)
     reg.finish()
     root.finish()
     return spec

@@ -64,6 +64,43 @@ class GainSpec:
 
 
 @dataclass(frozen=True)
+class RepulsionPointSpec:
+    """One repulsion point of a self-collision repulsor set (paper 004 Eq. 13): `radius` r_rep [m] around the
+    point at `offset` [m] in `frame`; `name` labels the task axis (None: the frame name)."""
+
+    frame: str
+    radius: float
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class RepulsorSpec:
+    """The self-collision repulsors protecting one point of the robot (a gripper), paper 004 Section IV.
+
+    frame, offset: the protected point (`offset` [m] in `frame`); radius: r_frame [m] around it; exponent: p of
+    Eq. 13; normalized: True for C = exp(-(d / a)^p) (inria_wbc, `a` is the radius of influence), False for
+    C = exp(-d^p / a) as printed; points: the repulsion points it is kept away from.
+    """
+
+    frame: str
+    radius: float
+    points: tuple[RepulsionPointSpec, ...]
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    exponent: float = 3.0
+    normalized: bool = True
+
+
+@dataclass(frozen=True)
+class CollisionCheckSpec:
+    """Links whose URDF collision meshes are added to the MuJoCo model to count self-collisions of one
+    effector: `effector` (the gripper's links) against `bodies` (the links it must not touch)."""
+
+    effector: tuple[str, ...]
+    bodies: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class RobotProfile:
     """Everything wbcbench needs to know about one robot, validated on load."""
 
@@ -84,6 +121,8 @@ class RobotProfile:
     torque_pd_gains: GainSpec
     min_base_height: float
     max_tilt: float
+    repulsors: dict[Side, RepulsorSpec] = field(default_factory=dict)
+    collision_check: dict[Side, CollisionCheckSpec] = field(default_factory=dict)
     file: str = field(default="", compare=False)
 
 
@@ -100,6 +139,64 @@ def _gains(sec: Section) -> GainSpec:
     g = GainSpec(kp=kp, kd_ratio=sec.float("kd_ratio", min=0.0))
     sec.finish()
     return g
+
+
+def _offset(sec: Section, key: str = "offset") -> tuple[float, float, float]:
+    return tuple(float(x) for x in sec.vector(key, [0.0, 0.0, 0.0], length=3))
+
+
+def _repulsors(root: Section) -> dict[Side, RepulsorSpec]:
+    """The optional `repulsors` section: per side, the protected point and its repulsion points."""
+    if not root.has("repulsors"):
+        return {}
+    sec = root.section("repulsors")
+    out = {}
+    for side in Side:
+        if not sec.has(side.value):
+            continue
+        rs = sec.section(side.value)
+        points = []
+        for i, raw in enumerate(rs.list("points")):
+            ps = Section(raw, rs.file, rs.key(f"points[{i}]"))
+            points.append(RepulsionPointSpec(frame=ps.str("frame"), radius=ps.float("radius", min=0.0),
+                                             offset=_offset(ps), name=ps.str("name") if ps.has("name") else None))
+            ps.finish()
+        if not points:
+            raise rs.error("points", "needs at least one repulsion point")
+        spec = RepulsorSpec(frame=rs.str("frame"), radius=rs.float("radius", min=0.0), points=tuple(points),
+                            offset=_offset(rs), exponent=rs.float("exponent", 3.0, min=2.0),
+                            normalized=rs.bool("normalized", True))
+        if any(spec.radius + p.radius <= 0 for p in points):
+            raise rs.error("radius", "r_frame + r_rep must be > 0 for every repulsion point")
+        rs.finish()
+        out[side] = spec
+    sec.finish()
+    return out
+
+
+def _collision_check(root: Section) -> dict[Side, CollisionCheckSpec]:
+    """The optional `collision_check` section: per side, effector links and the body links they must not touch."""
+    if not root.has("collision_check"):
+        return {}
+    sec = root.section("collision_check")
+    out = {}
+    for side in Side:
+        if not sec.has(side.value):
+            continue
+        cs = sec.section(side.value)
+        names = {}
+        for key in ("effector", "bodies"):
+            val = cs.list(key)
+            if not val or not all(isinstance(v, str) for v in val):
+                raise cs.error(key, "must be a non-empty list of link names")
+            names[key] = tuple(val)
+        both = set(names["effector"]) & set(names["bodies"])
+        if both:
+            raise cs.error("bodies", f"links listed as both effector and body: {sorted(both)}")
+        cs.finish()
+        out[side] = CollisionCheckSpec(effector=names["effector"], bodies=names["bodies"])
+    sec.finish()
+    return out
 
 
 def load_profile(name_or_path: str | Path) -> RobotProfile:
@@ -167,6 +264,8 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         torque_pd_gains=_gains(root.section("torque_pd_gains")),
         min_base_height=fall.float("min_base_height", positive=True),
         max_tilt=fall.float("max_tilt", positive=True),
+        repulsors=_repulsors(root),
+        collision_check=_collision_check(root),
         file=file,
     )
     fall.finish()

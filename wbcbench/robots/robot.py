@@ -100,6 +100,17 @@ class Robot:
             self._frame_id(self.profile.hands[side], f"hands.{side.value}")
         for key in ("base_frame", "torso_frame", "imu_frame", "head_frame"):
             self._frame_id(getattr(self.profile, key), key)
+        for side, rep in self.profile.repulsors.items():
+            self._frame_id(rep.frame, f"repulsors.{side.value}.frame")
+            for i, point in enumerate(rep.points):
+                self._frame_id(point.frame, f"repulsors.{side.value}.points[{i}].frame")
+        bodies = [f.name for f in self.model.frames if f.type == pin.FrameType.BODY]
+        for side, check in self.profile.collision_check.items():
+            for key in ("effector", "bodies"):
+                for link in getattr(check, key):
+                    if link not in bodies:
+                        raise UnknownNameError("link", link, bodies, file=self.profile.file,
+                                               key=f"collision_check.{side.value}.{key}")
 
     def _reference_configuration(self) -> np.ndarray:
         model = self.model

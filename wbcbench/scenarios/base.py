@@ -87,6 +87,7 @@ def scenario_path(name_or_path: str) -> Path:
 def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
     """Load and validate a scenario by name or path; `duration` overrides the file's."""
     from . import kinds  # noqa: F401  (registers the scenario kinds)
+    from . import teleop_kind  # noqa: F401  (registers the teleop kind)
 
     path = scenario_path(name_or_path)
     file = str(path)

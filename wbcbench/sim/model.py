@@ -3,6 +3,21 @@
 Collision geometry is limited to one box per sole matching the profile's rectangle (bottom face on the sole
 plane) plus the terrain; every other body is collision-free. Sensors: a force and a torque sensor at each
 ankle F/T frame of the profile, and an IMU (gyro, accelerometer, orientation) at the profile's IMU frame.
+
+Self-collision checking (`SimOptions.self_collision`, default "off": the model above, unchanged): the URDF
+collision meshes of the profile's `collision_check` links (MuJoCo collides their convex hulls), named
+`selfcol:<link>:<k>`, in their own contype/conaffinity bits so that a side's effector (gripper) collides only
+with the body links listed for that side, and with nothing else (floor, soles, each other):
+
+    effector of side k (bit 4 left, 8 right): contype = bit_k, conaffinity = bits of the sides listing it as a body
+    body link:                                contype = 0,     conaffinity = bits of the sides listing it
+
+"physical": those geoms are part of the simulated model and their contacts act (default contact parameters), as
+on the real robot. "detect": the simulated model stays exactly the "off" one (the motion is the one without the
+geoms, a gripper may pass through the hips); `SelfCollisionMonitor` (self_collision.py) runs MuJoCo's collision
+detection on a kinematic copy with the geoms (`build_self_collision_model`) at every tick and counts the
+penetrations. MuJoCo's own "inactive contact" mechanism (margin/gap) was not used: with mesh geoms it generated
+hundreds of far-away contacts per step and penetrations deeper than `gap` would have become active.
 """
 
 from __future__ import annotations
@@ -15,6 +30,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from ..errors import ConfigError
 from ..robots import Robot, Side
 from .terrain import Terrain
 
@@ -44,18 +60,43 @@ class SimOptions:
     sole_friction: float = 1.0
     solref: tuple[float, float] = (0.02, 1.0)
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    self_collision: str = "off"
     extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.self_collision not in SELF_COLLISION_MODES:
+            raise ConfigError(f"unknown self_collision mode '{self.self_collision}'; allowed: "
+                              f"{', '.join(SELF_COLLISION_MODES)}", key="self_collision")
+
+
+#: SimOptions.self_collision values (see the module docstring).
+SELF_COLLISION_MODES = ("off", "detect", "physical")
+#: contype/conaffinity bit of each side's effector in the self-collision check.
+SELF_COLLISION_BITS = {Side.LEFT: 4, Side.RIGHT: 8}
 
 
 INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
                "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
 
 
-def _urdf_for_mujoco(robot: Robot) -> str:
-    """URDF text with visuals and collision meshes removed and mesh packages resolved."""
+def _urdf_for_mujoco(robot: Robot, keep_collision: frozenset[str] = frozenset()) -> str:
+    """URDF text with visuals and collision meshes removed (except those of the links in `keep_collision`) and
+    mesh packages resolved."""
     txt = robot.files.urdf.read_text()
     txt = re.sub(r"<visual\b.*?</visual>", "", txt, flags=re.S)
-    txt = re.sub(r"<collision\b.*?</collision>", "", txt, flags=re.S)
+    if keep_collision:
+        def link_block(m: re.Match) -> str:
+            if m.group(2) in keep_collision:
+                return m.group(0)
+            return re.sub(r"<collision\b.*?</collision>", "", m.group(0), flags=re.S)
+
+        txt = re.sub(r"(<link\b[^>]*?\bname=\"([^\"]+)\"[^>]*?(?<!/)>)(.*?)(</link>)", link_block, txt, flags=re.S)
+        # collision elements left outside link blocks (none in URDFs we know) are removed as before
+        parts = re.split(r"(<link\b.*?</link>)", txt, flags=re.S)
+        txt = "".join(p if p.startswith("<link") else re.sub(r"<collision\b.*?</collision>", "", p, flags=re.S)
+                      for p in parts)
+    else:
+        txt = re.sub(r"<collision\b.*?</collision>", "", txt, flags=re.S)
     txt = txt.replace("package://", str(robot.files.package_root) + "/")
     compiler = ('<mujoco><compiler discardvisual="true" fusestatic="true" strippath="false" '
                 'balanceinertia="false" autolimits="true"/></mujoco>')
@@ -79,11 +120,48 @@ def sole_geom_name(side: Side) -> str:
     return f"sole_{side.value}"
 
 
+def self_collision_geom_name(link: str, k: int) -> str:
+    """Name of the k-th collision geom of URDF link `link` in the self-collision check."""
+    return f"selfcol:{link}:{k}"
+
+
+def _self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
+    """Name the kept URDF collision geoms and put them in the self-collision bits (module docstring)."""
+    owner: dict[str, Side | None] = {}
+    contype: dict[str, int] = {}
+    conaffinity: dict[str, int] = {}
+    for side, c in check.items():
+        for link in c.effector:
+            owner[link] = side
+            contype[link] = contype.get(link, 0) | SELF_COLLISION_BITS[side]
+        for link in c.bodies:
+            owner.setdefault(link, None)
+            conaffinity[link] = conaffinity.get(link, 0) | SELF_COLLISION_BITS[side]
+    for link in owner:
+        body = spec.body(link)
+        geoms = list(body.geoms) if body is not None else []
+        side = owner[link]
+        for k, g in enumerate(geoms):
+            g.name = self_collision_geom_name(link, k)
+            g.contype = contype.get(link, 0)
+            g.conaffinity = conaffinity.get(link, 0)
+            g.group = 3
+            g.rgba = [0.9, 0.4, 0.1, 0.4] if side is not None else [0.4, 0.8, 0.4, 0.3]
+            g.margin = 0.0
+            g.gap = 0.0
+            g.friction = [0.5, 0.005, 0.0001]
+
+
 def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
                        options: SimOptions | None = None) -> mujoco.MjModel:
     """Compile the MuJoCo model of `robot` standing in `terrain`, with actuators for `mode`."""
     options = options or SimOptions()
-    spec = mujoco.MjSpec.from_string(_urdf_for_mujoco(robot))
+    check = robot.profile.collision_check if options.self_collision == "physical" else {}
+    if options.self_collision != "off" and set(robot.profile.collision_check) != set(Side):
+        raise ConfigError("self-collision checking needs a `collision_check` section for both sides",
+                          file=robot.profile.file, key="collision_check")
+    keep = frozenset(link for c in check.values() for link in (*c.effector, *c.bodies))
+    spec = mujoco.MjSpec.from_string(_urdf_for_mujoco(robot, keep))
     pmodel = robot.model
     base = spec.worldbody.first_body()
     base.add_freejoint(name="root")
@@ -109,6 +187,9 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
             continue
         jid = pmodel.getJointId(j.name)
         j.armature = float(pmodel.armature[pmodel.idx_vs[jid]])
+
+    if check:
+        _self_collision_geoms(spec, check)
 
     # sole boxes and F/T sites
     sole = robot.profile.sole
@@ -163,3 +244,9 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
             a.ctrllimited = True
             a.ctrlrange = [-effort[i], effort[i]]
     return spec.compile()
+
+
+def build_self_collision_model(robot: Robot) -> mujoco.MjModel:
+    """The kinematic copy used by "detect" self-collision checking: the robot with its `collision_check` geoms
+    (no floor, torque actuators); only its kinematics and collision detection are ever run."""
+    return build_mujoco_model(robot, Terrain(floor=False), ActuationMode.TORQUE, SimOptions(self_collision="physical"))

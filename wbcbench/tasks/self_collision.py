@@ -55,6 +55,18 @@ FloatArray = npt.NDArray[np.float64]
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
+def _skew(r: FloatArray) -> FloatArray:
+    x, y, z = r
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a x b`` for (3,) vectors (np.cross costs ~20x more on one pair: it is called 50 times per tick)."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, FloatArray, FloatArray]:
     """``C(r) = exp(-||r||^p / s)`` with its gradient and Hessian with respect to ``r`` (3,).
 
@@ -83,6 +95,22 @@ def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, F
     g = -k * dp2 * C * r
     coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * d ** (p - 4.0) if p != 2.0 else 0.0)
     H = C * (coeff * np.outer(r, r) - k * dp2 * np.eye(3))
+    return C, g, H
+
+
+def _attractors(r: FloatArray, exponent: float, scales: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`attractor` for n vectors at once: ``r`` (n, 3), ``scales`` (n,) -> C (n,), grad (n, 3), H (n, 3, 3)."""
+    p = float(exponent)
+    d = np.sqrt(np.einsum("ni,ni->n", r, r))
+    C = np.exp(-(d**p) / scales)
+    k = p / scales
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dp2 = np.where(d > 0.0, d ** (p - 2.0), 1.0 if p == 2.0 else 0.0)
+        dp4 = np.where(d > 0.0, d ** (p - 4.0), 0.0) if p != 2.0 else np.zeros_like(d)
+    g = (-k * dp2 * C)[:, None] * r
+    coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * dp4 if p != 2.0 else 0.0)
+    H = C[:, None, None] * (coeff[:, None, None] * np.einsum("ni,nj->nij", r, r)
+                            - (k * dp2)[:, None, None] * np.eye(3))
     return C, g, H
 
 
@@ -220,6 +248,10 @@ class SelfCollisionTask(Task):
         """``p``."""
         return self._exponent
 
+    def set_reference_to_current(self, model: pin.Model, data: pin.Data) -> None:
+        """No-op: the reference is fixed (``C* = 0`` with zero velocity and acceleration). Present so that a
+        controller can reset every task the same way."""
+
     # -------------------------------------------------------------------------------------------- points
     @staticmethod
     def _point(model: pin.Model, data: pin.Data, frame_id: int, offset: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -238,10 +270,10 @@ class SelfCollisionTask(Task):
         vel = pin.getFrameVelocity(model, data, frame_id, _LWA)
         acc = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA)
         w = vel.angular
-        return acc.linear + np.cross(acc.angular, r) + np.cross(w, np.cross(w, r))
+        return acc.linear + _cross(acc.angular, r) + _cross(w, _cross(w, r))
 
     def _evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
-        """Position-level quantities, cached per (data, q)."""
+        """Position-level quantities, cached per (data, q). Each frame carrying repulsors is evaluated once."""
         q = np.asarray(data.q_in)
         key = (id(data), q.tobytes())
         cache = self._cache
@@ -249,17 +281,23 @@ class SelfCollisionTask(Task):
             return cache
         x, Jx = self._point(model, data, self._frame_id, self._offset)
         n = self.dim
-        C = np.empty(n)
-        grads = np.empty((n, 3))
-        hessians = np.empty((n, 3, 3))
+        points = np.empty((n, 3))
         J_rel = np.empty((n, 3, model.nv))
-        distances = np.empty(n)
+        frames: dict[int, tuple[pin.SE3, FloatArray]] = {}
         for i, (fid, off) in enumerate(zip(self._rep_ids, self._rep_offsets, strict=True)):
-            p, Jp = self._point(model, data, fid, off)
-            r = x - p
-            C[i], grads[i], hessians[i] = attractor(r, self._exponent, self._scales[i])
-            J_rel[i] = Jx - Jp
-            distances[i] = float(np.linalg.norm(r))
+            hit = frames.get(fid)
+            if hit is None:
+                M = pin.updateFramePlacement(model, data, fid)
+                hit = frames[fid] = (M, pin.getFrameJacobian(model, data, fid, _LWA))
+            M, J6 = hit
+            r = M.rotation @ off
+            points[i] = M.translation + r
+            # J_x - J_p with J_p = J6[:3] - skew(r) J6[3:]
+            np.subtract(Jx, J6[:3], out=J_rel[i])
+            J_rel[i] += _skew(r) @ J6[3:]
+        rel = x - points
+        C, grads, hessians = _attractors(rel, self._exponent, self._scales)
+        distances = np.sqrt(np.einsum("ni,ni->n", rel, rel))
         self._cache = _Cache(
             key=key, C=C, grads=grads, hessians=hessians, J_rel=J_rel, distances=distances,
             J=np.einsum("nk,nkv->nv", grads, J_rel),
@@ -274,10 +312,19 @@ class SelfCollisionTask(Task):
             return cache
         r_dot = cache.J_rel @ v  # (n, 3)
         ax = self._point_drift(model, data, self._frame_id, self._offset)
-        drift = np.empty(self.dim)
+        a_rep = np.empty((self.dim, 3))
+        frames: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         for i, (fid, off) in enumerate(zip(self._rep_ids, self._rep_offsets, strict=True)):
-            a_rel = ax - self._point_drift(model, data, fid, off)
-            drift[i] = r_dot[i] @ cache.hessians[i] @ r_dot[i] + cache.grads[i] @ a_rel
+            hit = frames.get(fid)
+            if hit is None:
+                vel = pin.getFrameVelocity(model, data, fid, _LWA)
+                acc = pin.getFrameClassicalAcceleration(model, data, fid, _LWA)
+                hit = frames[fid] = (data.oMf[fid].rotation, vel.angular, acc.linear, acc.angular)
+            R, w, a_lin, a_ang = hit
+            r = R @ off
+            a_rep[i] = a_lin + _cross(a_ang, r) + _cross(w, _cross(w, r))
+        drift = (np.einsum("ni,nij,nj->n", r_dot, cache.hessians, r_dot)
+                 + np.einsum("ni,ni->n", cache.grads, ax - a_rep))
         cache.velocity = cache.J @ v
         cache.drift = drift
         cache.vkey = vkey

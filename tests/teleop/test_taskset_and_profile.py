@@ -1,0 +1,120 @@
+"""Robot side of teleoperation, configuration: the profile's repulsors and collision check, the Table I task set,
+the `self_collision` task type, the tsid-teleop controller's construction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from wbcbench.controllers.inverse_dynamics import build_task
+from wbcbench.controllers.taskset import load_taskset, taskset_path
+from wbcbench.controllers.teleop import TSIDTeleop, teleop_taskset
+from wbcbench.errors import ConfigError, UnknownNameError
+from wbcbench.robots import Side, load_robot
+from wbcbench.robots.profile import PROFILE_DIR
+from wbcbench.tasks import SelfCollisionTask, update_kinematics
+
+TABLE_I = {  # name: (mask, weight, kp) of paper 004 Table I
+    "head": ((1, 1, 1, 0, 0, 0), 100, 8000), "head_pitch": ((0, 0, 0, 0, 1, 0), 100, 30),
+    "head_yaw": ((0, 0, 0, 0, 0, 1), 100, 30), "left_hand": (None, 100, 8000), "right_hand": (None, 100, 8000),
+    "torso": ((0, 0, 0, 1, 1, 0), 2000, 30), "com": ((1, 1, 0), 2e6, 3000), "posture": (None, 100.75, 30),
+    "self_collision-left": (None, 700, 500), "self_collision-right": (None, 700, 500),
+}
+
+
+def test_table_i_is_shipped_as_published(talos):
+    spec = load_taskset(taskset_path(talos, "teleop"), talos)
+    assert {t.name for t in spec.tasks} == set(TABLE_I)
+    for t in spec.tasks:
+        mask, w, kp = TABLE_I[t.name]
+        assert t.weight == w and np.all(t.kp == kp), t.name
+        assert (t.mask is None and mask is None) or tuple(int(x) for x in t.mask) == mask, t.name
+    assert spec.contacts.kp == 30
+    assert spec.swing_foot.weight == 1000 and np.all(spec.swing_foot.kp == 30)   # Table I feet tasks
+
+
+def test_profile_repulsors_become_self_collision_tasks(talos):
+    rep = talos.profile.repulsors[Side.LEFT]
+    assert rep.frame == "gripper_left_base_link" and rep.radius == 0.10 and rep.exponent == 3 and rep.normalized
+    assert rep.offset == (0.0, 0.0, -0.09) and len(rep.points) == 18
+    spec = load_taskset(taskset_path(talos, "teleop"), talos).task("self_collision-left")
+    task = build_task(talos, spec)
+    assert isinstance(task, SelfCollisionTask) and task.dim == 18 and task.weight == 700
+    assert "thigh_left" in task.axis_names
+    # half-sitting leaves the repulsors (nearly) idle
+    m, d = talos.model, talos.model.createData()
+    update_kinematics(m, d, talos.q0, np.zeros(m.nv))
+    assert task.values(m, d).max() < 0.07
+    assert set(talos.profile.collision_check) == set(Side)
+
+
+def test_no_repulsors_drops_the_tasks(talos):
+    assert not any(t.type == "self_collision" for t in teleop_taskset(talos, repulsors=False).tasks)
+    ctrl = TSIDTeleop(talos, "spd", 1e-3, repulsors=False, stabilizer=False)
+    assert not ctrl.repulsors and ctrl.teleop_stabilizer is None
+    ctrl = TSIDTeleop(talos, "spd", 1e-3)
+    assert ctrl.repulsors and ctrl.teleop_stabilizer is not None
+
+
+def _write(tmp_path: Path, name: str, data: dict) -> Path:
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data))
+    return p
+
+
+def test_self_collision_task_errors(talos, g1, tmp_path):
+    base = yaml.safe_load(taskset_path(talos, "teleop").read_text())
+    bad = dict(base, tasks=[{"name": "sc", "type": "self_collision", "weight": 1.0, "kp": 1.0}])
+    with pytest.raises(ConfigError, match=r"tasks\[0\].*side.*required"):
+        load_taskset(_write(tmp_path, "a.yaml", bad), talos)
+    bad["tasks"][0]["side"] = "middle"
+    with pytest.raises(ConfigError, match="allowed: left, right"):
+        load_taskset(_write(tmp_path, "b.yaml", bad), talos)
+    bad["tasks"][0]["side"] = "left"
+    bad["tasks"][0]["mask"] = [1, 0, 1]
+    with pytest.raises(ConfigError, match="18 entries"):
+        load_taskset(_write(tmp_path, "c.yaml", bad), talos)
+    bad["tasks"][0].pop("mask")
+    bad["tasks"][0]["kp"] = [1.0, 2.0]
+    with pytest.raises(ConfigError, match="18 values"):
+        load_taskset(_write(tmp_path, "d.yaml", bad), talos)
+    # a robot whose profile has no repulsors
+    g1_set = {"tasks": [{"name": "sc", "type": "self_collision", "side": "left", "weight": 1.0, "kp": 1.0}],
+              "contacts": {"kp": 30.0}, "swing_foot": {"weight": 1.0, "kp": 1.0}}
+    with pytest.raises(ConfigError, match="no `repulsors.left` section"):
+        load_taskset(_write(tmp_path, "e.yaml", g1_set), g1)
+
+
+def _profile_with(tmp_path, **sections) -> Path:
+    data = yaml.safe_load((PROFILE_DIR / "talos.yaml").read_text())
+    for k, v in sections.items():
+        if v is None:
+            data.pop(k, None)
+        else:
+            data[k] = v
+    return _write(tmp_path, "talos-variant.yaml", data)
+
+
+def test_profile_errors_name_file_and_key(talos, tmp_path):
+    reps = yaml.safe_load((PROFILE_DIR / "talos.yaml").read_text())["repulsors"]
+    bad = {"left": dict(reps["left"], points=[{"frame": "hip", "radius": 0.1}])}
+    with pytest.raises(UnknownNameError, match=r"talos-variant.yaml.*repulsors.left.points\[0\].frame.*'hip'"):
+        load_robot(str(_profile_with(tmp_path, repulsors=bad)))
+    bad = {"left": dict(reps["left"], points=[])}
+    with pytest.raises(ConfigError, match="at least one repulsion point"):
+        load_robot(str(_profile_with(tmp_path, repulsors=bad)))
+    bad = {"left": dict(reps["left"], exponent=1.0)}
+    with pytest.raises(ConfigError, match="exponent.*>= 2"):
+        load_robot(str(_profile_with(tmp_path, repulsors=bad)))
+    bad = {"left": {"effector": ["gripper_left_base_link"], "bodies": ["thigh"]}}
+    with pytest.raises(UnknownNameError, match="collision_check.left.bodies.*'thigh'"):
+        load_robot(str(_profile_with(tmp_path, collision_check=bad)))
+    bad = {"left": {"effector": ["base_link"], "bodies": ["base_link"]}}
+    with pytest.raises(ConfigError, match="both effector and body"):
+        load_robot(str(_profile_with(tmp_path, collision_check=bad)))
+    # both sections are optional
+    robot = load_robot(str(_profile_with(tmp_path, repulsors=None, collision_check=None)))
+    assert robot.profile.repulsors == {} and robot.profile.collision_check == {}

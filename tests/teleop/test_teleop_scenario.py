@@ -1,0 +1,140 @@
+"""The `teleop` scenario kind without physics: references, engagement, feed-forward, loss handling, clamping,
+YAML loading and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.errors import ConfigError
+from wbcbench.robots import Side
+from wbcbench.scenarios import load_scenario
+from wbcbench.scenarios.teleop_kind import TeleopScenario, rotation_error
+from wbcbench.teleop import open_recording, write_pose_csv
+
+DT = 1e-3
+
+
+def _setup(robot, mocap="reach_forward", **params):
+    sc = TeleopScenario.from_source(robot, mocap, **params)
+    q = robot.q0
+    sc.setup(q, pin.centerOfMass(robot.model, robot.model.createData(), q))
+    return sc
+
+
+def test_references_name_the_table_i_tasks_and_hold_the_com(talos):
+    sc = _setup(talos, duration=2.0)
+    refs = sc.references(0.5)
+    assert set(refs.targets) == {"left_hand", "right_hand", "head", "head_pitch", "head_yaw"}
+    assert refs.targets["head"] is refs.targets["head_pitch"]
+    assert refs.contacts == frozenset(Side)
+    np.testing.assert_array_equal(refs.com, sc.com0)
+
+
+def test_engagement_starts_on_the_robot_and_ends_on_the_operator(talos):
+    sc = _setup(talos, duration=3.0, engage_time=1.0)
+    start = sc.references(0.0).targets
+    for k, M in sc.initial_poses.items():
+        assert np.allclose(start[k][0].translation, M.translation) and np.allclose(start[k][0].rotation, M.rotation)
+    raw = sc.trajectory
+    k = int(round(1.5 / DT))
+    late = sc.references(1.5).targets["left_hand"][0]
+    np.testing.assert_allclose(late.translation, raw.position["left_hand"][k])
+    # TALOS: the operator's hands along the body are 0.2-0.3 m from the robot's half-sitting grippers
+    assert np.linalg.norm(raw.position["left_hand"][0] - start["left_hand"][0].translation) > 0.2
+
+
+def test_feedforward_matches_finite_differences_and_speed(talos):
+    for speed in (1.0, 2.0):
+        sc = _setup(talos, speed=speed, engage_time=0.0)
+        tr = sc.trajectory
+        k = int(round(1.2 / speed / DT))  # the right hand is moving at source time 1.2 s
+        for e in ("right_hand", "head"):
+            v_fd = (tr.position[e][k + 1] - tr.position[e][k - 1]) / (2 * DT)
+            np.testing.assert_allclose(tr.velocity[e][k][:3], v_fd, atol=1e-3 * (1 + np.abs(v_fd).max()))
+            w_fd = pin.log3(tr.rotation[e][k + 1] @ tr.rotation[e][k - 1].T) / (2 * DT)  # world axes
+            np.testing.assert_allclose(tr.velocity[e][k][3:], w_fd, atol=1e-3 * (1 + np.abs(w_fd).max()))
+        assert np.abs(tr.velocity["right_hand"][k]).max() > 0.05
+    sc = _setup(talos, feedforward=False)
+    assert not np.any(sc.trajectory.velocity["right_hand"])
+
+
+def test_after_the_recording_the_last_targets_are_held_and_reported(talos):
+    sc = _setup(talos, duration=13.0, engage_time=0.0)
+    last = sc.references(11.99).targets["right_hand"][0]
+    after = sc.references(12.5).targets["right_hand"]
+    np.testing.assert_allclose(after[0].translation, last.translation, atol=1e-3)
+    assert not np.any(after[1])
+    assert sc.record_valid[-1] is False and sc.loss_events == 1
+
+
+def test_on_loss_reference_returns_to_the_reference_posture(talos):
+    sc = _setup(talos, duration=16.0, engage_time=0.0, on_loss="reference", return_time=1.0)
+    for t in np.arange(11.0, 14.0, 0.01):
+        refs = sc.references(float(t))
+    for k, M in sc.reference_poses.items():
+        np.testing.assert_allclose(refs.targets[k][0].translation, M.translation, atol=1e-9)
+
+
+def test_out_of_reach_targets_are_clamped_and_flagged(talos):
+    # the operator's motion scaled 2.5 times about the feet: reaching hands go far out of the robot's reach
+    sc = _setup(talos, duration=12.0, engage_time=0.0, proportion=2.5)
+    shell = sc.retargeter.workspaces["right_hand"]
+    p = sc.trajectory.position["right_hand"]
+    assert np.linalg.norm(p - shell.center, axis=1).max() <= shell.r_max + 2e-3  # the spline between clamped frames
+    for t in np.arange(0.0, 12.0, 0.05):
+        sc.references(float(t))
+    assert sc.clamped_ticks["right_hand"] > 0
+
+
+def test_rotation_error_is_the_frobenius_norm():
+    R = pin.rpy.rpyToMatrix(0.1, -0.2, 0.3)
+    assert rotation_error(np.eye(3), np.eye(3)) == 0.0
+    assert rotation_error(R, np.eye(3)) == pytest.approx(np.linalg.norm(np.eye(3) - R))
+    angle = np.linalg.norm(pin.log3(R))
+    assert rotation_error(R, np.eye(3)) == pytest.approx(2 * np.sqrt(2) * np.sin(angle / 2))
+
+
+def test_yaml_scenario_resolves_the_mocap_next_to_it(talos, tmp_path):
+    write_pose_csv(tmp_path / "take.csv", open_recording("waving"))
+    (tmp_path / "s.yaml").write_text("kind: teleop\nparams: {mocap: take.csv, speed: 2.0}\n")
+    sc = load_scenario(str(tmp_path / "s.yaml"), talos)
+    assert sc.planned_duration == pytest.approx(6.0) and not sc.live
+
+
+@pytest.mark.parametrize("params, match", [
+    ({"mocap": "nope.bvh"}, "no such file"),
+    ({"mocap": "take.xyz"}, "unknown recording format"),
+    ({"mocap": "udp://localhost:notaport"}, "udp://HOST:PORT"),
+    ({"mocap": "waving", "speed": 0}, "speed.*> 0"),
+    ({"mocap": "waving", "proportion": "feet"}, "proportion"),
+    ({"mocap": "waving", "on_loss": "stop"}, "on_loss"),
+    ({"mocap": "waving", "targets": {"left_foot": ["x"]}}, "unknown effector"),
+    ({"mocap": "waving", "colour": 1}, "unknown key"),
+])
+def test_bad_params_are_one_line_errors(talos, tmp_path, params, match):
+    import yaml
+
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"kind": "teleop", "params": params}))
+    with pytest.raises(ConfigError, match=match) as exc:
+        load_scenario(str(tmp_path / "s.yaml"), talos)
+    assert "\n" not in str(exc.value)
+
+
+def test_corrupted_recording_is_one_line_error(talos, tmp_path):
+    bad = tmp_path / "cut.bvh"
+    text = (open_recording("waving").source and open(open_recording("waving").source).read())
+    bad.write_text(text[: len(text) // 3])  # truncated mid-file
+    with pytest.raises(ConfigError) as exc:
+        TeleopScenario.from_source(talos, str(bad))
+    assert "cut.bvh" in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_live_stream_needs_a_duration(talos):
+    sc = TeleopScenario.from_source(talos, "udp://127.0.0.1:0")
+    try:
+        with pytest.raises(ConfigError, match="duration"):
+            sc.planned_duration
+    finally:
+        sc.source.close()

@@ -1,0 +1,451 @@
+"""The force-based stabilizer of whole-body teleoperation, paper 004 (Dalin et al. 2021) Section III, Eq. 2-7.
+
+Four strategies, each switchable with its gains in the task set's `teleop.stabilizer` section, all driven by
+the ankle force/torque sensors (contact wrenches by `estimation.contact_wrench_from_ft`, the foot below the
+sensor removed) and by the controller's model (the QP's contact wrenches of the previous tick):
+
+* `com_admittance` (Eq. 2, after Caron et al. 2019): the CoM reference (x, y) moves by the difference between
+  the model's CoP (ZMP of the QP wrenches) and the measured one:
+      c* = c - kd (p_model - p_meas),  c_dot* = c_dot - kv (p_model - p_meas) / dt,
+      c_ddot* = c_ddot - ka (p_model - p_meas) / dt^2
+* `ankle_admittance` (Eq. 3): each loaded foot's contact reference is tilted so that its measured CoP goes to
+  the middle of the sole: pitch about the sole's y axis -kd_pitch * c_x, roll about its x axis +kd_roll * c_y
+  (c the measured CoP in the sole frame, relative to the sole centre; the signs lift the loaded edge, as in the
+  authors' inria_wbc). Only the position gain: the contact task of the QP takes a pose reference only.
+* `foot_force_difference` (Eq. 4-5, after Kajita et al. 2010): the torso roll reference moves by
+      D = (f_Lz - f_Rz) - (f_Lz^m - f_Rz^m)       (model minus measured left-right normal-force difference)
+      roll* = roll - kd D,  omega_x* = -kv D / dt,  omega_dot_x* = -ka D / dt^2
+  Eq. 4 as printed takes absolute values, |f_Lz - f_Rz| - |f_Lz^m - f_Rz^m|, which makes the correction blind
+  to which foot is overloaded; the signed difference is Kajita's (and inria_wbc's). Positive roll (about world
+  x) moves the upper body to the right, unloading the left foot.
+* `zmp_distributor` (Eq. 6-7, after Kajita et al. 2010): a ZMP p is split between the feet, alpha the
+  position of p projected on the segment from the left to the right sole centre (0 at the left foot):
+      f_R = alpha M g,  f_L = (1 - alpha) M g   (normal forces, ground on robot, so positive here),
+      tau_0 = sum_i (p - p_i) x f_i  (the ankle moment making the feet's ZMP p), its pitch (y) part split as the
+      normal forces, its roll (x) part given to the foot on the side it loads;
+  F = split of the reference ZMP (the CoM reference's cart-table ZMP), F^d = split of the measured ZMP,
+      F* = F - kp (F - F^d) - kd (F - F^d) / dt                                            (Eq. 7)
+  F* are the targets of the contact-force regularisation, `weight ||w - F*||^2` in the QP (tsid-teleop). In
+  position and SPD modes only the total of the two wrenches reaches the motion (through the floating-base rows);
+  the split matters in torque mode.
+
+Units: SI; positions and CoPs in the world frame (x, y) unless stated; gains as in the paper (kd
+dimensionless for Eq. 2, rad/m for Eq. 3, rad/N for Eq. 5; kv and ka the same units times one tick).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pinocchio as pin
+
+from ..config import Section
+from ..estimation import FootMass, center_of_pressure, contact_wrench_from_ft, zmp_from_wrenches
+from ..side import Side
+from ..types import Measurement, References
+
+__all__ = [
+    "AdmittanceGains",
+    "ZmpDistributorGains",
+    "TeleopStabilizerSpec",
+    "TeleopSpec",
+    "parse_teleop_section",
+    "com_admittance",
+    "ankle_admittance",
+    "foot_force_difference",
+    "zmp_distributor",
+    "wrench_admittance",
+    "TeleopStabilizer",
+]
+
+GRAVITY = 9.81
+
+
+# ---- specs ---------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class AdmittanceGains:
+    """Gains of one admittance law of the paper (Eq. 2, 3, 5): position `kd`, velocity `kv`, acceleration `ka`
+    (per axis where the law has several; x y for Eq. 2, pitch roll for Eq. 3, one for Eq. 5), and `limit`: the
+    largest position correction (m or rad), None for none."""
+
+    kd: tuple[float, ...]
+    kv: tuple[float, ...]
+    ka: tuple[float, ...]
+    limit: float | None = None
+
+
+@dataclass(frozen=True)
+class ZmpDistributorGains:
+    """Eq. 7 gains on the 6 wrench components (fx fy fz tx ty tz): `kp` (dimensionless) and `kd` (s)."""
+
+    kp: tuple[float, ...]
+    kd: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class TeleopStabilizerSpec:
+    """Which strategies run (None: off) and the measurement filters: `cop_cutoff_hz` (first-order low-pass on
+    the measured CoPs/ZMP and normal forces, None: unfiltered), `min_normal_force` [N] (a foot below it has no
+    CoP)."""
+
+    com_admittance: AdmittanceGains | None = None
+    ankle_admittance: AdmittanceGains | None = None
+    foot_force_difference: AdmittanceGains | None = None
+    zmp_distributor: ZmpDistributorGains | None = None
+    cop_cutoff_hz: float | None = None
+    min_normal_force: float = 10.0
+    torso_task: str = "torso"
+
+    @property
+    def enabled(self) -> bool:
+        return any(x is not None for x in (self.com_admittance, self.ankle_admittance, self.foot_force_difference,
+                                           self.zmp_distributor))
+
+
+@dataclass(frozen=True)
+class TeleopSpec:
+    """The `teleop:` section of a task set (read by tsid-teleop only).
+
+    wrench_regularization: weight of `||w_i - w_i*||^2` on each contact wrench [1/N^2], w_i* the ZMP
+        distributor's target when it runs, else the previous tick's QP wrench (a bias-free damping of the
+        wrench split; 0: off). It also keeps the QP well conditioned next to Table I's CoM weight 2e6.
+    stabilizer: the strategies (None: no stabilizer).
+    """
+
+    wrench_regularization: float = 0.0
+    stabilizer: TeleopStabilizerSpec | None = None
+
+
+def _gains(sec: Section, n: int, names: str, *, kv_ka: bool = True) -> AdmittanceGains:
+    def vec(key: str) -> tuple[float, ...]:
+        raw = sec.raw(key, 0.0)
+        if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+            val = np.full(n, float(raw))
+        else:
+            val = sec.vector(key, length=n)
+        if not np.all(np.isfinite(val)) or np.any(val < 0):
+            raise sec.error(key, f"must be finite and >= 0 ({names}), got {raw!r}")
+        return tuple(float(x) for x in val)
+
+    kd = vec("kd")
+    kv = vec("kv") if kv_ka else (0.0,) * n
+    ka = vec("ka") if kv_ka else (0.0,) * n
+    limit = sec.float("limit", positive=True) if sec.has("limit") else None
+    return AdmittanceGains(kd, kv, ka, limit)
+
+
+def parse_teleop_section(sec: Section) -> TeleopSpec:
+    """Parse a task set's `teleop:` section (errors name the file and key)."""
+    reg = sec.float("wrench_regularization", 0.0, min=0.0)
+    st = None
+    if sec.has("stabilizer") and sec.raw("stabilizer") is not None:
+        s = sec.section("stabilizer")
+        parts = {}
+        for key, n, names, kv_ka in (("com_admittance", 2, "x y", True), ("ankle_admittance", 2, "pitch roll", False),
+                                     ("foot_force_difference", 1, "roll", True)):
+            if s.has(key):
+                g = s.section(key)
+                if g.bool("enabled", True):
+                    parts[key] = _gains(g, n, names, kv_ka=kv_ka)
+                else:
+                    for k in list(g.data):
+                        g.raw(k)
+                g.finish()
+        if s.has("zmp_distributor"):
+            z = s.section("zmp_distributor")
+            if z.bool("enabled", True):
+                parts["zmp_distributor"] = ZmpDistributorGains(
+                    kp=tuple(float(x) for x in _vector_or_scalar(z, "kp", 6)),
+                    kd=tuple(float(x) for x in _vector_or_scalar(z, "kd", 6)))
+            else:
+                for k in list(z.data):
+                    z.raw(k)
+            z.finish()
+        cutoff = s.raw("cop_cutoff_hz", None)
+        st = TeleopStabilizerSpec(**parts,
+                                  cop_cutoff_hz=None if cutoff is None else s.float("cop_cutoff_hz", positive=True),
+                                  min_normal_force=s.float("min_normal_force", 10.0, min=0.0),
+                                  torso_task=s.str("torso_task", "torso"))
+        s.finish()
+    sec.finish()
+    return TeleopSpec(wrench_regularization=reg, stabilizer=st)
+
+
+def _vector_or_scalar(sec: Section, key: str, n: int) -> np.ndarray:
+    raw = sec.raw(key, 0.0)
+    if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+        val = np.full(n, float(raw))
+    else:
+        val = sec.vector(key, length=n)
+    if not np.all(np.isfinite(val)) or np.any(val < 0):
+        raise sec.error(key, f"must be finite and >= 0, got {raw!r}")
+    return val
+
+
+# ---- the laws ------------------------------------------------------------------------------------------------
+def _clamp(x: np.ndarray, limit: float | None) -> np.ndarray:
+    if limit is None:
+        return x
+    n = float(np.linalg.norm(x))
+    return x if n <= limit else x * (limit / n)
+
+
+def com_admittance(p_com: np.ndarray, v_com: np.ndarray, a_com: np.ndarray, cop_model: np.ndarray,
+                   cop_measured: np.ndarray, gains: AdmittanceGains, dt: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Paper 004 Eq. 2: the CoM reference (3,) position [m], velocity [m/s], acceleration [m/s^2] corrected in
+    x-y by the CoP difference `cop_model - cop_measured` (2,) [m]; z passes through."""
+    e = np.asarray(cop_model, float)[:2] - np.asarray(cop_measured, float)[:2]
+    p, v, a = (np.array(x, float, copy=True) for x in (p_com, v_com, a_com))
+    p[:2] -= _clamp(np.asarray(gains.kd) * e, gains.limit)
+    v[:2] -= np.asarray(gains.kv) * e / dt
+    a[:2] -= np.asarray(gains.ka) * e / dt**2
+    return p, v, a
+
+
+def ankle_admittance(R_world_sole: np.ndarray, cop_sole: np.ndarray, gains: AdmittanceGains) -> np.ndarray:
+    """Paper 004 Eq. 3 (position part): the sole orientation reference tilted so that the measured CoP
+    `cop_sole` (2,) [m], in the sole frame relative to the sole centre, goes to the centre:
+    pitch = -kd_pitch c_x, roll = +kd_roll c_y (rad), applied about the sole's own axes."""
+    c = np.asarray(cop_sole, float)
+    tilt = _clamp(np.array([gains.kd[1] * c[1], -gains.kd[0] * c[0]]), gains.limit)
+    return np.asarray(R_world_sole, float) @ pin.rpy.rpyToMatrix(tilt[0], tilt[1], 0.0)
+
+
+def foot_force_difference(f_model: tuple[float, float], f_measured: tuple[float, float],
+                          gains: AdmittanceGains, dt: float) -> tuple[float, float, float]:
+    """Paper 004 Eq. 4-5 (signed difference, Kajita 2010): torso roll offset [rad], roll rate [rad/s] and roll
+    acceleration [rad/s^2] references from the (left, right) normal forces [N] of the model and measured."""
+    D = (f_model[0] - f_model[1]) - (f_measured[0] - f_measured[1])
+    roll = float(_clamp(np.array([-gains.kd[0] * D]), gains.limit)[0])
+    return roll, -gains.kv[0] * D / dt, -gains.ka[0] * D / dt**2
+
+
+def zmp_distributor(p_zmp: np.ndarray, p_left: np.ndarray, p_right: np.ndarray, mass: float,
+                    gravity: float = GRAVITY) -> tuple[dict[Side, np.ndarray], float]:
+    """Paper 004 Eq. 6 (Kajita et al. 2010): per-foot target wrenches (6,) [N, N m] (ground on robot, world
+    axes, about the sole centre `p_left` / `p_right` (3,)) realising the ZMP `p_zmp` (x, y) with both feet in
+    contact; returns them and alpha (0: all on the left foot, 1: all on the right)."""
+    pl, pr = np.asarray(p_left, float), np.asarray(p_right, float)
+    p = np.array([p_zmp[0], p_zmp[1], 0.0])
+    seg = (pr - pl)[:2]
+    L2 = float(seg @ seg)
+    alpha = float(np.clip((p[:2] - pl[:2]) @ seg / L2, 0.0, 1.0)) if L2 > 0 else 0.5
+    f = {Side.LEFT: (1.0 - alpha) * mass * gravity, Side.RIGHT: alpha * mass * gravity}
+    pos = {Side.LEFT: pl, Side.RIGHT: pr}
+    tau0 = np.zeros(2)
+    for s in Side:
+        r = p[:2] - pos[s][:2]
+        tau0 += np.array([r[1] * f[s], -r[0] * f[s]])  # (p - p_i) x (0, 0, f_i), x and y
+    out = {}
+    for s in Side:
+        share = f[s] / (mass * gravity)
+        w = np.zeros(6)
+        w[2] = f[s]
+        w[4] = share * tau0[1]
+        # the roll moment goes to the foot on the side it presses (left foot: positive tau_x loads its +y edge)
+        loads_left = tau0[0] > 0.0
+        w[3] = tau0[0] if (s is Side.LEFT) == loads_left else 0.0
+        out[s] = w
+    return out, alpha
+
+
+def wrench_admittance(F: np.ndarray, F_desired: np.ndarray, gains: ZmpDistributorGains, dt: float,
+                      previous_error: np.ndarray | None = None) -> np.ndarray:
+    """Paper 004 Eq. 7: F* = F - kp (F - F^d) - kd d/dt (F - F^d), (6,) wrenches [N, N m]. The paper writes the
+    derivative term as (F - F^d) / dt; here it is the finite difference of the error since the previous tick
+    (`previous_error`, None: no derivative term), which is what a derivative gain means."""
+    e = np.asarray(F, float) - np.asarray(F_desired, float)
+    out = np.asarray(F, float) - np.asarray(gains.kp) * e
+    if previous_error is not None:
+        out = out - np.asarray(gains.kd) * (e - previous_error) / dt
+    return out
+
+
+# ---- the component ------------------------------------------------------------------------------------------
+class _LowPass:
+    def __init__(self, cutoff_hz: float | None, dt: float):
+        self.alpha = 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
+        self.y = None
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, float)
+        if self.y is None or not np.all(np.isfinite(self.y)):
+            self.y = u.copy()
+        elif np.all(np.isfinite(u)):
+            self.y = self.y + self.alpha * (u - self.y)
+        return self.y
+
+
+@dataclass
+class _Measured:
+    zmp: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
+    cop_sole: dict = field(default_factory=dict)       # side -> (2,) in the sole frame, from its centre
+    normal_force: dict = field(default_factory=dict)   # side -> N
+
+
+class TeleopStabilizer:
+    """Applies the enabled strategies of a `TeleopStabilizerSpec` to a `tsid-teleop` controller's references.
+
+    `correct(meas, refs, ctrl)` (before the QP) returns the references with the CoM (Eq. 2) and the torso target
+    (Eq. 4-5) corrected and sets `ctrl.wrench_targets` (Eq. 6-7); `apply_to_contacts(ctrl)` (after the
+    controller has set its references) tilts the contact references (Eq. 3). `log` holds, per tick: measured
+    ZMP x y, model CoP x y, CoM correction x y [m], torso roll correction [rad], left/right ankle tilt norms
+    [rad], alpha.
+    """
+
+    LOG_LABELS = ("zmp_x", "zmp_y", "cop_model_x", "cop_model_y", "dcom_x", "dcom_y", "torso_roll",
+                  "tilt_left", "tilt_right", "alpha")
+
+    def __init__(self, robot, spec: TeleopStabilizerSpec, dt: float):
+        self.robot = robot
+        self.spec = spec
+        self.dt = dt
+        m = robot.model
+        self.model = m
+        self.data = m.createData()
+        self.sensor_ids = {s: m.getFrameId(robot.profile.feet[s].ft_sensor_frame) for s in Side}
+        self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
+        self.feet = {s: FootMass(*robot.foot_below_sensor(s)) for s in Side}
+        self.sole_center = np.array([*robot.profile.sole.center, 0.0])
+        self.mass = robot.mass
+        self.log = np.full(len(self.LOG_LABELS), np.nan)
+        self.reset(None)
+
+    def reset(self, ctrl) -> None:
+        self._filters = {k: _LowPass(self.spec.cop_cutoff_hz, self.dt)
+                         for k in ("zmp", "cop_left", "cop_right", "f_left", "f_right")}
+        self._contact_nominal: dict[Side, pin.SE3] = {}
+        self._torso_nominal: pin.SE3 | None = None
+        self._tilt = {s: np.eye(3) for s in Side}
+        self._prev_error = {s: None for s in Side}
+        self.measured = _Measured()
+        self.log[:] = np.nan
+        if ctrl is not None:
+            for s, cs in ctrl.contacts.items():
+                ref = cs.contact.reference
+                if ref is not None:
+                    self._contact_nominal[s] = pin.SE3(ref)
+            torso = ctrl.task_by_name.get(self.spec.torso_task)
+            if torso is not None and getattr(torso, "reference", None) is not None:
+                self._torso_nominal = pin.SE3(torso.reference)
+
+    # -------------------------------------------------------------- measurement
+    def _measure(self, meas: Measurement) -> _Measured:
+        m, d = self.model, self.data
+        pin.forwardKinematics(m, d, meas.q)
+        wrenches, out = [], _Measured()
+        ground = None
+        for s in Side:
+            M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
+            w = contact_wrench_from_ft(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, self.feet[s])
+            wrenches.append(w)
+            S = pin.updateFramePlacement(m, d, self.sole_ids[s])
+            ground = S.translation[2] if ground is None else min(ground, S.translation[2])
+            fn = self._filters[f"f_{s.value}"](np.array([max(float(w.force[2]), 0.0)]))[0]
+            out.normal_force[s] = float(fn)
+            cop = center_of_pressure(w, float(S.translation[2]), min_normal_force=self.spec.min_normal_force)
+            if cop.loaded:
+                local = S.rotation.T @ (cop.point - S.translation) - self.sole_center
+                out.cop_sole[s] = self._filters[f"cop_{s.value}"](local[:2])
+        zmp = zmp_from_wrenches(wrenches, float(ground), min_normal_force=self.spec.min_normal_force)
+        out.zmp = self._filters["zmp"](zmp[:2]) if np.all(np.isfinite(zmp)) else np.full(2, np.nan)
+        return out
+
+    @staticmethod
+    def model_cop(ctrl) -> np.ndarray | None:
+        """ZMP (x, y) of the controller's QP wrenches of the last tick, world frame; None when unloaded."""
+        m, d = ctrl.model, ctrl.data
+        f_tot, m_tot = np.zeros(3), np.zeros(3)
+        for s in Side:
+            w = ctrl.wrench[s]
+            if not ctrl.contacts[s].active or w[2] <= 0.0:
+                continue
+            M = pin.updateFramePlacement(m, d, ctrl.contacts[s].contact.frame_id)
+            f = M.rotation @ w[:3]
+            f_tot += f
+            m_tot += M.rotation @ w[3:] + np.cross(M.translation, f)
+        if f_tot[2] <= 1.0:
+            return None
+        return np.array([-m_tot[1] / f_tot[2], m_tot[0] / f_tot[2]])
+
+    # -------------------------------------------------------------- the corrections
+    def correct(self, meas: Measurement, refs: References, ctrl) -> References:
+        spec, dt = self.spec, self.dt
+        meas_ = self._measure(meas)
+        self.measured = meas_
+        self.log[:] = np.nan
+        self.log[0:2] = meas_.zmp
+        cop_model = self.model_cop(ctrl)
+        if cop_model is not None:
+            self.log[2:4] = cop_model
+        targets = dict(refs.targets)
+        com, com_vel, com_acc = refs.com, refs.com_vel, refs.com_acc
+        # Eq. 2
+        g = spec.com_admittance
+        if g is not None and com is not None and cop_model is not None and np.all(np.isfinite(meas_.zmp)):
+            v0 = com_vel if com_vel is not None else np.zeros(3)
+            a0 = com_acc if com_acc is not None else np.zeros(3)
+            p1, v1, a1 = com_admittance(com, v0, a0, cop_model, meas_.zmp, g, dt)
+            self.log[4:6] = (p1 - com)[:2]
+            com, com_vel, com_acc = p1, v1, a1
+        # Eq. 4-5
+        g = spec.foot_force_difference
+        if g is not None and self._torso_nominal is not None and all(ctrl.contacts[s].active for s in Side):
+            f_model = (max(ctrl.wrench[Side.LEFT][2], 0.0), max(ctrl.wrench[Side.RIGHT][2], 0.0))
+            f_meas = (meas_.normal_force[Side.LEFT], meas_.normal_force[Side.RIGHT])
+            roll, wx, ax = foot_force_difference(f_model, f_meas, g, dt)
+            base = targets.get(spec.torso_task)
+            M0 = (base[0] if isinstance(base, tuple) else base) if base is not None else self._torso_nominal
+            R = pin.rpy.rpyToMatrix(roll, 0.0, 0.0) @ M0.rotation
+            targets[spec.torso_task] = (pin.SE3(R, M0.translation), np.array([0, 0, 0, wx, 0, 0.0]),
+                                        np.array([0, 0, 0, ax, 0, 0.0]))
+            self.log[6] = roll
+        # Eq. 6-7
+        z = spec.zmp_distributor
+        if z is not None and all(ctrl.contacts[s].active for s in Side) and np.all(np.isfinite(meas_.zmp)):
+            feet = {s: self._contact_nominal.get(s, ctrl.contacts[s].contact.reference) for s in Side}
+            centre = {s: feet[s].act(self.sole_center) for s in Side}
+            p_ref = _cart_table_zmp(com, com_acc, centre)
+            F, _ = zmp_distributor(p_ref, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
+            Fd, alpha = zmp_distributor(meas_.zmp, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
+            local = {}
+            for s in Side:
+                star = wrench_admittance(F[s], Fd[s], z, dt, self._prev_error[s])
+                self._prev_error[s] = F[s] - Fd[s]
+                # world axes about the sole centre -> LOCAL sole frame about its origin (the QP's variables)
+                R, c = feet[s].rotation, centre[s]
+                f_l = R.T @ star[:3]
+                m_origin = star[3:] + np.cross(c - feet[s].translation, star[:3])
+                local[s] = np.concatenate([f_l, R.T @ m_origin])
+            ctrl.wrench_targets = local
+            self.log[9] = alpha
+        else:
+            ctrl.wrench_targets = None
+        return replace(refs, com=com, com_vel=com_vel, com_acc=com_acc, targets=targets)
+
+    def apply_to_contacts(self, ctrl) -> None:
+        """Eq. 3: tilt each loaded, active contact's reference from its nominal pose."""
+        g = self.spec.ankle_admittance
+        if g is None:
+            return
+        for i, s in enumerate(Side):
+            cs = ctrl.contacts[s]
+            nominal = self._contact_nominal.get(s)
+            if nominal is None or not cs.active:
+                continue
+            cop = self.measured.cop_sole.get(s)
+            if cop is None:
+                cs.contact.set_reference(nominal)
+                continue
+            R = ankle_admittance(nominal.rotation, cop, g)
+            cs.contact.set_reference(pin.SE3(R, nominal.translation))
+            self.log[7 + i] = float(np.linalg.norm(pin.log3(nominal.rotation.T @ R)))
+
+
+def _cart_table_zmp(com: np.ndarray, com_acc: np.ndarray | None, centre: dict) -> np.ndarray:
+    ground = min(c[2] for c in centre.values())
+    a = np.zeros(3) if com_acc is None else com_acc
+    h = com[2] - ground
+    return com[:2] - h / GRAVITY * a[:2]

@@ -1,0 +1,209 @@
+"""`wbcbench teleop`: a whole-body teleoperation session in simulation (paper 004), from a recording or a live
+UDP stream.
+
+    wbcbench teleop --mocap FILE|NAME|udp://127.0.0.1:PORT [--controller tsid-teleop] [--mode spd|position|torque]
+                    [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--duration S] [--out DIR]
+    wbcbench teleop --list
+
+The session is a `teleop` scenario (wbcbench/scenarios/teleop_kind.py) run by the usual runner, with the
+self-collision geoms of the robot profile checked every tick (`SimOptions.self_collision = "detect"`, or
+`--self-collision physical` to make them act). The run directory is the usual one; `hand_errors.npz` adds the
+per-tick hand errors (position [m], rotation, both hands) behind Table II's statistics.
+
+Exit codes: 0 completed, 1 the robot fell, 2 bad input (unreadable or malformed recording, bad option): one line
+on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, UnknownNameError, WbcError
+
+COMMAND = "teleop"
+DEFAULT_CONTROLLER = "tsid-teleop"
+
+
+def add_subcommand(sub: argparse._SubParsersAction) -> None:
+    """Register `wbcbench teleop` on the CLI's subparsers."""
+    p = sub.add_parser(COMMAND, help="whole-body teleoperation from a recording or a live UDP pose stream",
+                       description="Whole-body teleoperation (paper 004): the operator's hands and head from "
+                                   "motion capture drive the robot's grippers and head; feet in contact, CoM held.")
+    p.add_argument("--mocap", "-i", default=None,
+                   help="a shipped recording (see --list), a .bvh/.mvnx/.csv file, or udp://HOST:PORT")
+    p.add_argument("--list", action="store_true", help="list the shipped recordings and exit")
+    p.add_argument("--controller", "-c", default=DEFAULT_CONTROLLER, help=f"default {DEFAULT_CONTROLLER}")
+    p.add_argument("--robot", "-r", default="talos", help="robot name or profile YAML path (default: talos)")
+    p.add_argument("--mode", "-m", default=None, help="spd (default), position or torque")
+    p.add_argument("--speed", type=float, default=1.0, help="replay speed factor for recordings (default 1)")
+    p.add_argument("--no-repulsors", action="store_true", help="drop the self-collision repulsor tasks")
+    p.add_argument("--no-stabilizer", action="store_true", help="disable the force-based stabilizer (Eq. 2-7)")
+    p.add_argument("--duration", "-d", type=float, default=None,
+                   help="seconds to simulate (default: the recording's length / speed; required for udp://)")
+    p.add_argument("--self-collision", choices=["detect", "physical", "off"], default="detect",
+                   help="gripper-body contacts: counted only (default), counted and acting, or not checked")
+    p.add_argument("--on-loss", choices=["hold", "reference"], default="hold",
+                   help="while the source is invalid: hold the last targets (default) or return to the reference")
+    p.add_argument("--anchor", choices=["absolute", "offset"], default="absolute",
+                   help="absolute overlay of the operator (default, the paper's) or offset (references shifted "
+                        "so that the calibration pose is the robot's own)")
+    p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+
+def list_text() -> str:
+    from . import list_recordings
+
+    rows = [f"{r.name:<16} {r.duration:5.1f} s @ {r.frame_rate:g} Hz  operator {r.operator:<10} {r.description}"
+            for r in list_recordings()]
+    return "\n".join(rows)
+
+
+def _check_controller(name: str) -> None:
+    from ..controllers.base import available_controllers
+    from ..controllers.teleop import TSIDTeleop
+
+    ctrls = available_controllers()
+    teleop = [n for n, c in ctrls.items() if issubclass(c, TSIDTeleop)]
+    if name not in ctrls:
+        raise UnknownNameError("controller", name, ctrls, key="--controller")
+    if name not in teleop:
+        raise ConfigError(f"controller '{name}' has no teleoperation task set; use one of: {', '.join(teleop)}",
+                          key="--controller")
+
+
+def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, mode: str | None = None,
+                speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, duration: float | None = None,
+                out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
+                quiet: bool = True, progress=None, **params):
+    """Run one teleoperation session; returns the runner's `RunResult`.
+
+    `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
+    Other keyword arguments are `teleop` scenario params (e.g. `proportion`, `engage_time`, `feedforward`).
+
+    Raises:
+        WbcError (ConfigError): bad input, before anything is simulated.
+    """
+    import time as _time
+
+    from ..controllers.base import available_controllers
+    from ..robots import Robot, load_robot
+    from ..runner import run
+    from ..scenarios.teleop_kind import TeleopScenario
+    from ..sim.model import ActuationMode, SimOptions
+    from ..sim.self_collision import SelfCollisionProbe
+
+    if not (np.isfinite(speed) and speed > 0):
+        raise ConfigError(f"--speed must be a finite number > 0, got {speed}", key="--speed")
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise ConfigError(f"--duration must be > 0, got {duration}", key="--duration")
+    if isinstance(mocap, str) and mocap.startswith("udp://") and duration is None:
+        raise ConfigError("a live stream needs --duration", key="--duration")
+    _check_controller(controller)
+    robot = load_robot(robot) if not isinstance(robot, Robot) else robot
+    cls = available_controllers()[controller]
+    try:
+        mode_ = ActuationMode(mode) if mode is not None else cls.default_mode
+    except ValueError:
+        raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in cls.modes)}",
+                          key="--mode") from None
+    scen = TeleopScenario.from_source(robot, mocap, duration=duration or 0.0, speed=speed, on_loss=on_loss,
+                                      name=f"teleop-{_label(mocap)}", **params)
+    ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer)
+    probes = [SelfCollisionProbe()] if self_collision != "off" else []
+    if out is None:
+        stamp = _time.strftime("%Y%m%d-%H%M%S")
+        out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
+    try:
+        result = run(scen, ctrl, robot=robot, out=out, progress=progress,
+                     sim_options=SimOptions(self_collision=self_collision), probes=probes)
+    finally:
+        close = getattr(scen.source, "close", None)
+        if scen.live and close is not None:
+            close()
+    errors = getattr(scen, "hand_error_samples", None)
+    if errors:
+        np.savez_compressed(Path(result.run_dir) / "hand_errors.npz", **errors)
+    return result
+
+
+def _label(mocap) -> str:
+    if isinstance(mocap, str):
+        if mocap.startswith("udp://"):
+            return "udp"
+        return Path(mocap).stem or "mocap"
+    return Path(getattr(mocap, "source", "") or "mocap").stem or "mocap"
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Execute `wbcbench teleop`. Domain errors propagate to the CLI (one line, exit 2)."""
+    from rich.console import Console
+
+    console = Console()
+    if args.list:
+        print(list_text())
+        return 0
+    if args.mocap is None:
+        raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
+    kwargs = dict(robot=args.robot, controller=args.controller, mode=args.mode, speed=args.speed,
+                  repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer, duration=args.duration,
+                  out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor)
+    if args.quiet:
+        result = run_session(args.mocap, **kwargs)
+    else:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                      TimeElapsedColumn(), console=console, transient=True) as prog:
+            task = prog.add_task(f"teleop {args.mocap}", total=1.0)
+            result = run_session(args.mocap, progress=lambda f: prog.update(task, completed=f), **kwargs)
+    render(console, result.summary, result.run_dir)
+    return 1 if result.summary["fell"] else 0
+
+
+def render(console, summary: dict, run_dir) -> None:
+    """The teleoperation summary: status, Table II statistics, self-collisions, source health."""
+    from rich.table import Table
+
+    s, m = summary, summary.get("metrics", {})
+    status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
+    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}: {status}",
+              show_header=False, title_justify="left")
+    t.add_column("key", style="bold")
+    t.add_column("value")
+    t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s (wall {s['wall_time_s']:.1f} s)")
+    st = s["step_time_us"]
+    if st["median"] is not None:
+        t.add_row("controller step", f"median {st['median']:.0f} us, p99 {st['p99']:.0f} us")
+    for key, label in (("hand_position_error_m", "hand position error [m]"),
+                       ("hand_rotation_error", "hand rotation error ||I - R_ref R^-1||_F")):
+        v = m.get(key)
+        if v and v.get("mean") is not None:
+            t.add_row(label, f"mean {v['mean']:.4f}  std {v['std']:.4f}  min {v['min']:.2e}  max {v['max']:.4f}")
+    if "self_collisions" in m:
+        pairs = ", ".join(f"{k} ({n} ticks)" for k, n in m.get("self_collision_pairs", {}).items())
+        t.add_row("self-collisions", f"{m['self_collisions']} contact events, {m['self_collision_ticks']} ticks"
+                  + (f": {pairs}" if pairs else ""))
+    tele = m.get("teleop", {})
+    if tele:
+        t.add_row("source", f"{tele.get('source')} {tele.get('mocap')} x{tele.get('speed')}, "
+                            f"{tele.get('invalid_ticks')} invalid ticks, {tele.get('loss_events')} losses")
+        if tele.get("invalid_ticks"):
+            t.add_row("[yellow]safe posture[/yellow]",
+                      f"held ({tele.get('on_loss')}) for {tele.get('invalid_time_s'):.3f} s in total, "
+                      f"longest {tele.get('longest_invalid_s'):.3f} s")
+        stream = tele.get("stream")
+        if stream:
+            t.add_row("stream", ", ".join(f"{k} {v}" for k, v in stream.items() if v not in ("", None)))
+        clamped = {k: v for k, v in tele.get("clamped_ticks", {}).items() if v}
+        if clamped:
+            t.add_row("targets out of reach", ", ".join(f"{k} {v} ticks (clamped)" for k, v in clamped.items()))
+    for k, v in s.get("controller_status", {}).items():
+        t.add_row(k, str(v))
+    if s.get("metrics_error"):
+        t.add_row("[red]metrics error[/red]", s["metrics_error"])
+    t.add_row("run directory", str(run_dir))
+    console.print(t)
