@@ -15,13 +15,24 @@ import time
 import numpy as np
 
 from wbcbench.controllers.base import available_controllers, make_controller
+from wbcbench.qp._jit import JIT_ENABLED
 from wbcbench.robots import load_robot
 from wbcbench.sim.simulator import Simulator
 from wbcbench.types import References
 
 
-def bench(robot, name: str, ticks: int) -> dict:
+def set_compiled(ctrl, on: bool) -> None:
+    """Switch a controller between the compiled kernels (wbcbench.qp._jit) and the numpy reference code."""
+    if hasattr(ctrl, "jit"):
+        ctrl.jit = on
+    solver = getattr(ctrl, "solver", None)
+    if solver is not None and hasattr(solver, "jit"):
+        solver.jit = on
+
+
+def bench(robot, name: str, ticks: int, compiled: bool = True) -> dict:
     ctrl = make_controller(name, robot, None, 1e-3)
+    set_compiled(ctrl, compiled and JIT_ENABLED)
     sim = Simulator(robot, mode=ctrl.mode)
     refs = References(t=0.0)
     meas = sim.measure()
@@ -47,26 +58,37 @@ def bench(robot, name: str, ticks: int) -> dict:
     return out
 
 
+def _line(name: str, r: dict) -> str:
+    line = f"  {name:24s} median {r['median_us']:7.1f} us   p99 {r['p99_us']:7.1f} us"
+    if "solve_median_us" in r:
+        line += (f"   [pinocchio {r['pinocchio_median_us']:.0f}, build {r['build_median_us']:.0f}, "
+                 f"solver {r['solve_median_us']:.0f} us]")
+    return line
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--ticks", type=int, default=3000)
     p.add_argument("--json", default=None, help="write {controller: {median_us, p99_us, ...}} here")
     p.add_argument("--controllers", default=None, help="comma-separated names (default: all but joint-pd)")
     p.add_argument("--robot", default="talos")
+    p.add_argument("--numpy", action="store_true",
+                   help="also time the numpy reference path (kernels off) and print the ratio")
     args = p.parse_args()
     robot = load_robot(args.robot)
     names = args.controllers.split(",") if args.controllers else [n for n in available_controllers()
                                                                   if n != "joint-pd"]
     results = {}
     print(f"{robot!r}, standing on two feet, {args.ticks} closed-loop ticks (first 10% discarded)")
+    print(f"  compiled kernels: {'on' if JIT_ENABLED else 'OFF (WBCBENCH_JIT=0 or numba missing)'}")
     for name in names:
         r = bench(robot, name, args.ticks)
         results[name] = r
-        line = f"  {name:16s} median {r['median_us']:7.1f} us   p99 {r['p99_us']:7.1f} us"
-        if "solve_median_us" in r:
-            line += (f"   [pinocchio {r['pinocchio_median_us']:.0f}, build {r['build_median_us']:.0f}, "
-                     f"solver {r['solve_median_us']:.0f} us]")
-        print(line)
+        print(_line(name, r))
+        if args.numpy and JIT_ENABLED:
+            ref = bench(robot, name, args.ticks, compiled=False)
+            r["numpy_median_us"], r["numpy_p99_us"] = ref["median_us"], ref["p99_us"]
+            print(_line(f"{name} (numpy)", ref) + f"   compiled/numpy {r['median_us'] / ref['median_us']:.2f}")
     ref = "tsid-torque"
     if ref in results:
         for name, r in results.items():

@@ -154,7 +154,7 @@ class IKController(Controller):
             return Command(q=self.q_int[7:].copy(), v=np.zeros(self.robot.na))
         # the lowest level is a regularisation (posture) that lower-priority conflicts always leave unmet:
         # report the highest-priority level above it that could not be met (-1: none)
-        unmet = [r.index for r in res.levels[:-1] if not r.met]
+        unmet = [k for k, met in enumerate(res.met[:-1]) if not met]
         self.unmet_levels = unmet[0] if unmet else -1
         if unmet:
             self.n_unmet += 1

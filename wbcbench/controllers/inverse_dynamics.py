@@ -28,6 +28,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..qp import _jit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
@@ -36,6 +37,7 @@ from ..sim.model import ActuationMode
 from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, TaskStack, update_kinematics
 from ..types import Command, Measurement, References
+from . import _id_kernels as _kernels
 from .base import Controller, register
 from .taskset import TaskSetSpec, TaskSpec, load_taskset, taskset_path
 
@@ -98,7 +100,7 @@ class _QPLayout:
     layout, made once, so that a tick only computes (x = [dv; w_1; ...], rows of the stack: contacts, hard tasks,
     then the weighted tasks). The QPProblem objects are built once too: their arrays are refilled in place."""
 
-    __slots__ = ("slices", "k", "Aw", "bw", "A_cost", "b_cost", "sw_column", "minus_sw", "H_dv", "H_diag_dv",
+    __slots__ = ("slices", "k", "Aw", "bw", "A_cost", "b_cost", "sw", "Jc", "sw_column", "minus_sw", "H_dv", "H_diag_dv",
                  "g_dv", "A_eq_M", "A_eq_w", "A_eq_J", "b_eq_h", "b_eq_J", "A_hard", "b_hard", "Jc_base_T",
                  "Jc_joints_T", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks", "u_blocks",
                  "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque", "problem_relaxed")
@@ -113,13 +115,13 @@ class _QPLayout:
                                                B["lb"], B["ub"])
         sw = stack.sqrt_weights[me:]
         self.A_cost, self.b_cost = A[me:], b[me:]
-        self.sw_column, self.minus_sw = sw[:, None], -sw
+        self.sw, self.sw_column, self.minus_sw = sw, sw[:, None], -sw
         self.Aw, self.bw = np.empty(self.A_cost.shape), np.empty(self.b_cost.shape)
         self.H_dv, self.H_diag_dv, self.g_dv = B["H_dv"], B["H_diag_dv"], B["g_dv"]
         self.A_eq_M, self.A_eq_w, self.A_eq_J = A_eq[:6, :nv], A_eq[:6, nv:], A_eq[6:, :nv]
         self.b_eq_h, self.b_eq_J = b_eq[:6], b_eq[6:]
         self.A_hard, self.b_hard = A[:me], b[:me]
-        Jc = A[:6 * nc]
+        self.Jc = Jc = A[:6 * nc]
         self.Jc_base_T, self.Jc_joints_T = Jc[:, :6].T, Jc[:, 6:].T
         self.M_base, self.M_joints = d.M[:6], d.M[6:]  # views of pinocchio's data, refreshed by each update
         self.nle_base, self.nle_joints = d.nle[:6], d.nle[6:]
@@ -176,6 +178,8 @@ class InverseDynamicsController(Controller):
         # otherwise goes to the backend solved cold (see ActiveSetGuessSolver): standing or walking, the active
         # set rarely changes from one tick to the next.
         self.solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
+        # compiled assembly and torques (wbcbench.qp._jit); False runs the numpy reference code, same answers
+        self.jit = _jit.JIT_ENABLED
         self.relaxed_solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
         self.torque_solver = ActiveSetGuessSolver(make_solver(self.spec.solver))
         lo, hi = robot.position_limits
@@ -374,6 +378,8 @@ class InverseDynamicsController(Controller):
         L = self._layouts.get(active)
         if L is None or L.slices is not stack.slices:  # first time, or the stack's layout changed
             L = self._layouts[active] = _QPLayout(self, active, stack, n_hard, A, b)
+        if self.jit:
+            return self._solve_jit(q, v, active, L)
         # ---- cost: sqrt(w)-scaled rows of every weighted task, one product for the Hessian
         Aw = L.Aw
         np.multiply(L.A_cost, L.sw_column, out=Aw)
@@ -420,6 +426,40 @@ class InverseDynamicsController(Controller):
                 self._t_solve = perf_counter() - t0
                 self.qp_status = QP_OK
                 return res.x, tau
+        return self._solve_limited(L, res, t0)
+
+    def _solve_jit(self, q: np.ndarray, v: np.ndarray, active: tuple[Side, ...],
+                   L: _QPLayout) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`_solve` after the rows, with the compiled assembly and torques (``_id_kernels``): the same QP,
+        the same answers."""
+        cones = L.cones
+        for i, s in enumerate(active):
+            Cr, ur = self.contacts[s].contact.force_rows()
+            C_prev, u_prev = cones[i]
+            if Cr is not C_prev:
+                L.C_blocks[i][...] = Cr
+            if ur is not u_prev:
+                L.u_blocks[i][...] = ur
+            cones[i] = (Cr, ur)
+        QL, VL, _, _ = self._limit_rows()
+        P = L.problem
+        _kernels.assemble(L.A_cost, L.b_cost, L.sw, self.spec.regularization_dv, L.H_dv, L.g_dv, L.M_base,
+                          L.nle_base, L.Jc, L.A_hard, L.b_hard, P.A_eq, P.b_eq, q[7:], v[6:], QL, VL,
+                          self.spec.joint_limit_horizon, self.dt, L.lb_joints, L.ub_joints)
+        t0 = perf_counter()
+        res = self.solver.solve(P)
+        if res.ok:
+            tau, within = _kernels.torques(L.M_joints, L.nle_joints, L.Jc, res.x, self._torque_limit())
+            if within:
+                self._t_solve = perf_counter() - t0
+                self.qp_status = QP_OK
+                return res.x, tau
+        return self._solve_limited(L, res, t0)
+
+    def _solve_limited(self, L: _QPLayout, res, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The first solve failed or its torques exceed a limit: solve with the torque rows, then relaxed."""
+        nv = self.nv
+        if res.ok:
             k, C, lo, hi = L.k, L.C, L.l, L.u
             C[k:] = 0.0
             C[k:, :nv] = L.M_joints

@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.linalg import blas, lapack
 
+from wbcbench.qp import _jit
 from wbcbench.qp.problem import QPProblem
 from wbcbench.qp.result import QPResult, QPStatus
 from wbcbench.qp.solver import QPSolver
@@ -66,6 +67,8 @@ class ActiveSetGuessSolver(QPSolver):
             is guessed active for the next solve.
 
     Attributes:
+        jit: use the compiled kernel for the guess (default: ``wbcbench.qp._jit.JIT_ENABLED``); False runs the
+            LAPACK/BLAS reference implementation, which gives the same answers.
         n_guessed: solves answered by the certified guess.
         n_backend: solves passed to the backend.
     """
@@ -81,6 +84,8 @@ class ActiveSetGuessSolver(QPSolver):
         self.n_backend = 0
         self._guesses: dict[tuple[int, int, int, bool], _Guess] = {}
         self._work: dict[tuple[int, int], FloatArray] = {}
+        self._empty: dict[int, tuple[FloatArray, FloatArray]] = {}
+        self.jit = _jit.JIT_ENABLED
 
     def reset(self) -> None:
         """Forget the guesses and the backend's workspace."""
@@ -109,6 +114,26 @@ class ActiveSetGuessSolver(QPSolver):
 
     def _certified(self, p: QPProblem, guess: _Guess, m_eq: int) -> tuple[FloatArray, float] | None:
         """The solution with ``guess`` active and its objective if it passes the KKT test, else None."""
+        if self.jit:
+            return self._certified_jit(p, guess)
+        return self._certified_numpy(p, guess, m_eq)
+
+    def _certified_jit(self, p: QPProblem, guess: _Guess) -> tuple[FloatArray, float] | None:
+        """The compiled twin of :meth:`_certified_numpy` (:func:`wbcbench.qp._jit.certify_equality_qp`)."""
+        n = p.H.shape[0]
+        empty = self._empty.get(n)
+        if empty is None:
+            empty = self._empty[n] = (np.zeros((0, n)), np.zeros(0))
+        E, z = empty
+        ok, x, objective = _jit.certify_equality_qp(
+            p.H, p.g, E if p.A_eq is None else p.A_eq, z if p.b_eq is None else p.b_eq,
+            E if p.C is None else p.C, z if p.l is None else p.l, z if p.u is None else p.u,
+            z if p.lb is None else p.lb, z if p.ub is None else p.ub,
+            guess.c_up, guess.c_lo, guess.x_up, guess.x_lo, self.primal_tol, self.dual_tol)
+        return (x, objective) if ok else None
+
+    def _certified_numpy(self, p: QPProblem, guess: _Guess, m_eq: int) -> tuple[FloatArray, float] | None:
+        """The reference implementation of the guess and its KKT test (LAPACK/BLAS calls)."""
         n = p.H.shape[0]
         L, info = lapack.dpotrf(p.H, lower=1, clean=0)
         if info != 0:

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -54,6 +54,7 @@ import numpy.typing as npt
 from scipy.linalg import lapack
 from scipy.optimize import nnls
 
+from wbcbench.qp import _jit
 from wbcbench.qp._nullspace import least_squares_step, project
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level, Task
 from wbcbench.qp.problem import QPProblem
@@ -143,13 +144,14 @@ class LevelReport:
     qp_attempts: int = 0
 
 
-@dataclass(frozen=True, slots=True)
 class HierarchicalResult:
     """Solution of a hierarchical problem.
 
     Attributes:
         x: (n,) solution, always set (it is the best point found even when ``ok`` is False).
-        levels: one :class:`LevelReport` per level, in priority order.
+        levels: one :class:`LevelReport` per level, in priority order (made on first access by the closed-form
+            path, which solves a tick faster than it would describe it).
+        met: one bool per level, ``levels[k].met`` (available without making the reports).
         ok: True when every level and the final min-norm step were solved (no :attr:`LevelPath.FAILED`).
         bound_violation: largest violation of ``lb <= x <= ub`` before the final clip (0 when none). x is
             always clipped into the bounds; a violation above ``feasibility_tol`` only happens after a
@@ -157,11 +159,32 @@ class HierarchicalResult:
         final_path: how the implicit min-norm level was solved.
     """
 
-    x: FloatArray
-    levels: tuple[LevelReport, ...]
-    ok: bool
-    bound_violation: float
-    final_path: LevelPath
+    __slots__ = ("x", "_levels", "ok", "bound_violation", "final_path", "_met")
+
+    def __init__(self, x: FloatArray, levels: tuple[LevelReport, ...] | Callable[[], tuple[LevelReport, ...]],
+                 ok: bool, bound_violation: float, final_path: LevelPath, met: tuple[bool, ...] | None = None):
+        self.x = x
+        self._levels = levels
+        self.ok = ok
+        self.bound_violation = bound_violation
+        self.final_path = final_path
+        self._met = met
+
+    @property
+    def levels(self) -> tuple[LevelReport, ...]:
+        if callable(self._levels):
+            self._levels = self._levels()
+        return self._levels
+
+    @property
+    def met(self) -> tuple[bool, ...]:
+        if self._met is None:
+            self._met = tuple(r.met for r in self.levels)
+        return self._met
+
+    def __repr__(self) -> str:
+        return (f"HierarchicalResult(ok={self.ok}, final_path={self.final_path.value}, "
+                f"bound_violation={self.bound_violation:.3g}, met={self.met})")
 
     def report(self) -> str:
         """A per-level status table (level, path, rank, freedom, residual, met, tasks)."""
@@ -270,6 +293,9 @@ class HierarchicalSolver:
         self.feasibility_tol = float(feasibility_tol)
         self.met_tol = float(met_tol)
         self.fast_path = bool(fast_path)
+        # the closed form of a posture-like last level compiled (wbcbench.qp._jit.selection_lsq); False: LAPACK's
+        # dgglse for every closed form (the same answers)
+        self.jit = _jit.JIT_ENABLED
         self._solvers: dict[tuple[int | str, int], QPSolver] = {}
         self._checked_levels: tuple[Level, ...] | None = None
         self._checked_bounds: tuple[FloatArray | None, FloatArray | None] = (None, None)
@@ -442,8 +468,15 @@ class HierarchicalSolver:
             k_end = r + counts[n_prefix] if n_prefix < len(counts) else r
             P, b_P, A_k, c_k = A[:r], b[:r], A[r:k_end], b[r:k_end]
         d = n - r
-        tol = _CLOSED_FORM_RANK_TOL * _frobenius(P)
-        if n_prefix == len(levels):
+        status = 0
+        if self.jit and n_prefix < len(levels) and d:
+            # a posture-like level (one non-zero per row): the compiled projection, else the general LAPACK path
+            status, x = _jit.selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL)
+            final_path = LevelPath.LOCKED
+        if status == 1:
+            pass
+        elif n_prefix == len(levels):
+            tol = _CLOSED_FORM_RANK_TOL * _frobenius(P)
             # min ||x|| s.t. P x = b_P: LQ of P (full row rank), L on and below the diagonal of lq[:r, :r]
             padded = np.zeros(n)
             padded[:r] = b_P
@@ -454,6 +487,7 @@ class HierarchicalSolver:
             final_path = LevelPath.NULLSPACE if d else LevelPath.LOCKED
         else:
             # A_k is (m_k, n) with m_k > d: T (d, d) from A_k in the null space of P, R (r, r) from P
+            tol = _CLOSED_FORM_RANK_TOL * _frobenius(P)
             T, R, _, x, info = lapack.dgglse(A_k, P, c_k, b_P)
             if info != 0 or not np.abs(R.diagonal(d)).min() > tol:
                 return None
@@ -461,7 +495,11 @@ class HierarchicalSolver:
                 return None
             final_path = LevelPath.LOCKED
         ftol = self.feasibility_tol
-        high, low = (x - ub).max(), (lb - x).max()
+        sums = None
+        if self.jit:  # one call for the bound test and the residuals
+            high, low, sums_ = _jit.bounds_and_residuals(A, b, x, plan.starts, lb, ub)
+        else:
+            high, low = (x - ub).max(), (lb - x).max()
         if not (high <= ftol and low <= ftol):  # a bound binds (or x is not finite)
             if not np.isfinite(x).all():
                 for level in levels:  # invalid rows handed over unchecked: say which
@@ -472,16 +510,19 @@ class HierarchicalSolver:
         violation = float(max(0.0, low, high))
         if violation > 0.0:
             x = np.clip(x, lb, ub)
-        # reports: residuals of every task at x, rank and freedom of every level
-        e = A @ x
-        e -= b
-        e *= e
-        sums = np.add.reduceat(e, plan.starts).tolist()
-        reports = []
+        elif self.jit:
+            sums = sums_.tolist()
+        if sums is None:
+            # reports: residuals of every task at x, rank and freedom of every level
+            e = A @ x
+            e -= b
+            e *= e
+            sums = np.add.reduceat(e, plan.starts).tolist()
+        # residual of every level (cheap); the reports themselves are made when asked for
+        task_sq: list[float] = []
+        totals: list[float] = []
         i = 0
-        freedom = n
-        for k, level in enumerate(levels):
-            task_residuals: dict[str, float] = {}
+        for level in levels:
             total = 0.0
             for task in level.tasks:
                 w = task.weight
@@ -493,19 +534,31 @@ class HierarchicalSolver:
                         i += 1
                     res = task.residual(x)
                     sq = float(res @ res)
-                task_residuals[task.name] = math.sqrt(sq)
+                task_sq.append(sq)
                 total += w * sq
-            residual = math.sqrt(total)
-            if k < n_prefix:
-                rank, path = counts[k], LevelPath.NULLSPACE
-            elif freedom:  # the level after P takes all the freedom left
-                rank, path = freedom, LevelPath.NULLSPACE
-            else:
-                rank, path = 0, LevelPath.LOCKED
-            reports.append(_level_report(k, level.name, residual, task_residuals, residual <= self.met_tol, rank,
-                                         freedom, path, None, 0, 0))
-            freedom -= rank
-        return HierarchicalResult(x, tuple(reports), True, violation, final_path)
+            totals.append(total)
+        met_tol = self.met_tol
+
+        def reports() -> tuple[LevelReport, ...]:
+            out = []
+            freedom = n
+            sq_iter = iter(task_sq)
+            for k, level in enumerate(levels):
+                task_residuals = {task.name: math.sqrt(next(sq_iter)) for task in level.tasks}
+                residual = math.sqrt(totals[k])
+                if k < n_prefix:
+                    rank, path = counts[k], LevelPath.NULLSPACE
+                elif freedom:  # the level after P takes all the freedom left
+                    rank, path = freedom, LevelPath.NULLSPACE
+                else:
+                    rank, path = 0, LevelPath.LOCKED
+                out.append(_level_report(k, level.name, residual, task_residuals, residual <= met_tol, rank, freedom,
+                                         path, None, 0, 0))
+                freedom -= rank
+            return tuple(out)
+
+        met = tuple(math.sqrt(t) <= met_tol for t in totals)
+        return HierarchicalResult(x, reports, True, violation, final_path, met)
 
     def _level(self, k: int, level: Level, st: _State) -> tuple[LevelPath, int, int, QPStatus | None, int, int]:
         """Solve one level in place on ``st``; returns (path, rank, freedom, qp status, iterations, attempts)."""

@@ -1,0 +1,184 @@
+"""The compiled kernels (wbcbench.qp._jit and controllers/_id_kernels) against their numpy/LAPACK twins: the same
+decisions and the same answers, on random problems and on the controllers' own closed-loop ticks."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.linalg import lapack
+
+from wbcbench.qp import ActiveSetGuessSolver, DaqpSolver, HierarchicalSolver, QPProblem, _jit
+from wbcbench.qp.active_set_guess import _Guess
+
+from .qp_reference import known_qp
+
+pytestmark = pytest.mark.skipif(not _jit.JIT_ENABLED, reason="compiled kernels disabled (WBCBENCH_JIT=0 or no numba)")
+SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)
+
+
+@st.composite
+def qps_with_guess(draw):
+    seed = draw(st.integers(0, 2**32 - 1))
+    n = draw(st.integers(2, 24))
+    m_eq = draw(st.integers(0, n // 2))
+    m_in = draw(st.integers(0, 2 * n))
+    box = draw(st.booleans())
+    rng = np.random.default_rng(seed)
+    known = known_qp(rng, n, m_eq, m_in, box)
+    right = draw(st.booleans())  # the optimum's own active set, or a random (usually wrong) one
+    return known, right, rng
+
+
+@SETTINGS
+@given(case=qps_with_guess())
+def test_certified_guess_kernel_equals_the_lapack_path(case):
+    known, right, rng = case
+    p = known.problem
+    solver = ActiveSetGuessSolver(DaqpSolver())
+    if right:
+        guess = solver._active_set(p, known.x_star)
+    else:
+        m_in = 0 if p.C is None else p.C.shape[0]
+        rows = np.flatnonzero(rng.random(m_in) < 0.2)
+        guess = _Guess(c_up=rows.astype(np.intp))
+    m_eq = 0 if p.A_eq is None else p.A_eq.shape[0]
+    numpy_answer = solver._certified_numpy(p, guess, m_eq)
+    jit_answer = solver._certified_jit(p, guess)
+    if right:
+        assert numpy_answer is not None and jit_answer is not None
+    assert (numpy_answer is None) == (jit_answer is None)
+    if jit_answer is not None:
+        scale = max(1.0, float(np.abs(numpy_answer[0]).max()))
+        np.testing.assert_allclose(jit_answer[0], numpy_answer[0], atol=1e-9 * scale, rtol=0)
+        assert jit_answer[1] == pytest.approx(numpy_answer[1], rel=1e-8, abs=1e-9)
+        np.testing.assert_allclose(jit_answer[0], known.x_star, atol=1e-7 * scale, rtol=0)
+
+
+def test_certify_kernel_rejects_nan_and_a_singular_hessian():
+    H, g = np.eye(3), np.array([1.0, np.nan, 0.0])
+    solver = ActiveSetGuessSolver(DaqpSolver())
+    assert solver._certified_jit(QPProblem._trusted(H, g, None, None, None, None, None, None, None), _Guess()) is None
+    singular = np.diag([1.0, 0.0, 1.0])
+    p = QPProblem._trusted(singular, np.zeros(3), None, None, None, None, None, None, None)
+    assert solver._certified_jit(p, _Guess()) is None
+
+
+@st.composite
+def selection_problems(draw):
+    seed = draw(st.integers(0, 2**32 - 1))
+    n = draw(st.integers(3, 40))
+    k = draw(st.integers(0, min(6, n - 1)))  # variables left to P alone
+    r = draw(st.integers(max(k, 1), max(k, 1, n - 1)))
+    rng = np.random.default_rng(seed)
+    P = rng.standard_normal((r, n)) * rng.choice([1e-2, 1.0, 1e2])
+    m = n - k
+    cols = rng.permutation(n)[:m]
+    A = np.zeros((m, n))
+    A[np.arange(m), cols] = rng.uniform(0.1, 10.0, m) * rng.choice([-1.0, 1.0], m)
+    return P, rng.standard_normal(r), A, rng.standard_normal(m)
+
+
+@SETTINGS
+@given(prob=selection_problems())
+def test_selection_lsq_equals_dgglse(prob):
+    P, b, A, c = prob
+    status, x = _jit.selection_lsq(P, b, A, c, 1e-6)
+    T, R, _, x_ref, info = lapack.dgglse(A.copy(), P.copy(), c.copy(), b.copy())
+    assert info == 0
+    if status != 1:  # only a rank test may refuse a random problem of this structure
+        assert status == -1
+        return
+    scale = max(1.0, float(np.abs(x_ref).max()))
+    np.testing.assert_allclose(x, x_ref, atol=1e-8 * scale, rtol=0)
+    np.testing.assert_allclose(P @ x, b, atol=1e-9 * max(1.0, float(np.abs(P).max()) * scale))
+
+
+def test_selection_lsq_refuses_what_it_does_not_solve():
+    rng = np.random.default_rng(0)
+    P, b = rng.standard_normal((4, 6)), rng.standard_normal(4)
+    dense = rng.standard_normal((5, 6))
+    assert _jit.selection_lsq(P, b, dense, np.zeros(5), 1e-6)[0] == 0  # not one non-zero per row
+    twice = np.zeros((2, 6))
+    twice[:, 3] = 1.0
+    assert _jit.selection_lsq(P, b, twice, np.zeros(2), 1e-6)[0] == 0  # the same column twice
+    A = np.zeros((5, 6))
+    A[np.arange(5), np.arange(1, 6)] = 1.0
+    P_dep = np.vstack([P[:3], P[2]])  # dependent rows: no full row rank
+    assert _jit.selection_lsq(P_dep, np.r_[b[:3], b[2]], A, np.zeros(5), 1e-6)[0] == -1
+
+
+def test_hierarchy_with_and_without_the_kernel_agree():
+    """A TALOS-shaped hierarchy (12 + 1 + 2 + 3 dense rows, then a 32-joint posture) through the solver."""
+    from wbcbench.qp import EqualityTask, Level
+
+    rng = np.random.default_rng(4)
+    n = 38
+    posture = np.zeros((32, n))
+    posture[np.arange(32), 6 + np.arange(32)] = 1.0
+    levels = [Level([EqualityTask("feet", rng.standard_normal((12, n)), rng.standard_normal(12))]),
+              Level([EqualityTask("com_z", rng.standard_normal((1, n)), rng.standard_normal(1))]),
+              Level([EqualityTask("com_xy", rng.standard_normal((2, n)), rng.standard_normal(2))]),
+              Level([EqualityTask("waist", rng.standard_normal((3, n)), rng.standard_normal(3))]),
+              Level([EqualityTask("posture", posture, rng.standard_normal(32), weight=0.1)])]
+    lb, ub = np.full(n, -1e3), np.full(n, 1e3)
+    fast, lapack_only = HierarchicalSolver(n), HierarchicalSolver(n)
+    lapack_only.jit = False
+    a, b = fast.solve(levels, lb, ub), lapack_only.solve(levels, lb, ub)
+    np.testing.assert_allclose(a.x, b.x, atol=1e-10)
+    assert [r.residual for r in a.levels] == pytest.approx([r.residual for r in b.levels], abs=1e-9)
+    assert a.met == tuple(r.met for r in a.levels)
+
+
+def _closed_loop_pair(name: str, ticks: int):
+    """Two controllers, compiled and not, fed the same measurements of one closed loop (the compiled one acts)."""
+    from wbcbench.controllers.base import make_controller
+    from wbcbench.robots import load_robot
+    from wbcbench.sim.simulator import Simulator
+    from wbcbench.types import References
+
+    robot = load_robot("talos")
+    fast, ref = make_controller(name, robot, None, 1e-3), make_controller(name, robot, None, 1e-3)
+    ref.solver.jit = False  # ID: ActiveSetGuessSolver; IK: HierarchicalSolver
+    if hasattr(ref, "jit"):
+        ref.jit = False  # ID: the assembly and torque kernels
+    sim = Simulator(robot, mode=fast.mode)
+    meas = sim.measure()
+    t = np.arange(ticks) * 1e-3
+    com0 = None
+    out = []
+    for k in range(ticks):
+        refs = References(t=t[k])
+        if k == 0:
+            fast.reset(meas, refs)
+            ref.reset(meas, refs)
+            com0 = fast.data.com[0].copy()
+        refs = References(t=t[k], com=com0 + np.array([0.0, 0.03 * np.sin(2 * np.pi * t[k]), 0.0]))
+        a, b = fast.step(meas, refs), ref.step(meas, refs)
+        out.append((a, b))
+        sim.apply(a)
+        sim.step()
+        meas = sim.measure()
+    return out
+
+
+def test_tsid_torques_equal_with_and_without_the_kernels():
+    for a, b in _closed_loop_pair("tsid-torque", 300):
+        np.testing.assert_allclose(a.tau, b.tau, atol=1e-7 * max(1.0, float(np.abs(b.tau).max())), rtol=0)
+
+
+def test_ik_commands_equal_with_and_without_the_kernel():
+    for a, b in _closed_loop_pair("ik", 300):
+        np.testing.assert_allclose(a.q, b.q, atol=1e-10, rtol=0)
+
+
+def test_environment_switch_turns_the_kernels_off():
+    code = "from wbcbench.qp import _jit; print(_jit.JIT_ENABLED)"
+    env = {**os.environ, "WBCBENCH_JIT": "0"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

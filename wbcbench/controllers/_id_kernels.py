@@ -1,0 +1,88 @@
+"""Compiled kernels of the inverse-dynamics tick (see :mod:`wbcbench.qp._jit`): the QP assembly and the torques.
+
+Each kernel does exactly what the numpy code beside it in :mod:`wbcbench.controllers.inverse_dynamics` does
+(that code stays the reference, used when ``WBCBENCH_JIT=0``); the tests check that both give the same QP and the
+same torques.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..qp._jit import njit
+
+__all__ = ["assemble", "torques"]
+
+
+@njit
+def assemble(A_cost, b_cost, sw, reg_dv, H, g, M_base, nle_base, Jc, A_hard, b_hard, A_eq, b_eq,
+             q_joints, v_joints, QL, VL, horizon, dt, lb_joints, ub_joints):
+    """Fill the QP of one tick in place (the buffers of ``_QPLayout``).
+
+    Cost: ``H[:nv, :nv] = Aw' Aw + reg_dv I``, ``g[:nv] = -Aw' (sw * b)`` with ``Aw = sw * A_cost`` (the wrench
+    block of ``H`` and of ``g`` is left as it is: constant). Equalities: ``[M_b  -Jc_b'] x = -h_b`` and the hard
+    rows (``A_hard``: the contacts', then priority-0 tasks'). Bounds on the joint accelerations:
+    ``a_hi = min(2 (q_hi - q - v h) / h^2, (v_max - v) / dt)``, ``a_lo`` likewise, ``a_lo <= a_hi`` enforced.
+    """
+    m_c, nv = A_cost.shape
+    for i in range(nv):
+        for j in range(nv):
+            H[i, j] = 0.0
+        g[i] = 0.0
+    row = np.empty(nv)
+    for r in range(m_c):
+        s = sw[r]
+        for i in range(nv):
+            row[i] = s * A_cost[r, i]
+        bw = -s * b_cost[r]
+        for i in range(nv):
+            a = row[i]
+            if a != 0.0:
+                g[i] += a * bw
+                for j in range(i + 1):
+                    H[i, j] += a * row[j]
+    for i in range(nv):
+        H[i, i] += reg_dv
+        for j in range(i):
+            H[j, i] = H[i, j]
+    # equalities: floating-base dynamics, then the hard rows
+    n = A_eq.shape[1]
+    nw = n - nv
+    for i in range(6):
+        for j in range(nv):
+            A_eq[i, j] = M_base[i, j]
+        for c in range(nw):
+            A_eq[i, nv + c] = -Jc[c, i]
+        b_eq[i] = -nle_base[i]
+    for r in range(A_hard.shape[0]):
+        for j in range(nv):
+            A_eq[6 + r, j] = A_hard[r, j]
+        b_eq[6 + r] = b_hard[r]
+    # joint position and velocity limits as acceleration bounds
+    na = q_joints.shape[0]
+    c_pos = 2.0 / (horizon * horizon)
+    for i in range(na):
+        s_ = q_joints[i] + v_joints[i] * horizon
+        hi = min(c_pos * (QL[0, i] - s_), (VL[0, i] - v_joints[i]) / dt)
+        lo = max(c_pos * (QL[1, i] - s_), (VL[1, i] - v_joints[i]) / dt)
+        ub_joints[i] = hi
+        lb_joints[i] = min(lo, hi)
+
+
+@njit
+def torques(M_joints, nle_joints, Jc, x, tau_limit):
+    """``tau = M_a dv + h_a - J_c,a' w`` for ``x = [dv; w]``, and whether ``|tau| <= tau_limit`` everywhere."""
+    na, nv = M_joints.shape
+    nw = x.shape[0] - nv
+    tau = np.empty(na)
+    within = True
+    for i in range(na):
+        s = nle_joints[i]
+        for j in range(nv):
+            s += M_joints[i, j] * x[j]
+        for c in range(nw):
+            s -= Jc[c, 6 + i] * x[nv + c]
+        tau[i] = s
+        if not abs(s) <= tau_limit[i]:
+            within = False
+    return tau, within
