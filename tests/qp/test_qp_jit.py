@@ -1,4 +1,4 @@
-"""The compiled kernels (wbcbench.qp._jit and controllers/_id_kernels) against their numpy/LAPACK twins: the same
+"""The compiled kernels (wbcbench.qp._jit and controllers/_kernels) against their numpy/LAPACK twins: the same
 decisions and the same answers, on random problems and on the controllers' own closed-loop ticks."""
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
-from ..qp import EqualityTask, HierarchicalSolver, Level
+from ..qp import EqualityTask, HierarchicalSolver, Level, _jit
 from ..qp.levels import Task as LevelTask
 from ..robots import Robot
 from ..side import Side
@@ -29,6 +29,7 @@ from ..sim.model import ActuationMode
 from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import Contact6D, FrameTask, TaskStack, update_kinematics_velocity_level
 from ..types import Command, Measurement, References
+from . import _kernels
 from .base import Controller, register
 from .inverse_dynamics import build_task
 from .taskset import TaskSetSpec, load_taskset, taskset_path
@@ -67,6 +68,7 @@ class IKController(Controller):
         self.swing = {s: FrameTask(m, robot.profile.feet[s].frame, name=f"swing_{s.value}", kp=sw.kp, kd=0.0,
                                    mask=sw.mask) for s in Side}
         self.solver = HierarchicalSolver(m.nv, solver=self.spec.solver)
+        self.jit = _jit.JIT_ENABLED  # compiled bounds (controllers/_kernels.py); False: the numpy reference
         self.q_lo, self.q_hi = robot.position_limits
         self.v_max = robot.velocity_limit
         self.lower = np.full(m.nv, -np.inf)
@@ -140,12 +142,15 @@ class IKController(Controller):
         if limits[0] is not self.q_lo or limits[1] is not self.q_hi or limits[2] is not self.v_max:
             limits = self._limits = (self.q_lo, self.q_hi, self.v_max, np.stack([self.q_lo, self.q_hi]),
                                      -self.v_max, np.empty((2, self.robot.na)))
-        T = limits[5]
-        np.subtract(limits[3], self.q_int[7:], out=T)
-        T /= self.dt
-        np.maximum(T[0], limits[4], out=self.lower[6:])
-        np.minimum(T[1], self.v_max, out=self.upper[6:])
-        np.minimum(self.lower, self.upper, out=self.lower)
+        if self.jit:
+            _kernels.ik_bounds(limits[3], self.v_max, self.q_int[7:], self.dt, self.lower, self.upper)
+        else:
+            T = limits[5]
+            np.subtract(limits[3], self.q_int[7:], out=T)
+            T /= self.dt
+            np.maximum(T[0], limits[4], out=self.lower[6:])
+            np.minimum(T[1], self.v_max, out=self.upper[6:])
+            np.minimum(self.lower, self.upper, out=self.lower)
         t0 = perf_counter()
         res = self.solver.solve(levels, self.lower, self.upper)
         self._t_solve = perf_counter() - t0

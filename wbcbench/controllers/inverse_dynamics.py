@@ -37,7 +37,7 @@ from ..sim.model import ActuationMode
 from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, TaskStack, update_kinematics
 from ..types import Command, Measurement, References
-from . import _id_kernels as _kernels
+from . import _kernels
 from .base import Controller, register
 from .taskset import TaskSetSpec, TaskSpec, load_taskset, taskset_path
 
@@ -430,7 +430,7 @@ class InverseDynamicsController(Controller):
 
     def _solve_jit(self, q: np.ndarray, v: np.ndarray, active: tuple[Side, ...],
                    L: _QPLayout) -> tuple[np.ndarray, np.ndarray] | None:
-        """:meth:`_solve` after the rows, with the compiled assembly and torques (``_id_kernels``): the same QP,
+        """:meth:`_solve` after the rows, with the compiled assembly and torques (``_kernels``): the same QP,
         the same answers."""
         cones = L.cones
         for i, s in enumerate(active):

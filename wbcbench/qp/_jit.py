@@ -393,17 +393,18 @@ def selection_lsq(P, b_P, A, c, rank_tol):
 
 
 @njit
-def bounds_and_residuals(A, b, x, starts, lb, ub):
-    """``(max(x - ub), max(lb - x), sums)``: the bound violations of x (NaN when x is not finite) and, for each
-    block of rows starting at ``starts[i]``, ``sum ||A x - b||^2`` over its rows (numpy's
-    ``add.reduceat((A x - b)**2, starts)``)."""
+def bounds_and_residuals(A, b, x, starts, block_level, n_levels, lb, ub):
+    """``(max(x - ub), max(lb - x), sums, level_sums)``: the bound violations of x (NaN when x is not finite);
+    for each block of rows starting at ``starts[i]``, ``sum (A x - b)^2`` over its rows (numpy's
+    ``add.reduceat((A x - b)**2, starts)``); and those sums added up per level, ``block_level[i]`` being the level
+    of block i."""
     n = x.shape[0]
     high = -np.inf
     low = -np.inf
     for i in range(n):
         xi = x[i]
         if not np.isfinite(xi):
-            return np.nan, np.nan, np.zeros(starts.shape[0])
+            return np.nan, np.nan, np.zeros(starts.shape[0]), np.zeros(n_levels)
         high = max(high, xi - ub[i])
         low = max(low, lb[i] - xi)
     m = A.shape[0]
@@ -416,4 +417,7 @@ def bounds_and_residuals(A, b, x, starts, lb, ub):
         for i in range(n):
             s += A[r, i] * x[i]
         sums[block] += s * s
-    return high, low, sums
+    level_sums = np.zeros(n_levels)
+    for i in range(starts.shape[0]):
+        level_sums[block_level[i]] += sums[i]
+    return high, low, sums, level_sums

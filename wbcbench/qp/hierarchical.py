@@ -46,7 +46,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -497,7 +497,8 @@ class HierarchicalSolver:
         ftol = self.feasibility_tol
         sums = None
         if self.jit:  # one call for the bound test and the residuals
-            high, low, sums_ = _jit.bounds_and_residuals(A, b, x, plan.starts, lb, ub)
+            high, low, sums_, level_sq = _jit.bounds_and_residuals(A, b, x, plan.starts, plan.block_level,
+                                                                   len(levels), lb, ub)
         else:
             high, low = (x - ub).max(), (lb - x).max()
         if not (high <= ftol and low <= ftol):  # a bound binds (or x is not finite)
@@ -512,6 +513,11 @@ class HierarchicalSolver:
             x = np.clip(x, lb, ub)
         elif self.jit:
             sums = sums_.tolist()
+            if plan.unit:  # every task of weight 1: the level sums are the residuals, no loop
+                met_tol = self.met_tol
+                task_sq, totals = sums, level_sq.tolist()
+                return HierarchicalResult(x, self._closed_form_reports(levels, plan, task_sq, totals), True,
+                                          violation, final_path, tuple((np.sqrt(level_sq) <= met_tol).tolist()))
         if sums is None:
             # reports: residuals of every task at x, rank and freedom of every level
             e = A @ x
@@ -538,6 +544,15 @@ class HierarchicalSolver:
                 total += w * sq
             totals.append(total)
         met_tol = self.met_tol
+        met = tuple(math.sqrt(t) <= met_tol for t in totals)
+        return HierarchicalResult(x, self._closed_form_reports(levels, plan, task_sq, totals), True, violation,
+                                  final_path, met)
+
+    def _closed_form_reports(self, levels: tuple[Level, ...], plan: _ClosedFormPlan, task_sq: list[float],
+                             totals: list[float]) -> Callable[[], tuple[LevelReport, ...]]:
+        """The reports of a closed-form solve, made when first asked for: per task its squared residual
+        (``task_sq``, in level order), per level its weighted sum (``totals``)."""
+        n, n_prefix, counts, met_tol = self.n, plan.n_prefix, plan.counts, self.met_tol
 
         def reports() -> tuple[LevelReport, ...]:
             out = []
@@ -557,8 +572,7 @@ class HierarchicalSolver:
                 freedom -= rank
             return tuple(out)
 
-        met = tuple(math.sqrt(t) <= met_tol for t in totals)
-        return HierarchicalResult(x, reports, True, violation, final_path, met)
+        return reports
 
     def _level(self, k: int, level: Level, st: _State) -> tuple[LevelPath, int, int, QPStatus | None, int, int]:
         """Solve one level in place on ``st``; returns (path, rank, freedom, qp status, iterations, attempts)."""
@@ -750,6 +764,9 @@ def _violation(rows: _Carried, x: FloatArray) -> FloatArray:
     return cx - np.clip(cx, rows.lo, rows.hi)
 
 
+_NO_BLOCKS = np.zeros(0, dtype=np.intp)
+
+
 @dataclass(slots=True)
 class _ClosedFormPlan:
     """The shape of a hierarchy for ``HierarchicalSolver._solve_equalities``, kept while the same levels are
@@ -764,6 +781,8 @@ class _ClosedFormPlan:
     starts: npt.NDArray[np.intp]
     A: FloatArray | None
     b: FloatArray | None
+    block_level: npt.NDArray[np.intp] = field(default_factory=lambda: _NO_BLOCKS)
+    unit: bool = False  # every task of every level has weight 1 (then A, b span their rows)
     P: FloatArray | None = None
     b_P: FloatArray | None = None
     A_k: FloatArray | None = None
@@ -773,14 +792,18 @@ class _ClosedFormPlan:
     def of(cls, levels: tuple[Level, ...], n: int) -> _ClosedFormPlan:
         tasks: list[tuple[EqualityTask, float]] = []
         counts: list[int] = []
+        block_level: list[int] = []
         none = cls([], [], 0, 0, np.zeros(0, dtype=np.intp), None, None)
-        for level in levels:
+        unit = True
+        for k, level in enumerate(levels):
             count = 0
             for task in level.tasks:
                 if type(task) is not EqualityTask:
                     return none
+                unit = unit and task.weight == 1.0
                 if task.weight > 0.0:
                     tasks.append((task, task.weight))
+                    block_level.append(k)
                     count += task.A.shape[0]
             if count == 0:
                 return none
@@ -799,8 +822,9 @@ class _ClosedFormPlan:
             A, b = _span([t.A for t, _ in tasks]), _span([t.b for t, _ in tasks])
             if A is not None and b is not None:
                 k_end = r + counts[n_prefix] if n_prefix < len(counts) else r
-                return cls(tasks, counts, n_prefix, r, starts, A, b, A[:r], b[:r], A[r:k_end], b[r:k_end])
-        return cls(tasks, counts, n_prefix, r, starts, None, None)
+                return cls(tasks, counts, n_prefix, r, starts, A, b, np.array(block_level, dtype=np.intp), unit,
+                           A[:r], b[:r], A[r:k_end], b[r:k_end])
+        return cls(tasks, counts, n_prefix, r, starts, None, None, np.array(block_level, dtype=np.intp))
 
 
 def _span(arrays: list[FloatArray]) -> FloatArray | None:

@@ -1,8 +1,8 @@
-"""Compiled kernels of the inverse-dynamics tick (see :mod:`wbcbench.qp._jit`): the QP assembly and the torques.
+"""Compiled kernels of the controllers' ticks (see :mod:`wbcbench.qp._jit`): the inverse-dynamics QP assembly and
+torques, the IK's velocity bounds.
 
-Each kernel does exactly what the numpy code beside it in :mod:`wbcbench.controllers.inverse_dynamics` does
-(that code stays the reference, used when ``WBCBENCH_JIT=0``); the tests check that both give the same QP and the
-same torques.
+Each kernel does exactly what the numpy code beside it in the controller does (that code stays the reference,
+used when ``WBCBENCH_JIT=0``); the tests check that both give the same QP, torques and commands.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 
 from ..qp._jit import njit
 
-__all__ = ["assemble", "torques"]
+__all__ = ["assemble", "ik_bounds", "torques"]
 
 
 @njit
@@ -86,3 +86,17 @@ def torques(M_joints, nle_joints, Jc, x, tau_limit):
         if not abs(s) <= tau_limit[i]:
             within = False
     return tau, within
+
+
+@njit
+def ik_bounds(q_lim, v_max, q_joints, dt, lower, upper):
+    """Joint velocity bounds of one IK tick, written into ``lower[6:]``, ``upper[6:]``: the joint position limits
+    ``q_lim = [q_lo; q_hi]`` reached in one step, ``(q_lim - q) / dt``, and the velocity limits ``+-v_max``;
+    ``lower <= upper`` enforced (a joint beyond a limit may only move back)."""
+    for i in range(q_joints.shape[0]):
+        lo = max((q_lim[0, i] - q_joints[i]) / dt, -v_max[i])
+        hi = min((q_lim[1, i] - q_joints[i]) / dt, v_max[i])
+        upper[6 + i] = hi
+        lower[6 + i] = min(lo, hi)
+    for i in range(6):
+        lower[i] = min(lower[i], upper[i])
