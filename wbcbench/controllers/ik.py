@@ -105,6 +105,16 @@ class IKController(Controller):
             self.in_contact[s] = s in refs.contacts
         if self.stabilizer is not None:
             self.stabilizer.reset(self.q_int)
+        if self.jit:
+            self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Solve this tick's hierarchy once, without acting: the compiled kernels are compiled (or loaded from
+        their cache) here rather than in the first timed step. Nothing of the controller's state changes."""
+        levels = self._levels_for(tuple(self.in_contact[s] for s in self._sides))
+        lower, upper = np.full(self.model.nv, -np.inf), np.full(self.model.nv, np.inf)
+        _kernels.ik_bounds(np.stack([self.q_lo, self.q_hi]), self.v_max, self.q_int[7:], self.dt, lower, upper)
+        HierarchicalSolver(self.model.nv, solver=self.spec.solver).solve(levels, lower, upper)
 
     def step(self, meas: Measurement, refs: References) -> Command:
         m, d = self.model, self.data

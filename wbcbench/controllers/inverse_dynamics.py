@@ -231,6 +231,18 @@ class InverseDynamicsController(Controller):
             sw.set_reference_to_current(m, d)
         from .joint_pd import JointPD
         self.fallback_pd = JointPD(self.robot, ActuationMode.TORQUE, self.dt)
+        if self.jit:
+            self._warm_up(meas)
+
+    def _warm_up(self, meas: Measurement) -> None:
+        """Assemble and solve this tick's QP once, without acting: the compiled kernels are compiled (or loaded
+        from their cache) here rather than in the first timed step. The counters and status are left as they
+        were; the solver may keep the optimum's active set as its next guess (a guess is always certified)."""
+        q, v = self._state(meas)
+        update_kinematics(self.model, self.data, q, v)
+        saved = (self.n_relaxed, self.n_fallback, self.qp_status)
+        self._solve(q, v, tuple(s for s in self._sides if self.contacts[s].active))
+        self.n_relaxed, self.n_fallback, self.qp_status = saved
 
     def _state(self, meas: Measurement) -> tuple[np.ndarray, np.ndarray]:
         if self.mode is ActuationMode.TORQUE:
