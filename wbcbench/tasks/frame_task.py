@@ -101,7 +101,7 @@ class FrameTask(Task):
             raise TaskConfigError(self.owner, "pose", f"expected a pinocchio.SE3, got {type(pose).__name__}")
         p = val.as_vector(pose.translation, 3, self.owner, "pose.translation")
         R = np.array(pose.rotation, dtype=np.float64)
-        if not np.all(np.isfinite(R)) or not np.allclose(R.T @ R, np.eye(3), atol=1e-6):
+        if not val.is_rotation(R):
             raise TaskConfigError(self.owner, "pose.rotation", "expected a rotation matrix (R^T R = I)")
         derivatives = self._check_derivatives(velocity, acceleration)
         self._store_derivatives(derivatives)

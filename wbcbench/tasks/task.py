@@ -204,13 +204,20 @@ class Task(ABC):
         self, velocity: npt.ArrayLike | None, acceleration: npt.ArrayLike | None
     ) -> tuple[FloatArray, FloatArray]:
         """Validate a reference velocity and acceleration (``None`` means zero) without storing them."""
-        v = np.zeros(self._dim) if velocity is None else val.as_vector(velocity, self._dim, self.owner, "velocity")
-        a = (
-            np.zeros(self._dim)
-            if acceleration is None
-            else val.as_vector(acceleration, self._dim, self.owner, "acceleration")
-        )
-        return val.frozen(v), val.frozen(a)
+        if velocity is None or acceleration is None:
+            zero = self._zero_reference()
+        v = zero if velocity is None else val.frozen(val.as_vector(velocity, self._dim, self.owner, "velocity"))
+        a = zero if acceleration is None else val.frozen(
+            val.as_vector(acceleration, self._dim, self.owner, "acceleration"))
+        return v, a
+
+    def _zero_reference(self) -> FloatArray:
+        """A read-only zero vector of the task's dimension, the same object every time (a reference left at zero
+        is then recognised by identity, and nothing is allocated per tick)."""
+        zero = getattr(self, "_zero_ref", None)
+        if zero is None or zero.shape[0] != self._dim:
+            zero = self._zero_ref = val.frozen(np.zeros(self._dim))
+        return zero
 
     def _store_derivatives(self, derivatives: tuple[FloatArray, FloatArray]) -> None:
         """Store what :meth:`_check_derivatives` returned."""
