@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._validate import batch_size, positive_scalar, rot3, vec3
+from ._validate import batch_size, cross, positive_scalar, rot3, rotate, vec3
 
 GRAVITY_WORLD = np.array([0.0, 0.0, -9.81])
 GRAVITY_WORLD.flags.writeable = False
@@ -51,7 +51,9 @@ class Wrench(NamedTuple):
         ref = vec3("p_world_ref", p_world_ref)
         f, m, p = _validated_wrench(self, "wrench")
         batch_size(wrench=(f, 1), p_world_ref=(ref, 1))
-        moment = m + np.cross(p - ref, f)
+        moment = m + cross(p - ref, f)
+        if f.shape == ref.shape == moment.shape == (3,):
+            return Wrench(f.copy(), moment, ref.copy())
         shape = np.broadcast_shapes(f.shape, ref.shape)
         return Wrench(
             np.broadcast_to(f, shape).copy(),
@@ -103,8 +105,7 @@ def _gravity(gravity: ArrayLike) -> np.ndarray:
     return g
 
 
-def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.einsum("...ij,...j->...i", R, v)
+_rotate = rotate
 
 
 def contact_wrench_from_ft(
@@ -149,13 +150,16 @@ def contact_wrench_from_ft(
     weight = foot.mass * g
     force = -_rotate(R, f_s) - weight
     r_com = _rotate(R, foot.p_sensor_com)
-    moment = -_rotate(R, m_s) - np.cross(r_com, weight)
-    shape = np.broadcast_shapes(force.shape, moment.shape, p.shape)
-    w = Wrench(
-        np.broadcast_to(force, shape).copy(),
-        np.broadcast_to(moment, shape).copy(),
-        np.broadcast_to(p, shape).copy(),
-    )
+    moment = -_rotate(R, m_s) - cross(r_com, weight)
+    if force.shape == moment.shape == p.shape == (3,):
+        w = Wrench(force, moment, p.copy())
+    else:
+        shape = np.broadcast_shapes(force.shape, moment.shape, p.shape)
+        w = Wrench(
+            np.broadcast_to(force, shape).copy(),
+            np.broadcast_to(moment, shape).copy(),
+            np.broadcast_to(p, shape).copy(),
+        )
     return w if p_world_ref is None else w.at(p_world_ref)
 
 
@@ -194,5 +198,5 @@ def ft_from_contact_wrench(
     Rt = np.swapaxes(R, -1, -2)
     f_s = -_rotate(Rt, at_site.force + weight)
     r_com = _rotate(R, foot.p_sensor_com)
-    m_s = -_rotate(Rt, at_site.moment + np.cross(r_com, weight))
+    m_s = -_rotate(Rt, at_site.moment + cross(r_com, weight))
     return f_s, m_s

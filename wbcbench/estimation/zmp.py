@@ -24,7 +24,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._validate import batch_size, positive_scalar, vec3
+from ._validate import batch_size, cross, positive_scalar, vec3
 from .wrench import Wrench, _validated_wrench
 
 DEFAULT_MIN_NORMAL_FORCE = 10.0
@@ -81,14 +81,16 @@ class CenterOfPressure(NamedTuple):
 
 def _on_plane(f: np.ndarray, m: np.ndarray, p: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
     """Normal force n . F and moment about the plane point for one wrench (broadcast arrays)."""
-    moment_o = m + np.cross(p - plane.point, f)
+    moment_o = m + cross(p - plane.point, f)
+    if plane.normal.ndim == 1 and f.ndim == 1:
+        return np.float64(plane.normal @ f), moment_o
     fn = np.einsum("...i,...i->...", plane.normal, f)
     return fn, moment_o
 
 
 def _point_from_moment(fn: np.ndarray, moment_o: np.ndarray, plane: Plane, ok: np.ndarray) -> np.ndarray:
     safe_fn = np.where(ok, fn, 1.0)
-    r = np.cross(plane.normal, moment_o) / safe_fn[..., None]
+    r = cross(plane.normal, moment_o) / safe_fn[..., None]
     point = plane.point + r
     return np.where(ok[..., None], point, np.nan)
 

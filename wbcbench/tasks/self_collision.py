@@ -67,6 +67,22 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
+def _skew_times(r: FloatArray, A: FloatArray) -> FloatArray:
+    """``skew(r_i) @ A`` for the rows r_i of r (k, 3) and one (3, nv) matrix A: (k, 3, nv)."""
+    out = np.empty((r.shape[0], 3, A.shape[1]))
+    x, y, z = r[:, 0, None], r[:, 1, None], r[:, 2, None]
+    np.subtract(y * A[2], z * A[1], out=out[:, 0])
+    np.subtract(z * A[0], x * A[2], out=out[:, 1])
+    np.subtract(x * A[1], y * A[0], out=out[:, 2])
+    return out
+
+
+def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a x b_i`` for a (3,) and the rows of b (k, 3)."""
+    return np.stack([a[1] * b[:, 2] - a[2] * b[:, 1], a[2] * b[:, 0] - a[0] * b[:, 2],
+                     a[0] * b[:, 1] - a[1] * b[:, 0]], axis=1)
+
+
 def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, FloatArray, FloatArray]:
     """``C(r) = exp(-||r||^p / s)`` with its gradient and Hessian with respect to ``r`` (3,).
 
@@ -215,6 +231,9 @@ class SelfCollisionTask(Task):
             axis_names.append(label)
         self._rep_ids = tuple(ids)
         self._rep_offsets = val.frozen(np.array(offsets))
+        # repulsors grouped by the frame that carries them: (frame id, their indices, their offsets (k, 3))
+        self._groups = tuple((fid, np.flatnonzero(np.array(ids) == fid), self._rep_offsets[np.array(ids) == fid])
+                             for fid in dict.fromkeys(ids))
         self._rep_radii = val.frozen(np.array(radii))
         a = self._rep_radii + self._radius
         if np.any(a <= 0.0):
@@ -283,18 +302,13 @@ class SelfCollisionTask(Task):
         n = self.dim
         points = np.empty((n, 3))
         J_rel = np.empty((n, 3, model.nv))
-        frames: dict[int, tuple[pin.SE3, FloatArray]] = {}
-        for i, (fid, off) in enumerate(zip(self._rep_ids, self._rep_offsets, strict=True)):
-            hit = frames.get(fid)
-            if hit is None:
-                M = pin.updateFramePlacement(model, data, fid)
-                hit = frames[fid] = (M, pin.getFrameJacobian(model, data, fid, _LWA))
-            M, J6 = hit
-            r = M.rotation @ off
-            points[i] = M.translation + r
+        for fid, idx, offs in self._groups:  # each frame carrying repulsors once, its points at once
+            M = pin.updateFramePlacement(model, data, fid)
+            J6 = pin.getFrameJacobian(model, data, fid, _LWA)
+            r = offs @ M.rotation.T  # (k, 3)
+            points[idx] = M.translation + r
             # J_x - J_p with J_p = J6[:3] - skew(r) J6[3:]
-            np.subtract(Jx, J6[:3], out=J_rel[i])
-            J_rel[i] += _skew(r) @ J6[3:]
+            J_rel[idx] = (Jx - J6[:3]) + _skew_times(r, J6[3:])
         rel = x - points
         C, grads, hessians = _attractors(rel, self._exponent, self._scales)
         distances = np.sqrt(np.einsum("ni,ni->n", rel, rel))
@@ -313,16 +327,12 @@ class SelfCollisionTask(Task):
         r_dot = cache.J_rel @ v  # (n, 3)
         ax = self._point_drift(model, data, self._frame_id, self._offset)
         a_rep = np.empty((self.dim, 3))
-        frames: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
-        for i, (fid, off) in enumerate(zip(self._rep_ids, self._rep_offsets, strict=True)):
-            hit = frames.get(fid)
-            if hit is None:
-                vel = pin.getFrameVelocity(model, data, fid, _LWA)
-                acc = pin.getFrameClassicalAcceleration(model, data, fid, _LWA)
-                hit = frames[fid] = (data.oMf[fid].rotation, vel.angular, acc.linear, acc.angular)
-            R, w, a_lin, a_ang = hit
-            r = R @ off
-            a_rep[i] = a_lin + _cross(a_ang, r) + _cross(w, _cross(w, r))
+        for fid, idx, offs in self._groups:
+            vel = pin.getFrameVelocity(model, data, fid, _LWA)
+            acc = pin.getFrameClassicalAcceleration(model, data, fid, _LWA)
+            w = vel.angular
+            r = offs @ data.oMf[fid].rotation.T
+            a_rep[idx] = acc.linear + _cross_rows(acc.angular, r) + _cross_rows(w, _cross_rows(w, r))
         drift = (np.einsum("ni,nij,nj->n", r_dot, cache.hessians, r_dot)
                  + np.einsum("ni,ni->n", cache.grads, ax - a_rep))
         cache.velocity = cache.J @ v
