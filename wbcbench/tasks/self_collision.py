@@ -68,19 +68,22 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def _skew_times(r: FloatArray, A: FloatArray) -> FloatArray:
-    """``skew(r_i) @ A`` for the rows r_i of r (k, 3) and one (3, nv) matrix A: (k, 3, nv)."""
-    out = np.empty((r.shape[0], 3, A.shape[1]))
+    """``skew(r_i) @ A_i`` for the rows r_i of r (n, 3) and the matrices A_i of A (n, 3, nv): (n, 3, nv)."""
+    out = np.empty(A.shape)
     x, y, z = r[:, 0, None], r[:, 1, None], r[:, 2, None]
-    np.subtract(y * A[2], z * A[1], out=out[:, 0])
-    np.subtract(z * A[0], x * A[2], out=out[:, 1])
-    np.subtract(x * A[1], y * A[0], out=out[:, 2])
+    np.subtract(y * A[:, 2], z * A[:, 1], out=out[:, 0])
+    np.subtract(z * A[:, 0], x * A[:, 2], out=out[:, 1])
+    np.subtract(x * A[:, 1], y * A[:, 0], out=out[:, 2])
     return out
 
 
 def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a x b_i`` for a (3,) and the rows of b (k, 3)."""
-    return np.stack([a[1] * b[:, 2] - a[2] * b[:, 1], a[2] * b[:, 0] - a[0] * b[:, 2],
-                     a[0] * b[:, 1] - a[1] * b[:, 0]], axis=1)
+    """``a_i x b_i`` for the rows of a and b (n, 3)."""
+    out = np.empty(b.shape)
+    np.subtract(a[:, 1] * b[:, 2], a[:, 2] * b[:, 1], out=out[:, 0])
+    np.subtract(a[:, 2] * b[:, 0], a[:, 0] * b[:, 2], out=out[:, 1])
+    np.subtract(a[:, 0] * b[:, 1], a[:, 1] * b[:, 0], out=out[:, 2])
+    return out
 
 
 def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, FloatArray, FloatArray]:
@@ -231,9 +234,9 @@ class SelfCollisionTask(Task):
             axis_names.append(label)
         self._rep_ids = tuple(ids)
         self._rep_offsets = val.frozen(np.array(offsets))
-        # repulsors grouped by the frame that carries them: (frame id, their indices, their offsets (k, 3))
-        self._groups = tuple((fid, np.flatnonzero(np.array(ids) == fid), self._rep_offsets[np.array(ids) == fid])
-                             for fid in dict.fromkeys(ids))
+        # the frames carrying repulsors (each evaluated once per tick) and, per repulsor, the index of its frame
+        self._frames = tuple(dict.fromkeys(ids))
+        self._frame_of = np.array([self._frames.index(fid) for fid in ids], dtype=np.intp)
         self._rep_radii = val.frozen(np.array(radii))
         a = self._rep_radii + self._radius
         if np.any(a <= 0.0):
@@ -300,15 +303,21 @@ class SelfCollisionTask(Task):
             return cache
         x, Jx = self._point(model, data, self._frame_id, self._offset)
         n = self.dim
-        points = np.empty((n, 3))
-        J_rel = np.empty((n, 3, model.nv))
-        for fid, idx, offs in self._groups:  # each frame carrying repulsors once, its points at once
+        nf = len(self._frames)
+        R = np.empty((nf, 3, 3))
+        t = np.empty((nf, 3))
+        J6 = np.empty((nf, 6, model.nv))
+        for k, fid in enumerate(self._frames):  # pinocchio once per carrying frame
             M = pin.updateFramePlacement(model, data, fid)
-            J6 = pin.getFrameJacobian(model, data, fid, _LWA)
-            r = offs @ M.rotation.T  # (k, 3)
-            points[idx] = M.translation + r
-            # J_x - J_p with J_p = J6[:3] - skew(r) J6[3:]
-            J_rel[idx] = (Jx - J6[:3]) + _skew_times(r, J6[3:])
+            R[k], t[k] = M.rotation, M.translation
+            J6[k] = pin.getFrameJacobian(model, data, fid, _LWA)
+        f = self._frame_of
+        R, J6 = R[f], J6[f]
+        r = np.einsum("nij,nj->ni", R, self._rep_offsets)  # offsets in world axes, (n, 3)
+        points = t[f] + r
+        # J_x - J_p with J_p = J6[:3] - skew(r) J6[3:], every repulsor at once
+        J_rel = Jx - J6[:, :3]
+        J_rel += _skew_times(r, J6[:, 3:])
         rel = x - points
         C, grads, hessians = _attractors(rel, self._exponent, self._scales)
         distances = np.sqrt(np.einsum("ni,ni->n", rel, rel))
@@ -326,13 +335,19 @@ class SelfCollisionTask(Task):
             return cache
         r_dot = cache.J_rel @ v  # (n, 3)
         ax = self._point_drift(model, data, self._frame_id, self._offset)
-        a_rep = np.empty((self.dim, 3))
-        for fid, idx, offs in self._groups:
+        nf = len(self._frames)
+        R = np.empty((nf, 3, 3))
+        w = np.empty((nf, 3))
+        a_lin = np.empty((nf, 3))
+        a_ang = np.empty((nf, 3))
+        for k, fid in enumerate(self._frames):
             vel = pin.getFrameVelocity(model, data, fid, _LWA)
             acc = pin.getFrameClassicalAcceleration(model, data, fid, _LWA)
-            w = vel.angular
-            r = offs @ data.oMf[fid].rotation.T
-            a_rep[idx] = acc.linear + _cross_rows(acc.angular, r) + _cross_rows(w, _cross_rows(w, r))
+            R[k], w[k], a_lin[k], a_ang[k] = data.oMf[fid].rotation, vel.angular, acc.linear, acc.angular
+        f = self._frame_of
+        w = w[f]
+        r = np.einsum("nij,nj->ni", R[f], self._rep_offsets)
+        a_rep = a_lin[f] + _cross_rows(a_ang[f], r) + _cross_rows(w, _cross_rows(w, r))
         drift = (np.einsum("ni,nij,nj->n", r_dot, cache.hessians, r_dot)
                  + np.einsum("ni,ni->n", cache.grads, ax - a_rep))
         cache.velocity = cache.J @ v
