@@ -118,6 +118,8 @@ def center_of_pressure(
     fn, moment_o = _on_plane(f, m, p, plane)
     loaded = (fn >= threshold) & (fn > 0.0)
     point = _point_from_moment(fn, moment_o, plane, loaded)
+    if f.shape == plane.point.shape == plane.normal.shape == (3,):  # one sample: nothing to broadcast
+        return CenterOfPressure(np.array(point, dtype=float), np.float64(fn), np.bool_(loaded))
     shape = np.broadcast_shapes(f.shape, plane.point.shape, plane.normal.shape)
     point = np.broadcast_to(point, shape).copy()
     fn = np.broadcast_to(fn, shape[:-1]).copy()

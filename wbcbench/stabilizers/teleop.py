@@ -42,6 +42,7 @@ import pinocchio as pin
 
 from ..config import Section
 from ..estimation import FootMass, center_of_pressure, contact_wrench_from_ft, zmp_from_wrenches
+from ..estimation._validate import cross
 from ..side import Side
 from ..types import Measurement, References
 
@@ -271,9 +272,9 @@ class _LowPass:
 
     def __call__(self, u: np.ndarray) -> np.ndarray:
         u = np.asarray(u, float)
-        if self.y is None or not np.all(np.isfinite(self.y)):
+        if self.y is None or not np.isfinite(self.y).all():
             self.y = u.copy()
-        elif np.all(np.isfinite(u)):
+        elif np.isfinite(u).all():
             self.y = self.y + self.alpha * (u - self.y)
         return self.y
 
@@ -350,7 +351,7 @@ class TeleopStabilizer:
                 local = S.rotation.T @ (cop.point - S.translation) - self.sole_center
                 out.cop_sole[s] = self._filters[f"cop_{s.value}"](local[:2])
         zmp = zmp_from_wrenches(wrenches, float(ground), min_normal_force=self.spec.min_normal_force)
-        out.zmp = self._filters["zmp"](zmp[:2]) if np.all(np.isfinite(zmp)) else np.full(2, np.nan)
+        out.zmp = self._filters["zmp"](zmp[:2]) if np.isfinite(zmp).all() else np.full(2, np.nan)
         return out
 
     @staticmethod
@@ -365,7 +366,7 @@ class TeleopStabilizer:
             M = pin.updateFramePlacement(m, d, ctrl.contacts[s].contact.frame_id)
             f = M.rotation @ w[:3]
             f_tot += f
-            m_tot += M.rotation @ w[3:] + np.cross(M.translation, f)
+            m_tot += M.rotation @ w[3:] + cross(M.translation, f)
         if f_tot[2] <= 1.0:
             return None
         return np.array([-m_tot[1] / f_tot[2], m_tot[0] / f_tot[2]])
@@ -384,7 +385,7 @@ class TeleopStabilizer:
         com, com_vel, com_acc = refs.com, refs.com_vel, refs.com_acc
         # Eq. 2
         g = spec.com_admittance
-        if g is not None and com is not None and cop_model is not None and np.all(np.isfinite(meas_.zmp)):
+        if g is not None and com is not None and cop_model is not None and np.isfinite(meas_.zmp).all():
             v0 = com_vel if com_vel is not None else np.zeros(3)
             a0 = com_acc if com_acc is not None else np.zeros(3)
             p1, v1, a1 = com_admittance(com, v0, a0, cop_model, meas_.zmp, g, dt)
@@ -404,7 +405,7 @@ class TeleopStabilizer:
             self.log[6] = roll
         # Eq. 6-7
         z = spec.zmp_distributor
-        if z is not None and all(ctrl.contacts[s].active for s in Side) and np.all(np.isfinite(meas_.zmp)):
+        if z is not None and all(ctrl.contacts[s].active for s in Side) and np.isfinite(meas_.zmp).all():
             feet = {s: self._contact_nominal.get(s, ctrl.contacts[s].contact.reference) for s in Side}
             centre = {s: feet[s].act(self.sole_center) for s in Side}
             p_ref = _cart_table_zmp(com, com_acc, centre)
@@ -417,7 +418,7 @@ class TeleopStabilizer:
                 # world axes about the sole centre -> LOCAL sole frame about its origin (the QP's variables)
                 R, c = feet[s].rotation, centre[s]
                 f_l = R.T @ star[:3]
-                m_origin = star[3:] + np.cross(c - feet[s].translation, star[:3])
+                m_origin = star[3:] + cross(c - feet[s].translation, star[:3])
                 local[s] = np.concatenate([f_l, R.T @ m_origin])
             ctrl.wrench_targets = local
             self.log[9] = alpha

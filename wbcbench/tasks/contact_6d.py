@@ -281,9 +281,7 @@ class Contact6D(Task):
             raise TaskConfigError(self.owner, "pose", f"expected a pinocchio.SE3, got {type(pose).__name__}")
         R = np.array(pose.rotation, dtype=np.float64)
         p = np.array(pose.translation, dtype=np.float64)
-        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(p))) or not np.allclose(
-            R.T @ R, np.eye(3), atol=1e-6
-        ):
+        if not (np.isfinite(p).all() and val.is_rotation(R)):
             raise TaskConfigError(self.owner, "pose", "expected a finite rigid transform")
         self._M_ref = pin.SE3(R, p)
 
