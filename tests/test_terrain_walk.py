@@ -32,6 +32,21 @@ def test_climbs_the_first_stairs(talos, tmp_path, controller):
         assert M.translation[2] == pytest.approx(0.20, abs=0.01), side
 
 
+def test_torque_climbs_20cm_steps(talos, tmp_path):
+    """Twice the paper's step height: the first two treads of stairs-20cm (the full scene also completes; 25 cm
+    steps fall on the first step)."""
+    text = (SCEN / "stairs-20cm.yaml").read_text().replace("goal: [1.95, 0.0]", "goal: [0.75, 0.0]")
+    assert "goal: [0.75, 0.0]" in text
+    scen = tmp_path / "stairs-20cm-two.yaml"
+    scen.write_text(text)
+    res = run(str(scen), "tsid-torque", talos, out=tmp_path / "run")
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["final_position_error_m"] < 0.05
+    for side, M in _final_soles(talos, res.log).items():  # both feet on the second tread, 40 cm up
+        assert M.translation[2] == pytest.approx(0.40, abs=0.01), side
+
+
 def test_crosses_tilted_platforms_torque(talos, tmp_path):
     res = run("platforms-quick", "tsid-torque", talos, out=tmp_path)
     s = res.summary
