@@ -21,7 +21,7 @@ def _final_soles(robot, log):
     return {s: d.oMf[robot.sole_frame_id(s)] for s in Side}
 
 
-@pytest.mark.parametrize("controller", ["tsid-torque", "ik"])
+@pytest.mark.parametrize("controller", ["tsid-torque", "tsid-position", "ik"])
 def test_climbs_the_first_stairs(talos, tmp_path, controller):
     res = run("stairs-quick", controller, talos, out=tmp_path)
     s = res.summary
