@@ -113,3 +113,77 @@ def test_parse_section_and_errors():
     # the ankle law has only a position gain (the contact task takes a pose reference)
     with pytest.raises(ConfigError, match="unknown key"):
         parse_teleop_section(Section({"stabilizer": {"ankle_admittance": {"kd": 1, "kv": 1}}}, "f.yaml", "teleop"))
+
+
+# ---- the per-tick measurement and the reference split ------------------------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_measured_wrench_is_contact_wrench_from_ft(seed):
+    from wbcbench.estimation import FootMass, contact_wrench_from_ft
+    from wbcbench.stabilizers.teleop import measured_wrench
+
+    rng = np.random.default_rng(seed)
+    f, m = rng.normal(scale=300.0, size=3), rng.normal(scale=30.0, size=3)
+    R, p = pin.exp3(rng.normal(scale=0.3, size=3)), rng.normal(size=3)
+    foot = FootMass(1.6, rng.normal(scale=0.05, size=3))
+    ref = contact_wrench_from_ft(f, m, R, p, foot)
+    F, M = measured_wrench(f, m, R, p, foot.mass, np.array(foot.p_sensor_com))
+    np.testing.assert_allclose(F, ref.force, atol=1e-10)
+    np.testing.assert_allclose(M, ref.moment, atol=1e-10)
+
+
+def test_stabilizer_measurement_matches_the_estimation_functions(talos):
+    """The stabilizer's per-tick CoPs and ZMP (no validation, scalar arithmetic) are the estimation module's."""
+    from wbcbench.estimation import center_of_pressure, contact_wrench_from_ft, zmp_from_wrenches
+    from wbcbench.sim.simulator import Simulator
+    from wbcbench.stabilizers.teleop import TeleopStabilizer, TeleopStabilizerSpec
+    from wbcbench.types import Command
+
+    sim = Simulator(talos, mode="spd")
+    q = talos.q0.copy()
+    sim.reset(q)
+    upper = np.array([n.startswith(("torso", "arm")) for n in talos.joint_names])
+    for _ in range(50):  # settle with the upper body leaning and the arms out, so that the CoPs are off centre
+        sim.apply(Command(q=q[7:] + 0.2 * upper * np.sin(np.arange(talos.na)), v=np.zeros(talos.na)))
+        sim.step(1)
+    meas = sim.measure()
+    stab = TeleopStabilizer(talos, TeleopStabilizerSpec(min_normal_force=10.0), DT)
+    got = stab._measure(meas)
+    m, d = talos.model, talos.model.createData()
+    pin.framesForwardKinematics(m, d, meas.q)
+    wrenches, ground = [], []
+    for s in Side:
+        M = d.oMf[m.getFrameId(talos.profile.feet[s].ft_sensor_frame)]
+        w = contact_wrench_from_ft(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, stab.feet[s])
+        wrenches.append(w)
+        S = d.oMf[talos.sole_frame_id(s)]
+        ground.append(S.translation[2])
+        cop = center_of_pressure(w, float(S.translation[2]))
+        local = S.rotation.T @ (cop.point - S.translation)
+        np.testing.assert_allclose(got.cop_sole[s], local[:2], atol=1e-9)
+        assert got.normal_force[s] == pytest.approx(float(w.force[2]))
+    np.testing.assert_allclose(got.zmp, zmp_from_wrenches(wrenches, min(ground))[:2], atol=1e-9)
+    assert np.abs(got.zmp).max() > 1e-3
+
+
+def test_reference_targets_carry_the_weight_at_the_reference_zmp():
+    """F of Eq. 7 (the QP's wrench targets without the distributor): the weight, split at the cart-table ZMP of
+    the CoM reference, in the QP's variables (LOCAL sole frame, about the sole origin)."""
+    from wbcbench.stabilizers.teleop import reference_wrench_targets
+
+    yaw = 0.2
+    feet = {s: pin.SE3(pin.rpy.rpyToMatrix(0, 0, yaw), FEET[s] + np.array([0.01, 0.0, 0.002])) for s in Side}
+    com, acc, mass = np.array([0.02, 0.03, 0.88]), np.array([0.1, -0.2, 0.0]), 90.0
+    W = reference_wrench_targets(com, acc, feet, np.zeros(3), mass)
+    f_tot, m_tot = np.zeros(3), np.zeros(3)
+    for s in Side:
+        f = feet[s].rotation @ W[s][:3]
+        f_tot += f
+        m_tot += feet[s].rotation @ W[s][3:] + np.cross(feet[s].translation, f)
+    np.testing.assert_allclose(f_tot, [0, 0, mass * 9.81], atol=1e-9)
+    ground = 0.002
+    zmp = com[:2] - (com[2] - ground) / 9.81 * acc[:2]
+    m_at = m_tot + np.cross(np.array([0.0, 0.0, 0.0]) - np.array([zmp[0], zmp[1], ground]), f_tot)
+    np.testing.assert_allclose(m_at[:2], 0.0, atol=1e-9)
+    one = reference_wrench_targets(com, acc, {Side.LEFT: feet[Side.LEFT]}, np.zeros(3), mass)
+    np.testing.assert_allclose(feet[Side.LEFT].rotation @ one[Side.LEFT][:3], [0, 0, mass * 9.81], atol=1e-9)

@@ -34,7 +34,7 @@ REPULSORS = (
 
 
 def _task(model, **kwargs):
-    options = dict(radius=0.25, offset=(0.0, 0.0, -0.09), kp=500.0, exponent=3.0)
+    options = dict(radius=0.25, offset=(0.0, 0.0, -0.09), kp=500.0, exponent=3.0, negligible=0.0)
     options.update(kwargs)
     return SelfCollisionTask(model, "gripper_left_base_link", REPULSORS, **options)
 
@@ -124,6 +124,26 @@ def test_acceleration_rows_are_eq_12(erd_talos):
     np.testing.assert_allclose(b, expected, atol=1e-12)
     A_v, b_v = velocity_rows(task, model, data)
     np.testing.assert_allclose(b_v, -task.kp * C, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+def test_negligible_repulsors_get_zero_rows_and_the_others_exact_ones(erd_talos, seed):
+    model = erd_talos.model
+    q, v = erd_talos.random_state(seed)
+    data = erd_talos.at(model.createData(), q, v)
+    exact = _task(model, normalized=True, radius=0.3)
+    C = exact.values(model, data)
+    cut = float(np.sort(C)[len(C) // 2])  # about half the repulsors below the cut
+    fast = _task(model, normalized=True, radius=0.3, negligible=cut)
+    kept = C > cut
+    assert 0 < kept.sum() < len(C)
+    np.testing.assert_array_equal(fast.values(model, data), C)
+    for name in ("jacobian", "drift"):
+        a, b = getattr(fast, name)(model, data), getattr(exact, name)(model, data)
+        np.testing.assert_allclose(a[kept], b[kept], rtol=1e-12, atol=1e-14)
+        assert not a[~kept].any()
+    A, b = acceleration_rows(fast, model, data)
+    np.testing.assert_allclose(b[~kept], -(np.broadcast_to(fast.kp, C.shape) * C)[~kept])  # no velocity, no drift
 
 
 def test_mask_selects_repulsors(erd_talos):
@@ -234,3 +254,19 @@ def test_invalid_repulsors(erd_talos):
     )
     assert two.axis_names == ("base_link#1", "base_link#2")
     assert two.name == "self_collision-gripper_left_base_link"
+
+
+@pytest.mark.parametrize("seed", [5, 9])
+def test_compiled_and_numpy_paths_agree(erd_talos, seed):
+    """The compiled position kernel (wbcbench.qp._jit) and the numpy twin give the same rows."""
+    model = erd_talos.model
+    q, v = erd_talos.random_state(seed)
+    data = erd_talos.at(model.createData(), q, v)
+    a = _task(model, normalized=True, radius=0.3, negligible=1e-6)
+    b = _task(model, normalized=True, radius=0.3, negligible=1e-6)
+    b.jit = False
+    if not a.jit:
+        pytest.skip("numba disabled (WBCBENCH_JIT=0)")
+    for name in ("values", "distances", "jacobian", "velocity", "drift"):
+        np.testing.assert_allclose(getattr(a, name)(model, data), getattr(b, name)(model, data), rtol=1e-10,
+                                   atol=1e-12, err_msg=name)

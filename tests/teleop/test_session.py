@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from wbcbench.teleop import ReplaySender, UdpPoseReceiver, open_recording
@@ -18,8 +19,10 @@ from wbcbench.teleop.commands import run_session
 TABLE_II_KEYS = ("mean", "std", "min", "max")
 
 
-def test_repulsors_off_tracks_the_hands_where_the_reference_is_outside_the_body(tmp_path):
-    """Paper Table II condition (repulsors and stabilizer off), the right hand reaching forward and back."""
+def test_repulsors_off_table_ii_error_is_within_the_papers_mean(tmp_path):
+    """Paper Table II condition (repulsors and stabilizer off), default `rest` anchor: the right hand reaching
+    forward and back, the left at rest. Mean hand position error over both hands and every tick at most the paper's
+    0.034 m (the 8 full recordings: benchmarks/teleop_table2.py)."""
     res = run_session("reach_forward", repulsors=False, stabilizer=False, duration=4.0, start=0.8,
                       out=tmp_path / "run")
     s = res.summary
@@ -27,27 +30,49 @@ def test_repulsors_off_tracks_the_hands_where_the_reference_is_outside_the_body(
     m = s["metrics"]
     for key in ("hand_position_error_m", "hand_rotation_error"):
         assert set(m[key]) == set(TABLE_II_KEYS)
-    # where the reference can be reached without entering the body, the paper's mean (0.034 m) is met
-    assert m["hand_position_error_outside_body_m"]["mean"] <= 0.034
-    assert m["hand_rotation_error_outside_body"]["mean"] <= 0.05
-    # the resting left hand's reference is inside TALOS' hips, tracked only as far as the body allows
-    assert m["hand_reference_inside_body_fraction"] > 0.3
+    assert m["hand_position_error_m"]["mean"] <= 0.034
+    assert m["hand_rotation_error"]["mean"] <= 0.05
+    assert m["hand_position_error_m"]["max"] > 0.01  # the reach is tracked, not trivially at rest
     assert (tmp_path / "run" / "hand_errors.npz").exists() and (tmp_path / "run" / "log.parquet").exists()
     saved = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert saved["metrics"]["hand_position_error_m"] == m["hand_position_error_m"]
+    assert saved["metrics"]["self_collisions"] == m["self_collisions"]
+
+
+def test_absolute_overlay_puts_the_resting_hands_in_the_hips(tmp_path):
+    """The paper's plain overlay (`anchor: absolute`): an operator at rest puts TALOS' hand references inside its
+    hips (paper Section IV), out of reach: the error there is the distance to the body, not tracking."""
+    res = run_session("reach_forward", repulsors=False, stabilizer=False, duration=2.0, start=0.8,
+                      anchor="absolute", engage_time=0.5, out=tmp_path / "run")
+    m = res.summary["metrics"]
+    assert m["hand_reference_inside_body_fraction"] > 0.3
+    assert m["hand_position_error_m"]["mean"] > 0.05
 
 
 def test_repulsors_prevent_the_hip_collisions_that_happen_without_them(tmp_path):
-    """arms_down: the operator's hands map into TALOS' hips (paper Section IV)."""
-    on = run_session("arms_down", repulsors=True, stabilizer=False, duration=3.0, out=tmp_path / "on")
-    off = run_session("arms_down", repulsors=False, stabilizer=False, duration=3.0, out=tmp_path / "off")
+    """arms_down with the paper's absolute overlay: the operator's hands map into TALOS' hips (paper Section IV)."""
+    on = run_session("arms_down", repulsors=True, stabilizer=False, duration=3.0, anchor="absolute",
+                     out=tmp_path / "on")
+    off = run_session("arms_down", repulsors=False, stabilizer=False, duration=3.0, anchor="absolute",
+                      out=tmp_path / "off")
     assert not on.summary["fell"] and not off.summary["fell"]
     assert on.summary["metrics"]["self_collisions"] == 0
     assert on.summary["metrics"]["self_collision_ticks"] == 0
     assert off.summary["metrics"]["self_collision_ticks"] > 100
 
 
-def test_live_stream_with_garbage_that_stops_holds_the_last_targets(tmp_path):
+def test_out_of_reach_targets_are_clamped_held_and_reported(tmp_path):
+    """The operator scaled 2.5 times: the reaching hand's references leave the robot's reach; they are clamped
+    to the reachable shell, counted, and the robot keeps standing."""
+    res = run_session("reach_sideways", repulsors=True, stabilizer=True, duration=2.5, start=1.5, proportion=2.5,
+                      out=tmp_path / "run")
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["teleop"]["clamped_ticks"]["right_hand"] > 100
+    assert s["controller_status"]["qp_fallback_ticks"] == 0
+
+
+def test_live_stream_with_lost_and_malformed_datagrams_that_stops_holds_the_last_targets(tmp_path):
     receiver = UdpPoseReceiver(port=0, stale_after=0.2)
     sender = ReplaySender(open_recording("waving"), receiver.port)
     for junk in (b"", b"WBCP", b"\x00" * 714, b"garbage" * 50):
@@ -55,12 +80,22 @@ def test_live_stream_with_garbage_that_stops_holds_the_last_targets(tmp_path):
 
     def stream():
         time.sleep(0.3)
-        sender.run(stop=40)  # 0.8 s of frames, then silence
+        for i in range(50):  # 1 s of frames at 50 Hz: every third lost, a burst of 8 lost, corrupted ones
+            if i % 3 == 2 or 20 <= i < 28:
+                pass
+            elif i % 7 == 0:
+                bad = bytearray(sender.datagram(i, sequence=i))
+                bad[30] ^= 0xFF  # fails the CRC
+                sender.send_raw(bytes(bad))
+            else:
+                sender.send_raw(sender.datagram(i, sequence=i))
+            time.sleep(0.02)
+        # then silence: the stream goes stale
 
     thread = threading.Thread(target=stream, daemon=True)
     thread.start()
     try:
-        res = run_session(receiver, duration=1.5, stabilizer=False, out=tmp_path / "live", on_loss="hold")
+        res = run_session(receiver, duration=1.8, stabilizer=False, out=tmp_path / "live", on_loss="hold")
     finally:
         thread.join(5.0)
         sender.close()
@@ -68,8 +103,9 @@ def test_live_stream_with_garbage_that_stops_holds_the_last_targets(tmp_path):
     assert not s["fell"], s["fall_reason"]
     tele = s["metrics"]["teleop"]
     assert tele["source"] == "udp"
-    assert tele["stream"]["malformed"] >= 3
-    assert tele["stream"]["accepted"] >= 5
+    assert tele["stream"]["malformed"] >= 6
+    assert tele["stream"]["lost"] >= 15
+    assert tele["stream"]["accepted"] >= 10
     assert tele["stream"]["status_at_end"] == "stale"
     assert tele["loss_events"] >= 1 and tele["invalid_ticks"] > 0
 
@@ -119,11 +155,22 @@ def test_torque_mode_runs(tmp_path, mode):
     assert not res.summary["fell"], res.summary["fall_reason"]
 
 
-def test_stabilizer_keeps_standing_where_the_open_loop_robot_falls(tmp_path):
-    """Paper Figure 2 / Section VI: references replayed faster make the simulated robot fall without the
-    stabilizer. In this simulation no recording falls at twice the speed (benchmarks/teleop_table2.py --speed 2);
-    `waving` at three times the speed does, at about 0.9 s, and the CoM admittance (Eq. 2) keeps it standing."""
-    off = run_session("waving", speed=3.0, stabilizer=False, duration=2.0, out=tmp_path / "off")
-    on = run_session("waving", speed=3.0, stabilizer=True, duration=2.0, out=tmp_path / "on")
-    assert off.summary["fell"] and "tilted" in off.summary["fall_reason"]
-    assert not on.summary["fell"], on.summary["fall_reason"]
+def _com_excursion(log) -> tuple[float, float]:
+    """Max and mean horizontal distance of the CoM from its initial position [m] (paper Figure 2's quantity)."""
+    d = np.hypot(log["com.x"] - log["com.x"][0], log["com.y"] - log["com.y"][0])
+    return float(d.max()), float(d.mean())
+
+
+def test_stabilizer_keeps_the_com_closer_to_its_start_at_twice_the_speed(tmp_path):
+    """Paper Figure 2: references replayed twice as fast, CoM xy with and without the stabilizer. `waving` at x2
+    (a 2.4 Hz wave): open loop the feet slip and twist under the wave and the CoM wanders about 10 cm; the
+    stabilizer (Eq. 2-5) cuts that by about a third (measured at x1.9, x2, x2.1: 20-32 % on the maximum). No
+    shipped recording falls at x2 in this simulation, with or without it (benchmarks/teleop_table2.py --speed 2
+    --stabilizer both)."""
+    off = run_session("waving", speed=2.0, stabilizer=False, duration=4.5, out=tmp_path / "off")
+    on = run_session("waving", speed=2.0, stabilizer=True, duration=4.5, out=tmp_path / "on")
+    assert not off.summary["fell"] and not on.summary["fell"]
+    off_max, off_mean = _com_excursion(off.log)
+    on_max, on_mean = _com_excursion(on.log)
+    assert off_max > 0.05
+    assert on_max < 0.85 * off_max and on_mean < 0.85 * off_mean

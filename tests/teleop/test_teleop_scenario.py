@@ -33,7 +33,7 @@ def test_references_name_the_table_i_tasks_and_hold_the_com(talos):
 
 
 def test_engagement_starts_on_the_robot_and_ends_on_the_operator(talos):
-    sc = _setup(talos, duration=3.0, engage_time=1.0)
+    sc = _setup(talos, duration=3.0, engage_time=1.0, anchor="absolute")
     start = sc.references(0.0).targets
     for k, M in sc.initial_poses.items():
         assert np.allclose(start[k][0].translation, M.translation) and np.allclose(start[k][0].rotation, M.rotation)
@@ -43,6 +43,41 @@ def test_engagement_starts_on_the_robot_and_ends_on_the_operator(talos):
     np.testing.assert_allclose(late.translation, raw.position["left_hand"][k])
     # TALOS: the operator's hands along the body are 0.2-0.3 m from the robot's half-sitting grippers
     assert np.linalg.norm(raw.position["left_hand"][0] - start["left_hand"][0].translation) > 0.2
+
+
+def test_rest_anchor_puts_the_operator_at_rest_on_the_robot_at_rest_and_reaching_hands_absolutely(talos):
+    rest = _setup(talos, engage_time=0.0)  # the default anchor
+    absolute = _setup(talos, engage_time=0.0, anchor="absolute")
+    assert rest.anchor == "rest"
+    P, A = rest.trajectory.position, absolute.trajectory.position
+    # calibration frame: the robot's own effector positions (0.2-0.3 m from the absolute overlay for the hands,
+    # 6 cm below it for the head)
+    for e in ("left_hand", "right_hand", "head"):
+        np.testing.assert_allclose(P[e][0], rest.reference_poses[e].translation, atol=1e-9)
+    assert np.linalg.norm(A["left_hand"][0] - P["left_hand"][0]) > 0.2
+    assert A["head"][0][2] - P["head"][0][2] > 0.04
+    # the right hand reaching forward (source 2.5-3.5 s) is farther than rest_blend[1] from its rest position:
+    # overlaid absolutely; within rest_blend[0] the whole calibration shift (to the spline's rounding)
+    k = int(round(3.0 / DT))
+    assert np.linalg.norm(A["right_hand"][k] - A["right_hand"][0]) > rest.rest_blend[1]
+    np.testing.assert_allclose(P["right_hand"][k], A["right_hand"][k], atol=1e-9)
+    d = np.linalg.norm(A["right_hand"] - A["right_hand"][0], axis=1)
+    shift = np.linalg.norm(P["right_hand"] - A["right_hand"], axis=1)
+    full = np.linalg.norm(rest.offsets["right_hand"])
+    assert full > 0.2
+    np.testing.assert_allclose(shift[d < rest.rest_blend[0] - 0.01], full, atol=2e-3)
+    assert np.all(shift <= full + 2e-3)
+    # the orientations are the retargeter's whatever the anchor
+    np.testing.assert_allclose(rest.trajectory.rotation["left_hand"], absolute.trajectory.rotation["left_hand"])
+
+
+def test_offset_anchor_shifts_every_position_by_the_calibration_offset(talos):
+    off = _setup(talos, engage_time=0.0, anchor="offset")
+    absolute = _setup(talos, engage_time=0.0, anchor="absolute")
+    k = int(round(3.0 / DT))
+    for e in ("left_hand", "head"):
+        np.testing.assert_allclose(off.trajectory.position[e][k] - absolute.trajectory.position[e][k],
+                                   off.offsets[e], atol=1e-9)
 
 
 def test_feedforward_matches_finite_differences_and_speed(talos):
@@ -112,6 +147,8 @@ def test_yaml_scenario_resolves_the_mocap_next_to_it(talos, tmp_path):
     ({"mocap": "waving", "on_loss": "stop"}, "on_loss"),
     ({"mocap": "waving", "targets": {"left_foot": ["x"]}}, "unknown effector"),
     ({"mocap": "waving", "colour": 1}, "unknown key"),
+    ({"mocap": "waving", "anchor": "feet"}, "anchor"),
+    ({"mocap": "waving", "rest_blend": [0.5, 0.1]}, "rest_blend"),
 ])
 def test_bad_params_are_one_line_errors(talos, tmp_path, params, match):
     import yaml

@@ -10,9 +10,13 @@ so that the QP's internals stay untouched:
   sensors: the CoM reference (Eq. 2), the contact (ankle) orientations (Eq. 3), the torso roll (Eq. 4-5), and
   wrench targets from the ZMP distributor (Eq. 6-7);
 * wrench targets: the QP regularises each contact wrench towards zero (`regularization.wrench`); the paper's
-  contact force regularisation task pulls it towards a target instead. The solvers are wrapped
-  (`_WrenchTargetSolver`) so that each QP gets `w_f ||w_i - w_i*||^2` added on the wrench variables of the
-  active contacts (a copy of H and g; the layout x = [dv; w_1; ...] of inverse_dynamics.py).
+  contact force regularisation task pulls it towards a target instead: F* of Eq. 7 when the ZMP distributor
+  runs, else F, the split of the reference ZMP between the feet (Eq. 6 on the CoM reference's cart-table ZMP,
+  `reference_wrench_targets`). The solvers are wrapped (`_WrenchTargetSolver`) so that each QP gets
+  `w_f ||w_i - w_i*||^2` added on the wrench variables of the active contacts (a copy of H and g; the layout
+  x = [dv; w_1; ...] of inverse_dynamics.py). In position and SPD modes the split between the feet is not
+  determined by the motion: without a target it drifts from tick to tick, and the foot force difference
+  (Eq. 4-5) and CoM admittance (Eq. 2), which compare it with the measured forces, wind up.
 
 Default mode: SPD (stable PD at the joints, as the paper in simulation); position and torque also work.
 """
@@ -20,6 +24,7 @@ Default mode: SPD (stable PD at the joints, as the paper in simulation); positio
 from __future__ import annotations
 
 from dataclasses import replace
+from time import perf_counter
 
 import numpy as np
 import pinocchio as pin
@@ -29,7 +34,7 @@ from ..robots import Robot, Side
 from ..sim.model import ActuationMode
 from ..types import Command, Measurement, References
 from .base import register
-from .inverse_dynamics import InverseDynamicsController
+from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
 __all__ = ["TSIDTeleop", "teleop_taskset"]
@@ -109,6 +114,11 @@ class TSIDTeleop(InverseDynamicsController):
         self.wrench_targets: dict[Side, np.ndarray] | None = None
         self.wrench_target_weight = teleop.wrench_regularization if teleop is not None else 0.0
         self.n_wrench_target_skipped = 0
+        self.n_torque_rows_dropped = 0
+        self._sole_center = np.array([*robot.profile.sole.center, 0.0])
+        self._feet_nominal: dict = {}
+        self._targets_key = None
+        self._targets_cache = None
         self.solver = _WrenchTargetSolver(self.solver, self)
         self.relaxed_solver = _WrenchTargetSolver(self.relaxed_solver, self)
         self.torque_solver = _WrenchTargetSolver(self.torque_solver, self)
@@ -124,6 +134,10 @@ class TSIDTeleop(InverseDynamicsController):
             if s in active:
                 self.wrench[s][2] = self.robot.mass * 9.81 / len(active)
         self.wrench_targets = None
+        self._feet_nominal = {s: pin.SE3(cs.contact.reference) for s, cs in self.contacts.items()
+                              if cs.contact.reference is not None}
+        self._targets_key = None
+        self._targets_cache = None
         if self.teleop_stabilizer is not None:
             self.teleop_stabilizer.reset(self)
 
@@ -132,14 +146,55 @@ class TSIDTeleop(InverseDynamicsController):
         if self.teleop_stabilizer is not None:
             refs = self.teleop_stabilizer.correct(meas, refs, self)
         if self.wrench_targets is None and self.wrench_target_weight > 0.0:
-            # regularise towards the previous split: damps the internal force without biasing the motion
-            self.wrench_targets = {s: self.wrench[s].copy() for s in Side}
+            self.wrench_targets = self._reference_targets(refs)
         for i, name in enumerate(("left_hand", "right_hand", "head")):
             target = refs.targets.get(name)
             if target is not None:
                 M = target[0] if isinstance(target, tuple) else target
                 self._target_log[3 * i:3 * i + 3] = M.translation
         return super().step(meas, refs)
+
+    def _reference_targets(self, refs: References) -> dict[Side, np.ndarray] | None:
+        """F of Eq. 7 for the active contacts at their nominal (reset) poses, cached while the CoM reference and
+        the active contacts stay the same."""
+        from ..stabilizers.teleop import reference_wrench_targets
+
+        active = tuple(s for s in Side if self.contacts[s].active)
+        if not active or refs.com is None:
+            return None
+        acc = refs.com_acc if refs.com_acc is not None else np.zeros(3)
+        key = (active, refs.com.tobytes(), acc.tobytes())
+        if key != self._targets_key:
+            feet = {s: self._feet_nominal[s] if s in self._feet_nominal else self.contacts[s].contact.reference
+                    for s in active}
+            self._targets_cache = reference_wrench_targets(refs.com, acc, feet, self._sole_center, self.robot.mass)
+            self._targets_key = key
+        return self._targets_cache
+
+    def _solve_limited(self, L, res, t0: float):
+        """The first QP (joint limits, no torque rows) is solved but its torques exceed a limit. In SPD and
+        position modes the QP's torques are not sent to the robot (joint references are), so when the QP with
+        the torque rows is infeasible its solution is kept, rather than the base class's relaxed QP that also
+        drops the joint limits. Fast replays hit this every tick (90 % of the ticks of a bimanual push-pull at
+        x2): without joint limits the model pitched its pelvis by 0.5 rad, and `waving` replayed 3.5 and 4 times
+        faster fell (stabilizer off); with this fallback both stand (x4.5 still falls). Counted in
+        `qp_torque_rows_dropped_ticks`."""
+        if self.mode is ActuationMode.TORQUE or not res.ok:
+            return super()._solve_limited(L, res, t0)
+        nv = self.nv
+        k, C, lo, hi = L.k, L.C, L.l, L.u
+        C[k:] = 0.0
+        C[k:, :nv] = L.M_joints
+        np.negative(L.Jc_joints_T, out=C[k:, nv:])
+        lo[k:] = -self.tau_max - L.nle_joints
+        hi[k:] = self.tau_max - L.nle_joints
+        limited = self.torque_solver.solve(L.problem_torque)
+        self._t_solve = perf_counter() - t0
+        self.qp_status = QP_OK
+        if limited.ok:
+            return limited.x, L.torques(limited.x)
+        self.n_torque_rows_dropped += 1
+        return res.x, L.torques(res.x)
 
     def _set_references(self, refs: References) -> None:
         super()._set_references(refs)
@@ -168,6 +223,7 @@ class TSIDTeleop(InverseDynamicsController):
         out = super().status()
         out["repulsors"] = self.repulsors
         out["stabilizer"] = self.teleop_stabilizer is not None
+        out["qp_torque_rows_dropped_ticks"] = self.n_torque_rows_dropped
         if self.n_wrench_target_skipped:
             out["wrench_target_skipped_ticks"] = self.n_wrench_target_skipped
         return out

@@ -20,12 +20,27 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     reference posture, reached by a min-jerk blend over `return_time` s (default 2 s). Before any valid frame
     both are the reference poses.
   stale_after: a live stream is stale after this many seconds without a frame (default 0.2).
-  anchor: "absolute" (default, the paper's absolute Cartesian teleoperation: the operator overlaid on the
-    robot) or "offset": each effector's position reference is shifted by a constant so that at the calibration
-    frame it equals the robot's own pose in its reference posture (relative teleoperation, what paper 004
-    contrasts itself with). With TALOS "absolute" puts the hands of an operator standing arms along the body
-    0.2-0.3 m inside the robot's hips, out of reach; "offset" keeps every reference reachable and so measures
-    the tracking itself.
+  anchor: where the operator's hand and head positions are put on the robot (orientations are always the
+    retargeter's: calibrated so that the operator at rest gives the robot's own orientations, paper Section V).
+    "absolute": the paper's absolute Cartesian teleoperation, the operator overlaid on the robot. With TALOS it
+      puts the hands of an operator standing arms along the body 0.2-0.3 m medial of the robot's half-sitting
+      grippers, inside the hips (0.2 m from the shoulder's vertical where TALOS' hanging arm, at its adduction
+      limit, keeps the gripper 0.3 m out), and the head 6 cm above the robot's head: out of reach without
+      interpenetration (the references the repulsors are for) and, for the head, reachable only on straight
+      knees. On the 8 shipped recordings, repulsors off (benchmarks/teleop_table2.py --anchor absolute): 66 % of
+      the hand ticks have their reference in the body, hand error 6.6 cm mean (2.6 cm where the reference is
+      outside the body, 9.7-12 cm on arms_down and head_turning, whose hands rest all along), the QP's base
+      raised 3-5 cm by the head target; the QP alone cannot take the arm through the hip (it stops at the
+      shoulder's adduction limit).
+    "offset": each effector's position reference is shifted by a constant so that at the calibration frame it
+      equals the robot's own pose in its reference posture (relative teleoperation, what paper 004 contrasts
+      itself with). Reaching sideways then asks for 0.23 m more than the arm has.
+    "rest" (default): the "offset" shift near the calibration (rest) position, none far from it: the shift is
+      weighted by 1 within `rest_blend[0]` of the operator's calibration position of that effector, by 0 beyond
+      `rest_blend[1]` (default 0.10, 0.50 m), with a min-jerk profile between. The operator at rest is the robot
+      at rest; hands reaching out (more than 0.5 m from their rest position) are overlaid absolutely, as in the
+      paper. The head, which moves little, stays shifted to the robot's head height.
+  rest_blend: [r_in, r_out] [m] of the "rest" anchor.
   engage_time: [s] (default 1): the references start at the robot's own effector poses and blend into the
     operator's with a min-jerk profile over this time (the operator's first pose is not the robot's: with
     TALOS the hands would jump 0.2-0.3 m into the hips at t = 0). 0: no blend. Metrics use the blended
@@ -65,6 +80,12 @@ from .base import Scenario, ScenarioSpec, register_kind
 DEFAULT_TARGETS = {"left_hand": ("left_hand",), "right_hand": ("right_hand",),
                    "head": ("head", "head_pitch", "head_yaw")}
 HANDS = ("left_hand", "right_hand")
+#: `anchor` values (module docstring).
+ANCHORS = ("absolute", "offset", "rest")
+DEFAULT_ANCHOR = "rest"
+#: default `rest_blend` [m]: the `rest` anchor's offset is whole within r_in of the calibration position, none
+#: beyond r_out.
+REST_BLEND = (0.10, 0.50)
 
 
 def stats(x: np.ndarray) -> dict:
@@ -134,7 +155,11 @@ class TeleopScenario(Scenario):
         self.stale_after = params.float("stale_after", 0.2, positive=True)
         self.realtime = params.bool("realtime", True)
         self.engage_time = params.float("engage_time", 1.0, min=0.0)
-        self.anchor = params.str("anchor", "absolute", choices=["absolute", "offset"])
+        self.anchor = params.str("anchor", DEFAULT_ANCHOR, choices=list(ANCHORS))
+        blend = params.vector("rest_blend", length=2) if params.has("rest_blend") else np.array(REST_BLEND)
+        if not (np.all(np.isfinite(blend)) and 0.0 <= blend[0] < blend[1]):
+            raise params.error("rest_blend", f"must be [r_in, r_out] with 0 <= r_in < r_out, got {list(blend)}")
+        self.rest_blend = (float(blend[0]), float(blend[1]))
         tg = params.section("targets", None)
         if tg.data:
             targets = {}
@@ -221,10 +246,10 @@ class TeleopScenario(Scenario):
                   "right_hand": self.robot.profile.hands[Side.RIGHT], "head": self.robot.profile.head_frame}
         self.initial_poses = {k: pin.SE3(data.oMf[model.getFrameId(f)]) for k, f in frames.items()}
         self.offsets = {k: np.zeros(3) for k in DEFAULT_TARGETS}
-        if self.anchor == "offset" and not self.live:
+        self.calibration_positions: dict[str, np.ndarray] = {}
+        if self.anchor != "absolute" and not self.live:
             cal = self.retargeter.sample(float(self.source.times[0]) if self.start is None else self.start)
-            self.offsets = {k: self.reference_poses[k].translation - cal.references[k].translation
-                            for k in DEFAULT_TARGETS}
+            self._set_anchor(cal.references)
         self.trajectory = None if self.live else self._precompute()
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
         self._filtered: dict[str, pin.SE3] = {}
@@ -238,6 +263,34 @@ class TeleopScenario(Scenario):
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
+
+    def _set_anchor(self, references: dict) -> None:
+        """Calibration of the `offset` / `rest` anchors on one retargeted frame (the operator at rest)."""
+        self.calibration_positions = {k: np.array(M.translation) for k, M in references.items()}
+        self.offsets = {k: self.reference_poses[k].translation - M.translation for k, M in references.items()}
+
+    def _anchored(self, effector: str, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Effector positions (N, 3) of the absolute retargeting -> the anchor's positions, and (N,) flags of the
+        rows moved back into the reach shell (non-absolute anchors only; the retargeter clamped the absolute
+        ones already)."""
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        if self.anchor == "absolute" or effector not in self.calibration_positions:
+            return P, np.zeros(len(P), dtype=bool)
+        off = self.offsets[effector]
+        if self.anchor == "offset":
+            out = P + off
+        else:  # rest: the offset near the calibration position, none beyond rest_blend[1]
+            r_in, r_out = self.rest_blend
+            dist = np.linalg.norm(P - self.calibration_positions[effector], axis=1)
+            u = np.clip((dist - r_in) / (r_out - r_in), 0.0, 1.0)
+            w = 1.0 - (10 * u**3 - 15 * u**4 + 6 * u**5)
+            out = P + w[:, None] * off
+        shell = self.retargeter.workspaces.get(effector) if effector != "head" else None
+        moved = np.zeros(len(out), dtype=bool)
+        if shell is not None:
+            for i, p in enumerate(out):
+                out[i], moved[i] = shell.clamp(p)
+        return out, moved
 
     def _precompute(self) -> _Trajectory:
         """Retarget every recorded frame once, fit C2 splines (scipy CubicSpline for positions, RotationSpline
@@ -260,7 +313,7 @@ class TeleopScenario(Scenario):
         ff = self.speed if self.feedforward else 0.0
         out = {"position": {}, "rotation": {}, "velocity": {}, "acceleration": {}, "clamped": {}}
         for e in DEFAULT_TARGETS:
-            P = np.array([s.references[e].translation for s in samples]) + self.offsets[e]
+            P, moved = self._anchored(e, np.array([s.references[e].translation for s in samples]))
             R = Rotation.from_matrix(np.array([s.references[e].rotation for s in samples]))
             if len(times) >= 2:
                 ps, rs = CubicSpline(times, P, bc_type="clamped"), RotationSpline(times, R)
@@ -278,7 +331,7 @@ class TeleopScenario(Scenario):
             acc[~inside] = 0.0
             out["position"][e], out["rotation"][e] = pos, rot
             out["velocity"][e], out["acceleration"][e] = vel, acc
-            out["clamped"][e] = np.array([s.clamped[e] for s in samples])[k]
+            out["clamped"][e] = (np.array([s.clamped[e] for s in samples]) | moved)[k]
         return _Trajectory(**out, valid=inside & frame_valid[k])
 
     def _recorded_targets(self, t: float) -> tuple[dict, bool, dict]:
@@ -296,12 +349,13 @@ class TeleopScenario(Scenario):
             if ahead > 0:
                 time.sleep(ahead)
         sample = self.retargeter.sample(t)
-        if self.anchor == "offset" and sample.valid and not self._live_offset_set:
-            self.offsets = {k: self.reference_poses[k].translation - M.translation
-                            for k, M in sample.references.items()}
+        if self.anchor != "absolute" and sample.valid and not self._live_offset_set:
+            self._set_anchor(sample.references)
             self._live_offset_set = True
-        sample = sample._replace(references={k: pin.SE3(M.rotation, M.translation + self.offsets[k])
-                                             for k, M in sample.references.items()})
+        anchored = {k: self._anchored(k, M.translation) for k, M in sample.references.items()}
+        clamped = {k: bool(c or anchored[k][1][0]) for k, c in sample.clamped.items()}
+        sample = sample._replace(references={k: pin.SE3(M.rotation, anchored[k][0][0])
+                                             for k, M in sample.references.items()}, clamped=clamped)
         alpha = 1.0 if self.smoothing <= 0 else 1.0 - np.exp(-self.spec.control_dt / self.smoothing)
         out = {}
         for e, M in sample.references.items():

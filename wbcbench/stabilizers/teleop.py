@@ -1,8 +1,9 @@
 """The force-based stabilizer of whole-body teleoperation, paper 004 (Dalin et al. 2021) Section III, Eq. 2-7.
 
 Four strategies, each switchable with its gains in the task set's `teleop.stabilizer` section, all driven by
-the ankle force/torque sensors (contact wrenches by `estimation.contact_wrench_from_ft`, the foot below the
-sensor removed) and by the controller's model (the QP's contact wrenches of the previous tick):
+the ankle force/torque sensors (contact wrenches by `measured_wrench`, the per-tick twin of
+`estimation.contact_wrench_from_ft`: the foot below the sensor removed) and by the controller's model (the QP's
+contact wrenches of the previous tick):
 
 * `com_admittance` (Eq. 2, after Caron et al. 2019): the CoM reference (x, y) moves by the difference between
   the model's CoP (ZMP of the QP wrenches) and the measured one:
@@ -35,13 +36,14 @@ dimensionless for Eq. 2, rad/m for Eq. 3, rad/N for Eq. 5; kv and ka the same un
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
 
 from ..config import Section
-from ..estimation import FootMass, center_of_pressure, contact_wrench_from_ft, zmp_from_wrenches
+from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
 from ..types import Measurement, References
@@ -57,6 +59,9 @@ __all__ = [
     "foot_force_difference",
     "zmp_distributor",
     "wrench_admittance",
+    "measured_wrench",
+    "reference_wrench_targets",
+    "split_to_local",
     "TeleopStabilizer",
 ]
 
@@ -109,8 +114,9 @@ class TeleopSpec:
     """The `teleop:` section of a task set (read by tsid-teleop only).
 
     wrench_regularization: weight of `||w_i - w_i*||^2` on each contact wrench [1/N^2], w_i* the ZMP
-        distributor's target when it runs, else the previous tick's QP wrench (a bias-free damping of the
-        wrench split; 0: off). It also keeps the QP well conditioned next to Table I's CoM weight 2e6.
+        distributor's target F* (Eq. 7) when it runs, else F, the split of the reference ZMP
+        (`reference_wrench_targets`); 0: off. It also keeps the QP well conditioned next to Table I's CoM
+        weight 2e6.
     stabilizer: the strategies (None: no stabilizer).
     """
 
@@ -266,17 +272,25 @@ def wrench_admittance(F: np.ndarray, F_desired: np.ndarray, gains: ZmpDistributo
 
 # ---- the component ------------------------------------------------------------------------------------------
 class _LowPass:
+    """First-order low-pass on a small vector. A non-finite state restarts from the input; a non-finite input
+    is skipped."""
+
     def __init__(self, cutoff_hz: float | None, dt: float):
         self.alpha = 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
         self.y = None
 
-    def __call__(self, u: np.ndarray) -> np.ndarray:
-        u = np.asarray(u, float)
-        if self.y is None or not np.isfinite(self.y).all():
-            self.y = u.copy()
-        elif np.isfinite(u).all():
-            self.y = self.y + self.alpha * (u - self.y)
-        return self.y
+    def __call__(self, u) -> np.ndarray:
+        y = self.y
+        if y is None:
+            self.y = np.array(u, dtype=float)
+            return self.y
+        if not math.isfinite(y.sum()):
+            y[:] = u
+        elif math.isfinite(sum(u)):
+            a = self.alpha
+            for i, x in enumerate(u):
+                y[i] += a * (x - y[i])
+        return y
 
 
 @dataclass
@@ -284,6 +298,53 @@ class _Measured:
     zmp: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
     cop_sole: dict = field(default_factory=dict)       # side -> (2,) in the sole frame, from its centre
     normal_force: dict = field(default_factory=dict)   # side -> N
+
+
+def measured_wrench(force_sensor: np.ndarray, torque_sensor: np.ndarray, R: np.ndarray, p: np.ndarray,
+                    foot_mass: float, foot_com: np.ndarray, gravity: float = GRAVITY) -> tuple[np.ndarray, np.ndarray]:
+    """The ground's wrench on a foot from its ankle F/T reading (the foot below the sensor removed), world axes,
+    moment about the sensor origin: F = -R f_s + m g e_z, M = -R m_s - (R c) x (-m g e_z). The per-tick twin of
+    `estimation.contact_wrench_from_ft` (same result, no validation or broadcasting)."""
+    F = -(R @ force_sensor)
+    mg = foot_mass * gravity
+    F[2] += mg
+    c = R @ foot_com
+    M = -(R @ torque_sensor)
+    M[0] += mg * c[1]
+    M[1] -= mg * c[0]
+    return F, M
+
+
+def _moment_about(F: np.ndarray, M: np.ndarray, p: np.ndarray, height: float) -> tuple[float, float]:
+    """x, y of the moment of (F, M about p) about the point (0, 0, height)."""
+    rx, ry, rz = p[0], p[1], p[2] - height
+    return M[0] + ry * F[2] - rz * F[1], M[1] + rz * F[0] - rx * F[2]
+
+
+def split_to_local(wrenches: dict, feet: dict, centres: dict) -> dict[Side, np.ndarray]:
+    """Per-foot wrenches (6,) in world axes about the sole centres -> the QP's variables: LOCAL sole frame, about
+    the sole frame's origin."""
+    out = {}
+    for s, w in wrenches.items():
+        R, c = feet[s].rotation, centres[s]
+        f = w[:3]
+        m_origin = w[3:] + cross(c - feet[s].translation, f)
+        out[s] = np.concatenate([R.T @ f, R.T @ m_origin])
+    return out
+
+
+def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: dict, sole_center: np.ndarray,
+                             mass: float) -> dict[Side, np.ndarray]:
+    """F of Eq. 7: the wrenches that realise the reference ZMP (the cart-table ZMP of the CoM reference) with
+    the feet in `feet` (side -> sole pose, the active contacts): Eq. 6 with both feet, the whole weight on one
+    foot (ZMP at its sole centre) otherwise. LOCAL sole frame about its origin, as the QP's wrench variables."""
+    centres = {s: M.act(sole_center) for s, M in feet.items()}
+    if len(feet) == 2:
+        p_ref = _cart_table_zmp(com, com_acc, centres)
+        F, _ = zmp_distributor(p_ref, centres[Side.LEFT], centres[Side.RIGHT], mass)
+    else:
+        F = {s: np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]) for s in feet}
+    return split_to_local(F, feet, centres)
 
 
 class TeleopStabilizer:
@@ -309,6 +370,7 @@ class TeleopStabilizer:
         self.sensor_ids = {s: m.getFrameId(robot.profile.feet[s].ft_sensor_frame) for s in Side}
         self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
         self.feet = {s: FootMass(*robot.foot_below_sensor(s)) for s in Side}
+        self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
         self.sole_center = np.array([*robot.profile.sole.center, 0.0])
         self.mass = robot.mass
         self.log = np.full(len(self.LOG_LABELS), np.nan)
@@ -334,96 +396,115 @@ class TeleopStabilizer:
 
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
+        """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
+        from the ankle F/T sensors on the measured configuration."""
         m, d = self.model, self.data
         pin.forwardKinematics(m, d, meas.q)
-        wrenches, out = [], _Measured()
-        ground = None
+        out = _Measured()
+        thr = self.spec.min_normal_force
+        parts = []
+        ground = math.inf
         for s in Side:
             M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
-            w = contact_wrench_from_ft(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, self.feet[s])
-            wrenches.append(w)
+            mass, com = self._foot[s]
+            F, Ms = measured_wrench(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, mass, com)
             S = pin.updateFramePlacement(m, d, self.sole_ids[s])
-            ground = S.translation[2] if ground is None else min(ground, S.translation[2])
-            fn = self._filters[f"f_{s.value}"](np.array([max(float(w.force[2]), 0.0)]))[0]
-            out.normal_force[s] = float(fn)
-            cop = center_of_pressure(w, float(S.translation[2]), min_normal_force=self.spec.min_normal_force)
-            if cop.loaded:
-                local = S.rotation.T @ (cop.point - S.translation) - self.sole_center
-                out.cop_sole[s] = self._filters[f"cop_{s.value}"](local[:2])
-        zmp = zmp_from_wrenches(wrenches, float(ground), min_normal_force=self.spec.min_normal_force)
-        out.zmp = self._filters["zmp"](zmp[:2]) if np.isfinite(zmp).all() else np.full(2, np.nan)
+            h = float(S.translation[2])
+            ground = min(ground, h)
+            fz = float(F[2])
+            out.normal_force[s] = float(self._filters[f"f_{s.value}"]((max(fz, 0.0),))[0])
+            parts.append((F, Ms, M.translation, fz))
+            if fz >= thr and fz > 0.0:
+                mx, my = _moment_about(F, Ms, M.translation, h)
+                cop = np.array([-my / fz, mx / fz, h])
+                local = S.rotation.T @ (cop - S.translation)
+                out.cop_sole[s] = self._filters[f"cop_{s.value}"]((local[0] - self.sole_center[0],
+                                                                   local[1] - self.sole_center[1]))
+        fz_t = mx_t = my_t = 0.0
+        for F, Ms, p, fz in parts:
+            if fz >= thr:
+                mx, my = _moment_about(F, Ms, p, ground)
+                fz_t += fz
+                mx_t += mx
+                my_t += my
+        if fz_t > 0.0:
+            out.zmp = self._filters["zmp"]((-my_t / fz_t, mx_t / fz_t))
         return out
 
     @staticmethod
     def model_cop(ctrl) -> np.ndarray | None:
         """ZMP (x, y) of the controller's QP wrenches of the last tick, world frame; None when unloaded."""
         m, d = ctrl.model, ctrl.data
-        f_tot, m_tot = np.zeros(3), np.zeros(3)
+        fz_t = mx_t = my_t = 0.0
         for s in Side:
             w = ctrl.wrench[s]
             if not ctrl.contacts[s].active or w[2] <= 0.0:
                 continue
             M = pin.updateFramePlacement(m, d, ctrl.contacts[s].contact.frame_id)
             f = M.rotation @ w[:3]
-            f_tot += f
-            m_tot += M.rotation @ w[3:] + cross(M.translation, f)
-        if f_tot[2] <= 1.0:
+            mx, my = _moment_about(f, M.rotation @ w[3:], M.translation, 0.0)
+            fz_t += f[2]
+            mx_t += mx
+            my_t += my
+        if fz_t <= 1.0:
             return None
-        return np.array([-m_tot[1] / f_tot[2], m_tot[0] / f_tot[2]])
+        return np.array([-my_t / fz_t, mx_t / fz_t])
 
     # -------------------------------------------------------------- the corrections
     def correct(self, meas: Measurement, refs: References, ctrl) -> References:
         spec, dt = self.spec, self.dt
         meas_ = self._measure(meas)
         self.measured = meas_
-        self.log[:] = np.nan
-        self.log[0:2] = meas_.zmp
+        zmp_ok = math.isfinite(meas_.zmp[0] + meas_.zmp[1])
+        log = self.log
+        log[:] = np.nan
+        log[0:2] = meas_.zmp
         cop_model = self.model_cop(ctrl)
         if cop_model is not None:
-            self.log[2:4] = cop_model
-        targets = dict(refs.targets)
+            log[2:4] = cop_model
+        targets = refs.targets
         com, com_vel, com_acc = refs.com, refs.com_vel, refs.com_acc
         # Eq. 2
         g = spec.com_admittance
-        if g is not None and com is not None and cop_model is not None and np.isfinite(meas_.zmp).all():
+        if g is not None and com is not None and cop_model is not None and zmp_ok:
             v0 = com_vel if com_vel is not None else np.zeros(3)
             a0 = com_acc if com_acc is not None else np.zeros(3)
             p1, v1, a1 = com_admittance(com, v0, a0, cop_model, meas_.zmp, g, dt)
-            self.log[4:6] = (p1 - com)[:2]
+            log[4:6] = (p1 - com)[:2]
             com, com_vel, com_acc = p1, v1, a1
+        both = ctrl.contacts[Side.LEFT].active and ctrl.contacts[Side.RIGHT].active
         # Eq. 4-5
         g = spec.foot_force_difference
-        if g is not None and self._torso_nominal is not None and all(ctrl.contacts[s].active for s in Side):
+        if g is not None and self._torso_nominal is not None and both:
             f_model = (max(ctrl.wrench[Side.LEFT][2], 0.0), max(ctrl.wrench[Side.RIGHT][2], 0.0))
             f_meas = (meas_.normal_force[Side.LEFT], meas_.normal_force[Side.RIGHT])
             roll, wx, ax = foot_force_difference(f_model, f_meas, g, dt)
             base = targets.get(spec.torso_task)
             M0 = (base[0] if isinstance(base, tuple) else base) if base is not None else self._torso_nominal
-            R = pin.rpy.rpyToMatrix(roll, 0.0, 0.0) @ M0.rotation
+            c, s_ = math.cos(roll), math.sin(roll)
+            R = np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]]) @ M0.rotation
+            targets = dict(targets)
             targets[spec.torso_task] = (pin.SE3(R, M0.translation), np.array([0, 0, 0, wx, 0, 0.0]),
                                         np.array([0, 0, 0, ax, 0, 0.0]))
-            self.log[6] = roll
+            log[6] = roll
         # Eq. 6-7
         z = spec.zmp_distributor
-        if z is not None and all(ctrl.contacts[s].active for s in Side) and np.isfinite(meas_.zmp).all():
+        if z is not None and both and zmp_ok:
             feet = {s: self._contact_nominal.get(s, ctrl.contacts[s].contact.reference) for s in Side}
             centre = {s: feet[s].act(self.sole_center) for s in Side}
             p_ref = _cart_table_zmp(com, com_acc, centre)
             F, _ = zmp_distributor(p_ref, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
             Fd, alpha = zmp_distributor(meas_.zmp, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
-            local = {}
+            star = {}
             for s in Side:
-                star = wrench_admittance(F[s], Fd[s], z, dt, self._prev_error[s])
+                star[s] = wrench_admittance(F[s], Fd[s], z, dt, self._prev_error[s])
                 self._prev_error[s] = F[s] - Fd[s]
-                # world axes about the sole centre -> LOCAL sole frame about its origin (the QP's variables)
-                R, c = feet[s].rotation, centre[s]
-                f_l = R.T @ star[:3]
-                m_origin = star[3:] + cross(c - feet[s].translation, star[:3])
-                local[s] = np.concatenate([f_l, R.T @ m_origin])
-            ctrl.wrench_targets = local
-            self.log[9] = alpha
+            ctrl.wrench_targets = split_to_local(star, feet, centre)
+            log[9] = alpha
         else:
             ctrl.wrench_targets = None
+        if com is refs.com and targets is refs.targets:
+            return refs
         return replace(refs, com=com, com_vel=com_vel, com_acc=com_acc, targets=targets)
 
     def apply_to_contacts(self, ctrl) -> None:

@@ -44,6 +44,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from wbcbench.qp._jit import JIT_ENABLED, njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.task import Task
@@ -53,6 +54,10 @@ __all__ = ["RepulsionPoint", "SelfCollisionTask", "attractor"]
 FloatArray = npt.NDArray[np.float64]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+#: Default C below which a repulsor's row is left at zero (Jacobian and drift; the error keeps C): the point is
+#: then farther than 2.1 a from the repulsor (p = 3, normalized), the row asks for |C_ddot| < kp C = 0.05 s^-2 with
+#: Table I's kp 500, and |grad C| < 7e-3 per metre for a = 0.2 m (see SelfCollisionTask).
+NEGLIGIBLE = 1e-4
 
 
 def _skew(r: FloatArray) -> FloatArray:
@@ -65,25 +70,6 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     a0, a1, a2 = a
     b0, b1, b2 = b
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
-def _skew_times(r: FloatArray, A: FloatArray) -> FloatArray:
-    """``skew(r_i) @ A_i`` for the rows r_i of r (n, 3) and the matrices A_i of A (n, 3, nv): (n, 3, nv)."""
-    out = np.empty(A.shape)
-    x, y, z = r[:, 0, None], r[:, 1, None], r[:, 2, None]
-    np.subtract(y * A[:, 2], z * A[:, 1], out=out[:, 0])
-    np.subtract(z * A[:, 0], x * A[:, 2], out=out[:, 1])
-    np.subtract(x * A[:, 1], y * A[:, 0], out=out[:, 2])
-    return out
-
-
-def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a_i x b_i`` for the rows of a and b (n, 3)."""
-    out = np.empty(b.shape)
-    np.subtract(a[:, 1] * b[:, 2], a[:, 2] * b[:, 1], out=out[:, 0])
-    np.subtract(a[:, 2] * b[:, 0], a[:, 0] * b[:, 2], out=out[:, 1])
-    np.subtract(a[:, 0] * b[:, 1], a[:, 1] * b[:, 0], out=out[:, 2])
-    return out
 
 
 def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, FloatArray, FloatArray]:
@@ -117,20 +103,89 @@ def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, F
     return C, g, H
 
 
-def _attractors(r: FloatArray, exponent: float, scales: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """:func:`attractor` for n vectors at once: ``r`` (n, 3), ``scales`` (n,) -> C (n,), grad (n, 3), H (n, 3, 3)."""
-    p = float(exponent)
-    d = np.sqrt(np.einsum("ni,ni->n", r, r))
-    C = np.exp(-(d**p) / scales)
-    k = p / scales
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dp2 = np.where(d > 0.0, d ** (p - 2.0), 1.0 if p == 2.0 else 0.0)
-        dp4 = np.where(d > 0.0, d ** (p - 4.0), 0.0) if p != 2.0 else np.zeros_like(d)
-    g = (-k * dp2 * C)[:, None] * r
-    coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * dp4 if p != 2.0 else 0.0)
-    H = C[:, None, None] * (coeff[:, None, None] * np.einsum("ni,nj->nij", r, r)
-                            - (k * dp2)[:, None, None] * np.eye(3))
-    return C, g, H
+@njit
+def _position_kernel(R_all, t_all, slot_of, offsets, offset_x, scales, p, negligible, JW, masks, mask_x,
+                     C, dist, J, G, HC, HK, REL, RW, rx, act):
+    """The compiled twin of the numpy path of ``SelfCollisionTask._evaluate`` (same quantities): fills ``C``,
+    ``dist``, the rows ``J`` (zero for the negligible repulsors) and, for the active ones (their indices in
+    ``act``, their number returned), the gradient ``G``, the Hessian coefficients ``HC`` (of rel rel^T) and
+    ``HK`` (of I), ``REL = x - p_i``; ``RW`` (joint origin -> point, world axes) and ``rx`` for every point.
+    Jacobians from pinocchio's ``data.J`` (WORLD: point velocity ``J_lin - skew(point) J_ang`` on the columns
+    of the joint's support, ``masks`` / ``mask_x``)."""
+    n = slot_of.shape[0]
+    nv = JW.shape[1]
+    for a in range(3):
+        rx[a] = R_all[0, a, 0] * offset_x[0] + R_all[0, a, 1] * offset_x[1] + R_all[0, a, 2] * offset_x[2]
+    x0 = t_all[0, 0] + rx[0]
+    x1 = t_all[0, 1] + rx[1]
+    x2 = t_all[0, 2] + rx[2]
+    nact = 0
+    for i in range(n):
+        s = slot_of[i]
+        for a in range(3):
+            RW[i, a] = R_all[s, a, 0] * offsets[i, 0] + R_all[s, a, 1] * offsets[i, 1] + R_all[s, a, 2] * offsets[i, 2]
+        p0 = t_all[s, 0] + RW[i, 0]
+        p1 = t_all[s, 1] + RW[i, 1]
+        p2 = t_all[s, 2] + RW[i, 2]
+        e0, e1, e2 = x0 - p0, x1 - p1, x2 - p2
+        REL[i, 0], REL[i, 1], REL[i, 2] = e0, e1, e2
+        d = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        dist[i] = d
+        c = np.exp(-(d ** p) / scales[i])
+        C[i] = c
+        for col in range(nv):
+            J[i, col] = 0.0
+        if not c > negligible:
+            continue
+        act[nact] = i
+        nact += 1
+        k = p / scales[i]
+        if d > 0.0:
+            dp2 = d ** (p - 2.0)
+            dp4 = d ** (p - 4.0) if p != 2.0 else 0.0
+        else:
+            dp2 = 1.0 if p == 2.0 else 0.0
+            dp4 = 0.0
+        f = -k * dp2 * c
+        g0, g1, g2 = f * e0, f * e1, f * e2
+        G[i, 0], G[i, 1], G[i, 2] = g0, g1, g2
+        coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * dp4 if p != 2.0 else 0.0)
+        HC[i] = c * coeff
+        HK[i] = c * k * dp2
+        # g^T skew(a) w = (g x a) . w
+        gx0, gx1, gx2 = g1 * x2 - g2 * x1, g2 * x0 - g0 * x2, g0 * x1 - g1 * x0
+        gp0, gp1, gp2 = g1 * p2 - g2 * p1, g2 * p0 - g0 * p2, g0 * p1 - g1 * p0
+        for col in range(nv):
+            jl = g0 * JW[0, col] + g1 * JW[1, col] + g2 * JW[2, col]
+            v = 0.0
+            if mask_x[col]:
+                v += jl - (gx0 * JW[3, col] + gx1 * JW[4, col] + gx2 * JW[5, col])
+            if masks[i, col]:
+                v -= jl - (gp0 * JW[3, col] + gp1 * JW[4, col] + gp2 * JW[5, col])
+            J[i, col] = v
+    return nact
+
+
+_PLACEMENTS: dict = {"key": None, "joints": {}}
+
+
+def _joint_placements(data: pin.Data, key: tuple, joints: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
+    """Rotations (k, 3, 3) and translations (k, 3) of ``data.oMi[j]`` for ``joints``; each joint is read once
+    per configuration ``key`` whichever task asks (the left and right grippers' tasks share most repulsors)."""
+    if _PLACEMENTS["key"] != key:
+        _PLACEMENTS["key"] = key
+        _PLACEMENTS["joints"] = {}
+    known = _PLACEMENTS["joints"]
+    R = np.empty((len(joints), 3, 3))
+    t = np.empty((len(joints), 3))
+    oMi = data.oMi
+    for k, j in enumerate(joints):
+        c = known.get(j)
+        if c is None:
+            M = oMi[j]
+            c = known[j] = (M.rotation, M.translation)
+        R[k], t[k] = c
+    return R, t
 
 
 @dataclass(frozen=True)
@@ -155,11 +210,11 @@ class _Cache:
     key: tuple[int, bytes] | None = None
     vkey: bytes | None = None
     C: FloatArray = field(default_factory=lambda: np.zeros(0))
-    grads: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    hessians: FloatArray = field(default_factory=lambda: np.zeros((0, 3, 3)))
-    J_rel: FloatArray = field(default_factory=lambda: np.zeros((0, 3, 0)))
-    J: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     distances: FloatArray = field(default_factory=lambda: np.zeros(0))
+    J: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    active: list = field(default_factory=list)     # repulsors with C > negligible
+    rows: dict = field(default_factory=dict)       # active repulsor -> (grad, C coeff, C k d^(p-2), x - p, r)
+    rx: FloatArray = field(default_factory=lambda: np.zeros(3))
     velocity: FloatArray = field(default_factory=lambda: np.zeros(0))
     drift: FloatArray = field(default_factory=lambda: np.zeros(0))
 
@@ -175,6 +230,9 @@ class SelfCollisionTask(Task):
         offset: the protected point in ``frame`` [m] (3,).
         exponent: ``p`` >= 2 (the Hessian must exist everywhere).
         normalized: False: ``C = exp(-d^p / a)`` (paper Eq. 13); True: ``C = exp(-(d / a)^p)`` (inria_wbc).
+        negligible: a repulsor whose ``C`` is at or below this gets a zero Jacobian row and drift (its error
+            stays ``-C``): it costs no pinocchio query and no row arithmetic. Default ``NEGLIGIBLE``; 0 gives the
+            exact rows of every repulsor.
         kp: 1/s^2, scalar or one per repulsor (Table I: 500).
         kd: 1/s; default ``2 sqrt(kp)``.
         weight: QP weight (Table I: 700).
@@ -199,6 +257,7 @@ class SelfCollisionTask(Task):
         offset: npt.ArrayLike = (0.0, 0.0, 0.0),
         exponent: float = 3.0,
         normalized: bool = False,
+        negligible: float = NEGLIGIBLE,
         weight: float = 1.0,
         mask: Sequence[bool | int] | None = None,
         name: str | None = None,
@@ -211,6 +270,7 @@ class SelfCollisionTask(Task):
         self._radius = val.as_scalar(radius, owner, "radius")
         self._exponent = val.as_scalar(exponent, owner, "exponent", minimum=2.0)
         self._normalized = bool(normalized)
+        self._negligible = val.as_scalar(negligible, owner, "negligible")
         if isinstance(repulsors, RepulsionPoint) or not len(repulsors):
             raise TaskConfigError(owner, "repulsors", "expected a non-empty sequence of RepulsionPoint")
         counts: dict[str, int] = {}
@@ -234,9 +294,14 @@ class SelfCollisionTask(Task):
             axis_names.append(label)
         self._rep_ids = tuple(ids)
         self._rep_offsets = val.frozen(np.array(offsets))
-        # the frames carrying repulsors (each evaluated once per tick) and, per repulsor, the index of its frame
-        self._frames = tuple(dict.fromkeys(ids))
-        self._frame_of = np.array([self._frames.index(fid) for fid in ids], dtype=np.intp)
+        # every point from its parent joint: joint id and the point in the joint frame
+        self._joint_x = int(model.frames[self._frame_id].parentJoint)
+        self._offset_x = val.frozen(np.array(model.frames[self._frame_id].placement.act(self._offset)))
+        self._rep_joint = tuple(int(model.frames[fid].parentJoint) for fid in ids)
+        self._rep_offsets_joint = val.frozen(np.array([model.frames[fid].placement.act(np.asarray(off, float))
+                                                       for fid, off in zip(ids, offsets)]))
+        self._joints_needed = tuple(dict.fromkeys((self._joint_x, *self._rep_joint)))  # the protected point's first
+        self._slot_of = np.array([self._joints_needed.index(j) for j in self._rep_joint], dtype=np.intp)
         self._rep_radii = val.frozen(np.array(radii))
         a = self._rep_radii + self._radius
         if np.any(a <= 0.0):
@@ -248,6 +313,21 @@ class SelfCollisionTask(Task):
             mask=mask,
         )
         self._cache = _Cache()
+        # compiled path (wbcbench.qp._jit): supports of the joints carrying the points, work buffers
+        self.jit = JIT_ENABLED
+
+        def support(joint: int) -> npt.NDArray[np.bool_]:
+            mask = np.zeros(model.nv, dtype=bool)
+            if joint > 0:
+                for j in model.supports[joint]:
+                    if j > 0:
+                        jm = model.joints[j]
+                        mask[jm.idx_v:jm.idx_v + jm.nv] = True
+            return mask
+
+        self._mask_x = support(self._joint_x)
+        self._masks = np.array([support(j) for j in self._rep_joint])
+        self._act = np.zeros(self.dim, dtype=np.intp)
 
     # ------------------------------------------------------------------------------------------ description
     @property
@@ -275,85 +355,129 @@ class SelfCollisionTask(Task):
         controller can reset every task the same way."""
 
     # -------------------------------------------------------------------------------------------- points
-    @staticmethod
-    def _point(model: pin.Model, data: pin.Data, frame_id: int, offset: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """World position (3,) and world-axes linear Jacobian (3, nv) of ``offset`` in frame ``frame_id``."""
-        M = pin.updateFramePlacement(model, data, frame_id)
-        r = M.rotation @ offset
-        J6 = pin.getFrameJacobian(model, data, frame_id, _LWA)
-        J = J6[:3] - pin.skew(r) @ J6[3:]
-        return M.translation + r, J
-
-    @staticmethod
-    def _point_drift(model: pin.Model, data: pin.Data, frame_id: int, offset: FloatArray) -> FloatArray:
-        """Classical acceleration (3,) of the point at zero joint acceleration, world axes."""
-        M = data.oMf[frame_id]
-        r = M.rotation @ offset
-        vel = pin.getFrameVelocity(model, data, frame_id, _LWA)
-        acc = pin.getFrameClassicalAcceleration(model, data, frame_id, _LWA)
-        w = vel.angular
-        return acc.linear + _cross(acc.angular, r) + _cross(w, _cross(w, r))
-
     def _evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
-        """Position-level quantities, cached per (data, q). Each frame carrying repulsors is evaluated once."""
-        q = np.asarray(data.q_in)
+        """Position-level quantities, cached per (data, q).
+
+        Every point is placed from its parent joint's placement (``data.oMi``, read once per configuration
+        for every task, ``_joint_placements``); ``C`` is computed for every repulsor, the gradient and the
+        Jacobian row only for those whose ``C`` exceeds ``negligible`` (pinocchio's joint Jacobians, once per
+        joint); the others' rows are zero (see ``NEGLIGIBLE``): usually every repulsor but one or two is that
+        far. Per active repulsor, with ``r`` the vector from its joint's origin to it (world axes) and ``J6``
+        that joint's world-axes Jacobian, ``J_i = g^T J_x - g^T J6_lin - (r x g)^T J6_ang`` (the gradient
+        ``g`` applied to ``J_x - J_p``, ``J_p = J6_lin - skew(r) J6_ang``)."""
+        q = data.q_in
         key = (id(data), q.tobytes())
         cache = self._cache
         if cache.key == key:
             return cache
-        x, Jx = self._point(model, data, self._frame_id, self._offset)
-        n = self.dim
-        nf = len(self._frames)
-        R = np.empty((nf, 3, 3))
-        t = np.empty((nf, 3))
-        J6 = np.empty((nf, 6, model.nv))
-        for k, fid in enumerate(self._frames):  # pinocchio once per carrying frame
-            M = pin.updateFramePlacement(model, data, fid)
-            R[k], t[k] = M.rotation, M.translation
-            J6[k] = pin.getFrameJacobian(model, data, fid, _LWA)
-        f = self._frame_of
-        R, J6 = R[f], J6[f]
-        r = np.einsum("nij,nj->ni", R, self._rep_offsets)  # offsets in world axes, (n, 3)
-        points = t[f] + r
-        # J_x - J_p with J_p = J6[:3] - skew(r) J6[3:], every repulsor at once
-        J_rel = Jx - J6[:, :3]
-        J_rel += _skew_times(r, J6[:, 3:])
-        rel = x - points
-        C, grads, hessians = _attractors(rel, self._exponent, self._scales)
+        R_all, t_all = _joint_placements(data, key, self._joints_needed)
+        if self.jit:
+            return self._evaluate_jit(model, data, key, R_all, t_all)
+        rx = R_all[0] @ self._offset_x
+        x = t_all[0] + rx
+        f = self._slot_of
+        r = np.einsum("nij,nj->ni", R_all[f], self._rep_offsets_joint)  # joint origin -> point, world axes
+        rel = x - t_all[f]
+        rel -= r
         distances = np.sqrt(np.einsum("ni,ni->n", rel, rel))
-        self._cache = _Cache(
-            key=key, C=C, grads=grads, hessians=hessians, J_rel=J_rel, distances=distances,
-            J=np.einsum("nk,nkv->nv", grads, J_rel),
-        )
+        p = self._exponent
+        C = np.exp(-(distances**p) / self._scales)
+        n, nv = self.dim, model.nv
+        J = np.zeros((n, nv))
+        active = np.flatnonzero(C > self._negligible).tolist()
+        rows = {}
+        if active:
+            Jx6 = pin.getJointJacobian(model, data, self._joint_x, _LWA)
+            Jx = Jx6[:3] - _skew(rx) @ Jx6[3:]
+            six: dict[int, FloatArray] = {}
+            for i in active:
+                rel_i, d, c = rel[i], float(distances[i]), float(C[i])
+                k = p / float(self._scales[i])
+                if d > 0.0:
+                    dp2 = d ** (p - 2.0)
+                    dp4 = d ** (p - 4.0) if p != 2.0 else 0.0
+                else:
+                    dp2, dp4 = (1.0 if p == 2.0 else 0.0), 0.0
+                g = (-k * dp2 * c) * rel_i
+                # H = C (coeff rel rel^T - k d^(p-2) I), see attractor()
+                coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * dp4 if p != 2.0 else 0.0)
+                Ji = g @ Jx
+                j = self._rep_joint[i]
+                if j != 0:  # 0: fixed in the world
+                    J6 = six.get(j)
+                    if J6 is None:
+                        J6 = six[j] = pin.getJointJacobian(model, data, j, _LWA)
+                    Ji -= g @ J6[:3]
+                    Ji -= _cross(r[i], g) @ J6[3:]
+                J[i] = Ji
+                rows[i] = (g, c * coeff, c * k * dp2, rel_i, r[i])
+        self._cache = _Cache(key=key, C=C, distances=distances, J=J, active=active, rows=rows, rx=rx)
+        return self._cache
+
+    def _evaluate_jit(self, model: pin.Model, data: pin.Data, key: tuple, R_all: FloatArray,
+                      t_all: FloatArray) -> _Cache:
+        """:meth:`_evaluate` with the compiled kernel (``_position_kernel``): the same quantities."""
+        n, nv = self.dim, model.nv
+        C, dist, J = np.empty(n), np.empty(n), np.empty((n, nv))
+        G, HC, HK, REL, RW, rx = (np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
+                                  np.empty(3))
+        act = self._act
+        k = _position_kernel(R_all, t_all, self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
+                             self._exponent, self._negligible, data.J, self._masks, self._mask_x,
+                             C, dist, J, G, HC, HK, REL, RW, rx, act)
+        rows = {i: (G[i], HC[i], HK[i], REL[i], RW[i]) for i in act[:k].tolist()}
+        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=list(rows), rows=rows, rx=rx)
         return self._cache
 
     def _evaluate_velocity(self, model: pin.Model, data: pin.Data) -> _Cache:
+        """``C_dot = J v``; drift ``r_dot^T H r_dot + g^T (a_x - a_p)`` for the active repulsors (``r_dot`` the
+        relative point velocity, ``a`` classical point accelerations at zero joint acceleration), 0 for the
+        others."""
         cache = self._evaluate(model, data)
-        v = np.asarray(data.v_in)
+        v = data.v_in
         vkey = v.tobytes()
         if cache.vkey == vkey:
             return cache
-        r_dot = cache.J_rel @ v  # (n, 3)
-        ax = self._point_drift(model, data, self._frame_id, self._offset)
-        nf = len(self._frames)
-        R = np.empty((nf, 3, 3))
-        w = np.empty((nf, 3))
-        a_lin = np.empty((nf, 3))
-        a_ang = np.empty((nf, 3))
-        for k, fid in enumerate(self._frames):
-            vel = pin.getFrameVelocity(model, data, fid, _LWA)
-            acc = pin.getFrameClassicalAcceleration(model, data, fid, _LWA)
-            R[k], w[k], a_lin[k], a_ang[k] = data.oMf[fid].rotation, vel.angular, acc.linear, acc.angular
-        f = self._frame_of
-        w = w[f]
-        r = np.einsum("nij,nj->ni", R[f], self._rep_offsets)
-        a_rep = a_lin[f] + _cross_rows(a_ang[f], r) + _cross_rows(w, _cross_rows(w, r))
-        drift = (np.einsum("ni,nij,nj->n", r_dot, cache.hessians, r_dot)
-                 + np.einsum("ni,ni->n", cache.grads, ax - a_rep))
+        drift = np.zeros(self.dim)
+        if cache.active:
+            vx, ax = self._point_motion(model, data, self._joint_x, cache.rx)
+            for i in cache.active:
+                g, hc, hk, rel_i, r_i = cache.rows[i]
+                vp, ap = self._point_motion(model, data, self._rep_joint[i], r_i)
+                rd = vx - vp
+                # r_dot^T H r_dot with H = hc rel rel^T - hk I
+                drift[i] = hc * float(rel_i @ rd) ** 2 - hk * float(rd @ rd) + float(g @ (ax - ap))
         cache.velocity = cache.J @ v
         cache.drift = drift
         cache.vkey = vkey
         return cache
+
+    @staticmethod
+    def _point_motion(model: pin.Model, data: pin.Data, joint: int, r: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Velocity and classical acceleration at zero joint acceleration (3,) each, world axes, of the point at
+        ``r`` (world axes) from the origin of ``joint``."""
+        if joint == 0:
+            return np.zeros(3), np.zeros(3)
+        vel = pin.getVelocity(model, data, joint, _LWA)
+        acc = pin.getClassicalAcceleration(model, data, joint, _LWA)
+        w = vel.angular
+        wr = _cross(w, r)
+        return vel.linear + wr, acc.linear + _cross(acc.angular, r) + _cross(w, wr)
+
+    def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        J = self._evaluate(model, data).J
+        out[...] = J if self._all_selected else J[self._selection]
+
+    def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        C = self._evaluate(model, data).C
+        if self._all_selected:
+            np.negative(C, out=out)
+        else:
+            out[...] = -C[self._selection]
+
+    def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
+        a = self._evaluate_velocity(model, data).drift
+        out[...] = a if self._all_selected else a[self._selection]
 
     # --------------------------------------------------------------------------------------------- contract
     def values(self, model: pin.Model, data: pin.Data) -> FloatArray:

@@ -2,7 +2,8 @@
 UDP stream.
 
     wbcbench teleop --mocap FILE|NAME|udp://127.0.0.1:PORT [--controller tsid-teleop] [--mode spd|position|torque]
-                    [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--duration S] [--out DIR]
+                    [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--anchor rest|absolute|offset]
+                    [--duration S] [--out DIR]
     wbcbench teleop --list
 
 The session is a `teleop` scenario (wbcbench/scenarios/teleop_kind.py) run by the usual runner, with the
@@ -47,9 +48,10 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                    help="gripper-body contacts: counted only (default), counted and acting, or not checked")
     p.add_argument("--on-loss", choices=["hold", "reference"], default="hold",
                    help="while the source is invalid: hold the last targets (default) or return to the reference")
-    p.add_argument("--anchor", choices=["absolute", "offset"], default="absolute",
-                   help="absolute overlay of the operator (default, the paper's) or offset (references shifted "
-                        "so that the calibration pose is the robot's own)")
+    p.add_argument("--anchor", choices=["absolute", "offset", "rest"], default="rest",
+                   help="rest (default): the operator at rest overlaid on the robot at rest, reaching hands overlaid "
+                        "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
+                        "offset: every position shifted by the calibration offset (relative teleoperation)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
