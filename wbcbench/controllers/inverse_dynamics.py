@@ -384,7 +384,6 @@ class InverseDynamicsController(Controller):
     def _solve(self, q: np.ndarray, v: np.ndarray, active: tuple[Side, ...]) -> tuple[np.ndarray, np.ndarray] | None:
         """Assemble and solve the QP; (x, tau) or None when even the relaxed QP fails."""
         m, d = self.model, self.data
-        nv = self.nv
         stack, n_hard = self._task_stack(active)
         A, b = stack.acceleration_rows(m, d)  # the same arrays (refilled) while the stack's layout holds
         L = self._layouts.get(active)
@@ -406,15 +405,7 @@ class InverseDynamicsController(Controller):
         np.negative(L.nle_base, out=L.b_eq_h)
         L.b_eq_J[...] = L.b_hard
         # ---- inequalities: wrench cones (torque limits added lazily below); bounds: joint limits
-        cones = L.cones
-        for i, s in enumerate(active):
-            Cr, ur = self.contacts[s].contact.force_rows()
-            C_prev, u_prev = cones[i]
-            if Cr is not C_prev:
-                L.C_blocks[i][...] = Cr
-            if ur is not u_prev:
-                L.u_blocks[i][...] = ur
-            cones[i] = (Cr, ur)
+        self._fill_cones(L, active)
         # a_hi = min(2 (q_hi - q - v h) / h^2, (v_max - v) / dt), a_lo likewise: both rows at once
         QL, VL, T, U = self._limit_rows()
         vj = v[6:]
@@ -444,15 +435,7 @@ class InverseDynamicsController(Controller):
                    L: _QPLayout) -> tuple[np.ndarray, np.ndarray] | None:
         """:meth:`_solve` after the rows, with the compiled assembly and torques (``_kernels``): the same QP,
         the same answers."""
-        cones = L.cones
-        for i, s in enumerate(active):
-            Cr, ur = self.contacts[s].contact.force_rows()
-            C_prev, u_prev = cones[i]
-            if Cr is not C_prev:
-                L.C_blocks[i][...] = Cr
-            if ur is not u_prev:
-                L.u_blocks[i][...] = ur
-            cones[i] = (Cr, ur)
+        self._fill_cones(L, active)
         QL, VL, _, _ = self._limit_rows()
         P = L.problem
         _kernels.assemble(L.A_cost, L.b_cost, L.sw, self.spec.regularization_dv, L.H_dv, L.g_dv, L.M_base,
@@ -468,16 +451,31 @@ class InverseDynamicsController(Controller):
                 return res.x, tau
         return self._solve_limited(L, res, t0)
 
+    def _fill_cones(self, L: _QPLayout, active: tuple[Side, ...]) -> None:
+        """Copy the active contacts' wrench-cone rows into the QP, only those a contact replaced (force ramps)."""
+        cones = L.cones
+        for i, s in enumerate(active):
+            Cr, ur = self.contacts[s].contact.force_rows()
+            C_prev, u_prev = cones[i]
+            if Cr is not C_prev:
+                L.C_blocks[i][...] = Cr
+            if ur is not u_prev:
+                L.u_blocks[i][...] = ur
+            cones[i] = (Cr, ur)
+
+    def _fill_torque_rows(self, L: _QPLayout) -> None:
+        """Write the torque-limit rows ``-tau_max <= M_a dv + h_a - J_c,a^T w <= tau_max`` into ``L.problem_torque``."""
+        nv, k, C, lo, hi = self.nv, L.k, L.C, L.l, L.u
+        C[k:] = 0.0
+        C[k:, :nv] = L.M_joints
+        np.negative(L.Jc_joints_T, out=C[k:, nv:])
+        lo[k:] = -self.tau_max - L.nle_joints
+        hi[k:] = self.tau_max - L.nle_joints
+
     def _solve_limited(self, L: _QPLayout, res, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
         """The first solve failed or its torques exceed a limit: solve with the torque rows, then relaxed."""
-        nv = self.nv
         if res.ok:
-            k, C, lo, hi = L.k, L.C, L.l, L.u
-            C[k:] = 0.0
-            C[k:, :nv] = L.M_joints
-            np.negative(L.Jc_joints_T, out=C[k:, nv:])
-            lo[k:] = -self.tau_max - L.nle_joints
-            hi[k:] = self.tau_max - L.nle_joints
+            self._fill_torque_rows(L)
             res = self.torque_solver.solve(L.problem_torque)
         self._t_solve = perf_counter() - t0
         if res.ok:

@@ -181,13 +181,7 @@ class TSIDTeleop(InverseDynamicsController):
         `qp_torque_rows_dropped_ticks`."""
         if self.mode is ActuationMode.TORQUE or not res.ok:
             return super()._solve_limited(L, res, t0)
-        nv = self.nv
-        k, C, lo, hi = L.k, L.C, L.l, L.u
-        C[k:] = 0.0
-        C[k:, :nv] = L.M_joints
-        np.negative(L.Jc_joints_T, out=C[k:, nv:])
-        lo[k:] = -self.tau_max - L.nle_joints
-        hi[k:] = self.tau_max - L.nle_joints
+        self._fill_torque_rows(L)
         limited = self.torque_solver.solve(L.problem_torque)
         self._t_solve = perf_counter() - t0
         self.qp_status = QP_OK

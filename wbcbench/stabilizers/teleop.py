@@ -126,14 +126,7 @@ class TeleopSpec:
 
 def _gains(sec: Section, n: int, names: str, *, kv_ka: bool = True) -> AdmittanceGains:
     def vec(key: str) -> tuple[float, ...]:
-        raw = sec.raw(key, 0.0)
-        if isinstance(raw, (int, float)) and not isinstance(raw, bool):
-            val = np.full(n, float(raw))
-        else:
-            val = sec.vector(key, length=n)
-        if not np.all(np.isfinite(val)) or np.any(val < 0):
-            raise sec.error(key, f"must be finite and >= 0 ({names}), got {raw!r}")
-        return tuple(float(x) for x in val)
+        return tuple(float(x) for x in _vector_or_scalar(sec, key, n, names))
 
     kd = vec("kd")
     kv = vec("kv") if kv_ka else (0.0,) * n
@@ -179,14 +172,16 @@ def parse_teleop_section(sec: Section) -> TeleopSpec:
     return TeleopSpec(wrench_regularization=reg, stabilizer=st)
 
 
-def _vector_or_scalar(sec: Section, key: str, n: int) -> np.ndarray:
+def _vector_or_scalar(sec: Section, key: str, n: int, names: str | None = None) -> np.ndarray:
+    """`key` as n non-negative gains: one number for all, or a list of n (`names` the axes, for the error)."""
     raw = sec.raw(key, 0.0)
     if isinstance(raw, (int, float)) and not isinstance(raw, bool):
         val = np.full(n, float(raw))
     else:
         val = sec.vector(key, length=n)
     if not np.all(np.isfinite(val)) or np.any(val < 0):
-        raise sec.error(key, f"must be finite and >= 0, got {raw!r}")
+        axes = f" ({names})" if names else ""
+        raise sec.error(key, f"must be finite and >= 0{axes}, got {raw!r}")
     return val
 
 
