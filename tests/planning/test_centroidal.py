@@ -10,6 +10,7 @@ import pytest
 from wbcbench.planning import (
     CentroidalConfig,
     CentroidalPlanError,
+    LegReach,
     ContactTerrain,
     Footstep,
     Side,
@@ -228,3 +229,55 @@ def test_config_validation():
         plan_centroidal(contacts_from_placements(ContactTerrain.from_boxes([]), START, [],
                                                  timing=TIMING, sole=SOLE).footsteps,
                         CentroidalConfig(mass=MASS, cop_margin=0.07))
+
+
+# TALOS-like leg geometry: hip joint centre relative to the CoM (heading frame), ankle above the sole, and 94 % of
+# the straight leg (0.705 m), the terrain-walk scenario's default
+REACH = LegReach(hip_offset={Side.LEFT: [-0.017, 0.084, -0.128], Side.RIGHT: [-0.017, -0.084, -0.128]},
+                 ankle_offset={Side.LEFT: [0.0, 0.0, 0.107], Side.RIGHT: [0.0, 0.0, 0.107]}, max_length=0.663)
+
+
+def _hip_ankle_on_ground(mc, reach):
+    """Largest hip-ankle distance [m] over the ticks where each foot is on the ground (pelvis upright)."""
+    w = mc.walk
+    worst = 0.0
+    for s in Side:
+        ft = w.feet[s]
+        on = w.contacts.in_contact[s]
+        ankle = ft.p_world_sole[on] + np.einsum("nij,j->ni", ft.R_world_sole[on], reach.ankle_offset[s])
+        yaw = np.arctan2(ft.R_world_sole[on, 1, 0], ft.R_world_sole[on, 0, 0])
+        o = reach.hip_offset[s]
+        hip = w.p_world_com[on] + np.stack([np.cos(yaw) * o[0] - np.sin(yaw) * o[1],
+                                            np.sin(yaw) * o[0] + np.cos(yaw) * o[1], np.full(len(yaw), o[2])], 1)
+        worst = max(worst, float(np.linalg.norm(hip - ankle, axis=1).max()))
+    return worst
+
+
+@pytest.mark.parametrize("name", ["stairs_10cm", "platforms"])
+def test_leg_reach_bounds_the_com_height(name):
+    """Without the bound the plan asks the trailing leg for more than its length on the stairs (the CoM stays
+    0.87 m above the upper tread while the foot is still on the lower one); with it, every foot on the ground
+    stays within reach (up to the linearisation about the previous solve and the cubic between knots)."""
+    boxes, goal = CASES[name]
+    free = _hip_ankle_on_ground(_walk(name), REACH)
+    bounded = terrain_walk(boxes, START, goal, timing=TIMING, sole=SOLE, mass=MASS,
+                           centroidal=CentroidalConfig(mass=MASS, com_height=0.87, leg_reach=REACH))
+    got = _hip_ankle_on_ground(bounded, REACH)
+    assert got <= REACH.max_length + 0.003, got
+    assert free > REACH.max_length + (0.03 if name == "stairs_10cm" else 0.0), free
+    # still a dynamically consistent plan
+    w = bounded.walk
+    forces = sum(bounded.centroidal.wrenches[s].force for s in Side)
+    np.testing.assert_allclose(MASS * w.a_world_com, forces + MASS * np.array([0.0, 0.0, -G]), atol=1e-3 * MASS * G)
+
+
+def test_leg_reach_validation():
+    with pytest.raises(ValueError, match="both sides"):
+        LegReach(hip_offset={Side.LEFT: [0, 0, 0]}, ankle_offset=REACH.ankle_offset, max_length=0.6)
+    with pytest.raises(ValueError, match="3 finite"):
+        LegReach(hip_offset={Side.LEFT: [0, 0], Side.RIGHT: [0, 0, 0]}, ankle_offset=REACH.ankle_offset,
+                 max_length=0.6)
+    with pytest.raises(ValueError, match="max_length"):
+        LegReach(hip_offset=REACH.hip_offset, ankle_offset=REACH.ankle_offset, max_length=0.0)
+    with pytest.raises(ValueError, match="leg_reach"):
+        CentroidalConfig(mass=MASS, leg_reach=0.6)

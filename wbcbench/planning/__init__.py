@@ -45,6 +45,7 @@ from .contact_planner import (
 )
 from .centroidal import (
     CentroidalConfig,
+    LegReach,
     CentroidalPlanError,
     CentroidalReport,
     CentroidalTrajectory,
@@ -113,6 +114,7 @@ __all__ = [
     "plan_contacts",
     "contacts_from_placements",
     "CentroidalConfig",
+    "LegReach",
     "CentroidalPlanError",
     "CentroidalReport",
     "ContactWrenchTrajectory",

@@ -76,7 +76,7 @@ from .geometry import SoleRectangle
 from .swing import quintic_blend
 from ..side import Side
 
-__all__ = ["CentroidalPlanError", "CentroidalConfig", "CentroidalReport", "ContactWrenchTrajectory",
+__all__ = ["CentroidalPlanError", "CentroidalConfig", "LegReach", "CentroidalReport", "ContactWrenchTrajectory",
            "CentroidalTrajectory", "plan_centroidal"]
 
 
@@ -95,6 +95,60 @@ SOLVERS = ("proxsuite", "daqp")
 
 
 @dataclass(frozen=True)
+class LegReach:
+    """Leg geometry for the centroidal plan's reach bound.
+
+    The hip of side s is at c + Rz(yaw) hip_offset[s] (c the CoM, the pelvis upright, yaw the foot's), the ankle
+    at p_sole + R_sole ankle_offset[s]; the bound keeps |hip - ankle| <= max_length. Being a ball, it is
+    linearised per knot as an upper bound on c_z, with the horizontal hip-ankle distance taken from the CoM path
+    of the previous solve (the same re-solves as the angular-momentum term).
+
+    Attributes:
+        hip_offset: per side, hip joint centre minus CoM in the robot's heading frame [m] (3,).
+        ankle_offset: per side, ankle joint centre in the sole frame [m] (3,).
+        max_length: largest hip-ankle distance allowed [m] (a fraction of thigh + shank).
+        swing_fraction: the start and end fractions of each swing also bounded, at the lift-off / touch-down
+            pose (default 0: only the knots where the foot is on the ground). On the platforms 0.25 made the
+            planned CoM bob by 6 cm within each step (the lift-off pose is far more conservative than the rising
+            foot) and IK fell; 0 keeps every planned hip-ankle distance within 0.663 m there.
+    """
+
+    hip_offset: Mapping[Side, np.ndarray]
+    ankle_offset: Mapping[Side, np.ndarray]
+    max_length: float
+    swing_fraction: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("hip_offset", "ankle_offset"):
+            val = getattr(self, name)
+            if set(val) != set(Side):
+                raise ValueError(f"LegReach.{name} needs both sides, got {sorted(map(str, val))}")
+            fixed = {}
+            for side, v in val.items():
+                arr = np.asarray(v, dtype=float).ravel()
+                if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+                    raise ValueError(f"LegReach.{name}[{side.value}] must be 3 finite numbers [m], got {v!r}")
+                fixed[side] = arr
+            object.__setattr__(self, name, MappingProxyType(fixed))
+        _check_positive("leg_reach.max_length", self.max_length)
+        if not 0.0 <= self.swing_fraction <= 0.5:
+            raise ValueError(f"LegReach.swing_fraction must be in [0, 0.5], got {self.swing_fraction!r}")
+
+    def ceiling(self, side: Side, R_sole: np.ndarray, p_sole: np.ndarray, p_xy_com: np.ndarray) -> float:
+        """Highest CoM height [m] keeping that foot within reach, the CoM at p_xy_com horizontally."""
+        ankle = p_sole + R_sole @ self.ankle_offset[side]
+        yaw = np.arctan2(R_sole[1, 0], R_sole[0, 0])
+        cy, sy = np.cos(yaw), np.sin(yaw)
+        o = self.hip_offset[side]
+        hip_xy = p_xy_com + np.array([cy * o[0] - sy * o[1], sy * o[0] + cy * o[1]])
+        d2 = float(np.sum((hip_xy - ankle[:2]) ** 2))
+        # beyond reach horizontally: no height helps; keep the bound finite (the hip at most at 30 % of the reach
+        # above the ankle) so that the QP reports the plan as infeasible instead of silently ignoring it
+        dz = np.sqrt(max(self.max_length**2 - d2, (0.3 * self.max_length) ** 2))
+        return float(ankle[2] + dz - o[2])
+
+
+@dataclass(frozen=True)
 class CentroidalConfig:
     """Settings of the centroidal QP (SI units).
 
@@ -106,6 +160,10 @@ class CentroidalConfig:
         cop_margin: the force corners are the sole rectangle shrunk by this much on each side [m].
         max_com_height: upper bound of c_z above every loaded sole origin [m] (a crude leg-length bound);
             None: com_height + 0.08; inf: no bound.
+        leg_reach: optional `LegReach` (the robot's hip and ankle geometry): bounds c_z so that each foot on
+            the ground, and each swing foot over the first and last `LegReach.swing_fraction` of its swing
+            (taken at its lift-off / touch-down pose), stays within reach of its hip with the pelvis upright.
+            None: no such bound.
         knot_dt: largest knot spacing [s].
         dt: output tick period [s] (1 kHz).
         w_acc, w_jerk, w_height, w_am, w_force, w_trust: cost weights (see the module docstring), in the QP's
@@ -121,6 +179,7 @@ class CentroidalConfig:
     friction: float = 0.5
     cop_margin: float = 0.02
     max_com_height: float | None = None
+    leg_reach: "LegReach | None" = None
     knot_dt: float = 0.1
     dt: float = 1e-3
     w_acc: float = 1e-2
@@ -144,6 +203,8 @@ class CentroidalConfig:
                   and self.max_com_height > 0.0 and not np.isnan(self.max_com_height)):
             raise ValueError(f"CentroidalConfig.max_com_height must be positive (inf: no bound), got "
                              f"{self.max_com_height!r}")
+        if self.leg_reach is not None and not isinstance(self.leg_reach, LegReach):
+            raise ValueError(f"CentroidalConfig.leg_reach must be a LegReach or None, got {type(self.leg_reach).__name__}")
         if int(self.am_iterations) != self.am_iterations or self.am_iterations < 0:
             raise ValueError(f"CentroidalConfig.am_iterations must be an integer >= 0, got {self.am_iterations!r}")
         if self.solver not in SOLVERS:
@@ -353,6 +414,29 @@ def _support_reference(plan: FootstepPlan, n: int, dt: float) -> np.ndarray:
     return z
 
 
+def _reach_caps(caps: list[list[float]], contacts: list["_Contact"], knot_ticks: np.ndarray, c_bar: np.ndarray,
+                reach: LegReach) -> list[list[float]]:
+    """`caps` plus the leg-reach ceilings of each knot (see `LegReach`), the CoM xy taken from `c_bar`."""
+    out = [list(c) for c in caps]
+    for ct in contacts:
+        for j in range(ct.first, ct.last + 1):
+            out[j].append(reach.ceiling(ct.side, ct.R, ct.p_sole, c_bar[j, :2]))
+    if reach.swing_fraction > 0.0:
+        by_side: dict[Side, list[_Contact]] = {s: sorted((c for c in contacts if c.side is s), key=lambda c: c.first)
+                                              for s in Side}
+        for side, seq in by_side.items():
+            for before, after in zip(seq[:-1], seq[1:]):
+                t0, t1 = knot_ticks[before.last], knot_ticks[after.first]
+                span = t1 - t0
+                for j in range(before.last + 1, after.first):
+                    u = (knot_ticks[j] - t0) / span
+                    if u <= reach.swing_fraction:
+                        out[j].append(reach.ceiling(side, before.R, before.p_sole, c_bar[j, :2]))
+                    elif u >= 1.0 - reach.swing_fraction:
+                        out[j].append(reach.ceiling(side, after.R, after.p_sole, c_bar[j, :2]))
+    return out
+
+
 # ---- the QP -----------------------------------------------------------------------------------------------
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -427,7 +511,7 @@ class _Rows:
 
 
 def _build(lay: _Layout, h: np.ndarray, c_init: np.ndarray, c_final_xy: np.ndarray, z_ref: np.ndarray,
-           c_bar: np.ndarray, F_bar: np.ndarray, sole_z: list[list[float]], cfg: CentroidalConfig, mu_lin: float
+           c_bar: np.ndarray, F_bar: np.ndarray, caps: list[list[float]], cfg: CentroidalConfig, mu_lin: float
            ) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray, np.ndarray]:
     """H, g, A, b, C, l, u in scaled units (forces / (m g))."""
     g0 = cfg.gravity
@@ -462,10 +546,9 @@ def _build(lay: _Layout, h: np.ndarray, c_init: np.ndarray, c_final_xy: np.ndarr
             for k in range(4):
                 ineq.add_block(col0 + 3 * k + np.arange(3), pyramid, np.zeros(4))
                 lower.extend([-np.inf] * 4)
-        if np.isfinite(cfg.max_com_height):
-            for z in sole_z[j]:
-                ineq.add(lay.c[j][2:], [1.0], z + cfg.max_com_height)
-                lower.append(-np.inf)
+        for z in caps[j]:   # CoM height ceilings (max_com_height, leg reach)
+            ineq.add(lay.c[j][2:], [1.0], z)
+            lower.append(-np.inf)
 
     cost = _Rows(lay.n)
     w_knot = np.empty(N + 1)
@@ -604,7 +687,8 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
     for j in range(N + 1):
         active = [ct for ct in contacts if ct.first <= j <= ct.last]
         loaded = [ct for ct in active if (ct.first < j or j == 0) and (j < ct.last or j == N)]
-        sole_z[j] = [float(ct.p_sole[2]) for ct in loaded]
+        sole_z[j] = ([float(ct.p_sole[2]) + cfg.max_com_height for ct in loaded]
+                     if np.isfinite(cfg.max_com_height) else [])
         c_bar[j, :2] = np.mean([ct.corners.mean(axis=0)[:2] for ct in (loaded or active)], axis=0)
     c_bar[:, 2] = z_ref
     c_bar[0] = c_init
@@ -614,7 +698,8 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
     t0 = time.perf_counter()
     solves = 0
     for it in range(cfg.am_iterations + 1):
-        H, g, A, b, C, l, u = _build(lay, h, c_init, c_final_xy, z_ref, c_bar, F_bar, sole_z, cfg, mu_lin)
+        caps = sole_z if cfg.leg_reach is None else _reach_caps(sole_z, contacts, knot_ticks, c_bar, cfg.leg_reach)
+        H, g, A, b, C, l, u = _build(lay, h, c_init, c_final_xy, z_ref, c_bar, F_bar, caps, cfg, mu_lin)
         x, iters, solver = _solve(H, g, A, b, C, l, u, cfg)
         solves += 1
         c_sol = x[lay.c]

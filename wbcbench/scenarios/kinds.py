@@ -201,7 +201,9 @@ class TerrainWalkScenario(WalkScenario):
 
     params: goal [x, y] (final feet midpoint) or placements [[side, x, y], ...]; single_support,
     double_support, initial_double_support, final_double_support [s]; swing_clearance [m]; friction (mu of
-    the planner, default 0.5); max_step_length / max_step_height [m].
+    the planner, default 0.5); max_step_length / max_step_height [m]; max_leg_extension: largest hip-ankle
+    distance the centroidal plan may ask for, as a fraction of the straight leg (default 0.94, about what the
+    flat walks use; 0 switches the bound off).
     """
 
     kind = "terrain-walk"
@@ -224,6 +226,36 @@ class TerrainWalkScenario(WalkScenario):
         self.friction = params.float("friction", 0.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.30, positive=True)
         self.max_step_height = params.float("max_step_height", 0.15, positive=True)
+        self.max_leg_extension = params.float("max_leg_extension", 0.94, min=0.0, max=1.0)
+
+    def _leg_reach(self, q0, com0):
+        """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint), or None."""
+        import pinocchio as pin
+
+        from ..planning.centroidal import LegReach
+        if self.max_leg_extension <= 0.0:
+            return None
+        m = self.robot.model
+        hip, ankle, length = {}, {}, []
+        for s in Side:
+            sole = self.robot.sole_frame_id(s)
+            j_ankle = m.frames[sole].parentJoint
+            j_hip = m.supports[j_ankle][2]      # [universe, root, first leg joint, ...]
+            d = m.createData()
+            pin.framesForwardKinematics(m, d, q0)
+            M_sole = d.oMf[sole]
+            yaw = float(np.arctan2(M_sole.rotation[1, 0], M_sole.rotation[0, 0]))
+            Rz = pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+            hip[s] = Rz.T @ (d.oMi[j_hip].translation - com0)
+            ankle[s] = M_sole.actInv(d.oMi[j_ankle].translation)
+            # straight leg: the leg joints at zero
+            qs = q0.copy()
+            for j in m.supports[j_ankle][2:]:
+                qs[m.joints[j].idx_q:m.joints[j].idx_q + m.joints[j].nq] = pin.neutral(m)[m.joints[j].idx_q:
+                                                                                         m.joints[j].idx_q + m.joints[j].nq]
+            pin.forwardKinematics(m, d, qs)
+            length.append(float(np.linalg.norm(d.oMi[j_hip].translation - d.oMi[j_ankle].translation)))
+        return LegReach(hip, ankle, self.max_leg_extension * min(length))
 
     def setup(self, q0, com0):
         import pinocchio as pin
@@ -259,7 +291,8 @@ class TerrainWalkScenario(WalkScenario):
                 plan = plan_contacts(terrain, start, self.goal, timing=timing, sole=rect, config=cfg)
             walk = generate_multicontact_walk(
                 plan, CentroidalConfig(mass=self.robot.mass, com_height=float(com0[2] - ground),
-                                       friction=self.friction, dt=self.spec.control_dt),
+                                       friction=self.friction, dt=self.spec.control_dt,
+                                       leg_reach=self._leg_reach(q0, com0)),
                 swing_clearance=self.clearance, p_world_com_init=com0)
         except ValueError as exc:
             raise ConfigError(f"invalid terrain walk: {exc}", file=self.spec.file, key="params") from None
