@@ -81,7 +81,7 @@ def test_lower_level_does_not_disturb_a_higher_one(talos):
 
 
 @pytest.mark.parametrize("old,new,needles", [
-    ("frame: torso,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
+    ("frame: base,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
     ("name: com_xy,", "name: com_z,", ["tasks[1].name", "twice"]),
     ("kp: 100.0, priority: 4}", "kp: 100.0, priority: 9}", ["tasks[3].priority"]),
 ])

@@ -177,7 +177,7 @@ def _bad_taskset(tmp_path, talos, old, new):
 
 
 @pytest.mark.parametrize("old,new,needles", [
-    ("frame: torso,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
+    ("frame: base,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
     ("type: angular_momentum,", "type: angular_momentom,", ["tasks[3].type", "angular_momentum"]),
     ("mask: [0, 0, 1]", "mask: [0, 1]", ["tasks[1].mask", "3 entries"]),
     ("weight: 0.02, kp: 10.0", "weight: 0.02, kp: -10.0", ["tasks[3].kp", ">= 0"]),
