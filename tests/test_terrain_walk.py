@@ -47,6 +47,22 @@ def test_torque_climbs_20cm_steps(talos, tmp_path):
         assert M.translation[2] == pytest.approx(0.40, abs=0.01), side
 
 
+@pytest.mark.parametrize("controller", ["tsid-torque", "tsid-position", "ik"])
+def test_crosses_all_the_tilted_platforms(talos, tmp_path, controller):
+    """The full scene: six 15 deg platforms, every double support on two opposite slopes, then down to the floor.
+    The position schemes needed four things (issue 6): no-slip contacts in this scene (the soft contacts let a
+    loaded sole creep ~2 cm per step down a slope, which the integrated model never sees), the centroidal plan's
+    leg-reach bound (the CoM kept 0.87 m above the upper foot asked the trailing leg for more than its length and
+    the QP pitched the pelvis 27 deg back), the waist task on the pelvis (on the torso frame the pelvis was free to
+    pitch), and the force-weighted CoM anchor (the single-foot one jumped when the load changed feet)."""
+    res = run("platforms", controller, talos, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"]["final_position_error_m"] < 0.15
+    for side, M in _final_soles(talos, res.log).items():  # both feet on the floor past the last platform (x 1.95)
+        assert M.translation[0] > 1.98 and abs(M.translation[2]) < 0.01, (side, M.translation)
+
+
 def test_crosses_tilted_platforms_torque(talos, tmp_path):
     res = run("platforms-quick", "tsid-torque", talos, out=tmp_path)
     s = res.summary

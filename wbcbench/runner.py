@@ -11,7 +11,7 @@ import platform
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +64,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
     spec = scen.spec
     options = sim_options or SimOptions()
+    if spec.sim:   # the scene's own simulator settings (e.g. no-slip on slopes) win over the defaults
+        options = replace(options, **spec.sim)
     substeps = int(round(spec.control_dt / options.timestep))
     if substeps < 1 or abs(substeps * options.timestep - spec.control_dt) > 1e-12:
         raise ConfigError(f"control_dt {spec.control_dt} must be a multiple of the physics timestep "
