@@ -198,7 +198,9 @@ TABLE_8 = PaperTable(
                         "stairs": {"compute_time_ms.mean": 1.1, "compute_time_ms.peak": 5.5}},
     }),
     notes=("The paper's times are C++ on the authors' machine; ours are Python (wall clock around "
-           "Controller.step), measured while other runs share the cores."))
+           "Controller.step) on a shared machine: the header gives the number of parallel jobs; with more than one, "
+           "the peaks include the other runs' interference (quick report, 2 cores: 12-17 ms with 2 jobs, "
+           "0.6-4.6 ms with --jobs 1)."))
 
 PAPER_TABLES: Mapping[str, PaperTable] = MappingProxyType(
     {t.id: t for t in (TABLE_2, TABLE_3, TABLE_4, TABLE_5, TABLE_6, TABLE_7, TABLE_8)})
