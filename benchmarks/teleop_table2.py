@@ -1,10 +1,12 @@
-"""Paper 004 Table II on the 8 shipped recordings: hand position and rotation errors (mean, std, min, max) with the
+"""Paper 004 Table II on its 8 shipped recordings: hand position and rotation errors (mean, std, min, max) with the
 repulsors off and on, self-collisions and falls, one `wbcbench teleop` run per recording (in parallel).
 
     .venv/bin/python benchmarks/teleop_table2.py                      # both conditions, speed 1, full length
     .venv/bin/python benchmarks/teleop_table2.py --anchor rest absolute --jobs 2   # the paper's overlay too
     .venv/bin/python benchmarks/teleop_table2.py --repulsors off --jobs 2 --out reports/teleop
-    .venv/bin/python benchmarks/teleop_table2.py --speed 2 --stabilizer both   # the Figure 2 experiment
+    .venv/bin/python benchmarks/teleop_table2.py --speed 2 --stabilizer both   # Figure 2's condition on Table II's set
+    .venv/bin/python benchmarks/teleop_table2.py --speed 2 --stabilizer both --repulsors on --recordings push_pull
+                                                         # the Figure 2 experiment: falls without, stands with
 
 Writes <out>/table2.md and <out>/table2.json; the run directories go to <out>/runs/.
 """

@@ -10,11 +10,12 @@ from wbcbench.teleop import generate_recordings, list_recordings, open_recording
 
 EXPECTED = {
     "reach_forward", "reach_sideways", "waving", "crossing_arms", "arms_down", "head_turning", "bimanual_lift",
-    "slow_circle",
+    "slow_circle", "push_pull",
 }  # fmt: skip
 
 
-def test_registry_lists_the_eight_recordings():
+def test_registry_lists_the_nine_recordings():
+    """The 8 recordings of Table II (benchmarks/teleop_table2.py) and `push_pull` (paper Figure 2, at x2)."""
     infos = list_recordings()
     assert {i.name for i in infos} == EXPECTED
     for info in infos:

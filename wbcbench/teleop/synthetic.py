@@ -205,7 +205,21 @@ def _slow_circle(t: FloatArray) -> Angles:
     })
 
 
-#: The eight recordings, by name.
+def _push_pull(t: FloatArray) -> Angles:
+    """Both hands pushed forward to arm's length (shoulders 100 deg, elbows 10 deg) and pulled back to the chest
+    (shoulders 0, elbows 110 deg) at 0.7 Hz for 8 s, the trunk leaning up to 20 deg into each push: a vigorous
+    push-pull (sawing, pushing a cart), hands at up to 1.0 m/s. Replayed twice as fast it is the paper's
+    Figure 2 experiment (tests/teleop/test_session.py)."""
+    base = _both({"right_shoulder_Z": 50.0, "right_elbow_Z": 60.0})
+    hold = _keyframes(t, [(1.0, {}), (2.5, base), (10.5, base), (12.0, {})])
+    envelope = _smooth(t, 2.5, 3.0) * (1.0 - _smooth(t, 10.0, 10.5))
+    s = np.sin(2 * np.pi * 0.7 * (t - 2.5))
+    return _add(hold, {"right_shoulder_Z": 50.0 * envelope * s, "left_shoulder_Z": 50.0 * envelope * s,
+                       "right_elbow_Z": -50.0 * envelope * s, "left_elbow_Z": -50.0 * envelope * s,
+                       "middle_lumbar_Z": 20.0 * envelope * (s + 1) / 2})
+
+
+#: The recordings, by name (the first eight are paper Table II's, benchmarks/teleop_table2.py).
 MOTIONS: Mapping[str, SyntheticMotion] = {
     m.name: m
     for m in (
@@ -223,6 +237,8 @@ MOTIONS: Mapping[str, SyntheticMotion] = {
                         12.0, 50.0, _bimanual_lift),
         SyntheticMotion("slow_circle", "right hand draws two slow circles (5 s each) in front of the body", "B",
                         16.0, 50.0, _slow_circle),
+        SyntheticMotion("push_pull", "both hands pushed forward and pulled back to the chest at 0.7 Hz, leaning "
+                        "into each push", "A", 13.0, 50.0, _push_pull),
     )
 }
 
