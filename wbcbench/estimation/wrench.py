@@ -105,9 +105,6 @@ def _gravity(gravity: ArrayLike) -> np.ndarray:
     return g
 
 
-_rotate = rotate
-
-
 def contact_wrench_from_ft(
     force_sensor: ArrayLike,
     torque_sensor: ArrayLike,
@@ -148,9 +145,9 @@ def contact_wrench_from_ft(
     batch_size(force_sensor=(f_s, 1), torque_sensor=(m_s, 1), R_world_sensor=(R, 2), p_world_sensor=(p, 1))
 
     weight = foot.mass * g
-    force = -_rotate(R, f_s) - weight
-    r_com = _rotate(R, foot.p_sensor_com)
-    moment = -_rotate(R, m_s) - cross(r_com, weight)
+    force = -rotate(R, f_s) - weight
+    r_com = rotate(R, foot.p_sensor_com)
+    moment = -rotate(R, m_s) - cross(r_com, weight)
     if force.shape == moment.shape == p.shape == (3,):
         w = Wrench(force, moment, p.copy())
     else:
@@ -196,7 +193,7 @@ def ft_from_contact_wrench(
     at_site = contact.at(p)
     weight = foot.mass * g
     Rt = np.swapaxes(R, -1, -2)
-    f_s = -_rotate(Rt, at_site.force + weight)
-    r_com = _rotate(R, foot.p_sensor_com)
-    m_s = -_rotate(Rt, at_site.moment + cross(r_com, weight))
+    f_s = -rotate(Rt, at_site.force + weight)
+    r_com = rotate(R, foot.p_sensor_com)
+    m_s = -rotate(Rt, at_site.moment + cross(r_com, weight))
     return f_s, m_s

@@ -72,7 +72,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .footsteps import Footstep, FootstepPlan
-from .geometry import SoleRectangle
+from .geometry import SoleRectangle, rotation_from_yaw, yaw_of
 from .swing import quintic_blend
 from ..side import Side
 
@@ -107,16 +107,17 @@ class LegReach:
         hip_offset: per side, hip joint centre minus CoM in the robot's heading frame [m] (3,).
         ankle_offset: per side, ankle joint centre in the sole frame [m] (3,).
         max_length: largest hip-ankle distance allowed [m] (a fraction of thigh + shank).
-        swing_fraction: the start and end fractions of each swing also bounded, at the lift-off / touch-down
-            pose (default 0: only the knots where the foot is on the ground). On the platforms 0.25 made the
-            planned CoM bob by 6 cm within each step (the lift-off pose is far more conservative than the rising
-            foot) and IK fell; 0 keeps every planned hip-ankle distance within 0.663 m there.
+
+    Only the knots where a foot is on the ground are bounded (its lift-off and touch-down knots included). Bounding
+    the first and last quarter of each swing at the lift-off / touch-down pose too was tried on the platforms: the
+    planned CoM bobbed by 6 cm within each step (that pose is far more conservative than the rising foot) and IK
+    fell. So a swinging foot may exceed the bound shortly after lift-off or before touch-down: with TALOS'
+    0.663 m bound, up to 0.680 m on the platforms and 0.728 m on the stairs (straight leg 0.705 m).
     """
 
     hip_offset: Mapping[Side, np.ndarray]
     ankle_offset: Mapping[Side, np.ndarray]
     max_length: float
-    swing_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("hip_offset", "ankle_offset"):
@@ -131,16 +132,12 @@ class LegReach:
                 fixed[side] = arr
             object.__setattr__(self, name, MappingProxyType(fixed))
         _check_positive("leg_reach.max_length", self.max_length)
-        if not 0.0 <= self.swing_fraction <= 0.5:
-            raise ValueError(f"LegReach.swing_fraction must be in [0, 0.5], got {self.swing_fraction!r}")
 
     def ceiling(self, side: Side, R_sole: np.ndarray, p_sole: np.ndarray, p_xy_com: np.ndarray) -> float:
         """Highest CoM height [m] keeping that foot within reach, the CoM at p_xy_com horizontally."""
         ankle = p_sole + R_sole @ self.ankle_offset[side]
-        yaw = np.arctan2(R_sole[1, 0], R_sole[0, 0])
-        cy, sy = np.cos(yaw), np.sin(yaw)
         o = self.hip_offset[side]
-        hip_xy = p_xy_com + np.array([cy * o[0] - sy * o[1], sy * o[0] + cy * o[1]])
+        hip_xy = p_xy_com + (rotation_from_yaw(yaw_of(R_sole)) @ o)[:2]
         d2 = float(np.sum((hip_xy - ankle[:2]) ** 2))
         # beyond reach horizontally: no height helps; keep the bound finite (the hip at most at 30 % of the reach
         # above the ankle) so that the QP reports the plan as infeasible instead of silently ignoring it
@@ -161,9 +158,7 @@ class CentroidalConfig:
         max_com_height: upper bound of c_z above every loaded sole origin [m] (a crude leg-length bound);
             None: com_height + 0.08; inf: no bound.
         leg_reach: optional `LegReach` (the robot's hip and ankle geometry): bounds c_z so that each foot on
-            the ground, and each swing foot over the first and last `LegReach.swing_fraction` of its swing
-            (taken at its lift-off / touch-down pose), stays within reach of its hip with the pelvis upright.
-            None: no such bound.
+            the ground stays within reach of its hip with the pelvis upright. None: no such bound.
         knot_dt: largest knot spacing [s].
         dt: output tick period [s] (1 kHz).
         w_acc, w_jerk, w_height, w_am, w_force, w_trust: cost weights (see the module docstring), in the QP's
@@ -414,26 +409,13 @@ def _support_reference(plan: FootstepPlan, n: int, dt: float) -> np.ndarray:
     return z
 
 
-def _reach_caps(caps: list[list[float]], contacts: list["_Contact"], knot_ticks: np.ndarray, c_bar: np.ndarray,
+def _reach_caps(caps: list[list[float]], contacts: list["_Contact"], c_bar: np.ndarray,
                 reach: LegReach) -> list[list[float]]:
     """`caps` plus the leg-reach ceilings of each knot (see `LegReach`), the CoM xy taken from `c_bar`."""
     out = [list(c) for c in caps]
     for ct in contacts:
         for j in range(ct.first, ct.last + 1):
             out[j].append(reach.ceiling(ct.side, ct.R, ct.p_sole, c_bar[j, :2]))
-    if reach.swing_fraction > 0.0:
-        by_side: dict[Side, list[_Contact]] = {s: sorted((c for c in contacts if c.side is s), key=lambda c: c.first)
-                                              for s in Side}
-        for side, seq in by_side.items():
-            for before, after in zip(seq[:-1], seq[1:]):
-                t0, t1 = knot_ticks[before.last], knot_ticks[after.first]
-                span = t1 - t0
-                for j in range(before.last + 1, after.first):
-                    u = (knot_ticks[j] - t0) / span
-                    if u <= reach.swing_fraction:
-                        out[j].append(reach.ceiling(side, before.R, before.p_sole, c_bar[j, :2]))
-                    elif u >= 1.0 - reach.swing_fraction:
-                        out[j].append(reach.ceiling(side, after.R, after.p_sole, c_bar[j, :2]))
     return out
 
 
@@ -698,7 +680,7 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
     t0 = time.perf_counter()
     solves = 0
     for it in range(cfg.am_iterations + 1):
-        caps = sole_z if cfg.leg_reach is None else _reach_caps(sole_z, contacts, knot_ticks, c_bar, cfg.leg_reach)
+        caps = sole_z if cfg.leg_reach is None else _reach_caps(sole_z, contacts, c_bar, cfg.leg_reach)
         H, g, A, b, C, l, u = _build(lay, h, c_init, c_final_xy, z_ref, c_bar, F_bar, caps, cfg, mu_lin)
         x, iters, solver = _solve(H, g, A, b, C, l, u, cfg)
         solves += 1

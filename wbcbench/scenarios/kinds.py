@@ -229,33 +229,34 @@ class TerrainWalkScenario(WalkScenario):
         self.max_leg_extension = params.float("max_leg_extension", 0.94, min=0.0, max=1.0)
 
     def _leg_reach(self, q0, com0):
-        """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint), or None."""
+        """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint; straight leg: the
+        leg joints at their neutral value), or None."""
         import pinocchio as pin
 
         from ..planning.centroidal import LegReach
+        from ..planning.geometry import rotation_from_yaw, yaw_of
         if self.max_leg_extension <= 0.0:
             return None
         m = self.robot.model
-        hip, ankle, length = {}, {}, []
+        d, d_straight = m.createData(), m.createData()
+        pin.framesForwardKinematics(m, d, q0)
+        neutral, q_straight = pin.neutral(m), q0.copy()
+        hip, ankle, joints = {}, {}, {}
         for s in Side:
             sole = self.robot.sole_frame_id(s)
-            j_ankle = m.frames[sole].parentJoint
-            j_hip = m.supports[j_ankle][2]      # [universe, root, first leg joint, ...]
-            d = m.createData()
-            pin.framesForwardKinematics(m, d, q0)
             M_sole = d.oMf[sole]
-            yaw = float(np.arctan2(M_sole.rotation[1, 0], M_sole.rotation[0, 0]))
-            Rz = pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
-            hip[s] = Rz.T @ (d.oMi[j_hip].translation - com0)
+            j_ankle = m.frames[sole].parentJoint
+            chain = m.supports[j_ankle][2:]      # supports: [universe, root, first leg joint, ...]
+            joints[s] = (chain[0], j_ankle)
+            hip[s] = rotation_from_yaw(yaw_of(M_sole.rotation)).T @ (d.oMi[chain[0]].translation - com0)
             ankle[s] = M_sole.actInv(d.oMi[j_ankle].translation)
-            # straight leg: the leg joints at zero
-            qs = q0.copy()
-            for j in m.supports[j_ankle][2:]:
-                qs[m.joints[j].idx_q:m.joints[j].idx_q + m.joints[j].nq] = pin.neutral(m)[m.joints[j].idx_q:
-                                                                                         m.joints[j].idx_q + m.joints[j].nq]
-            pin.forwardKinematics(m, d, qs)
-            length.append(float(np.linalg.norm(d.oMi[j_hip].translation - d.oMi[j_ankle].translation)))
-        return LegReach(hip, ankle, self.max_leg_extension * min(length))
+            for j in chain:
+                idx = slice(m.joints[j].idx_q, m.joints[j].idx_q + m.joints[j].nq)
+                q_straight[idx] = neutral[idx]
+        pin.forwardKinematics(m, d_straight, q_straight)
+        length = min(float(np.linalg.norm(d_straight.oMi[h].translation - d_straight.oMi[a].translation))
+                     for h, a in joints.values())
+        return LegReach(hip, ankle, self.max_leg_extension * length)
 
     def setup(self, q0, com0):
         import pinocchio as pin
