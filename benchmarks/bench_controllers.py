@@ -1,41 +1,55 @@
 """Controller speed: median and p99 microseconds per control step for TALOS standing on two feet with the
 paper's task set (task update + QP build + solve + command), and where the time goes (pinocchio, building the
 QP, the solver). The controller is fed real measurements from the simulator in closed loop; only its
-`step()` is timed.
+`step()` is timed. The references hold the CoM where it starts with the ZMP under it (what `stand` gives), so
+the position schemes run with their stabilizer.
 
     .venv/bin/python benchmarks/bench_controllers.py [--ticks 3000] [--json FILE] [--controllers a,b]
+    .venv/bin/python benchmarks/bench_controllers.py --against ../other-checkout [--rounds 3]
+
+`--against DIR` times the same controllers with the wbcbench of another checkout (e.g. the previous main) in the
+same run: the two alternate, each in its own process pinned to one core with OPENBLAS_NUM_THREADS=1, and the
+median of each round's medians is reported with the ratio new / other.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
+from wbcbench import types as _types
 from wbcbench.controllers.base import available_controllers, make_controller
-from wbcbench.qp._jit import JIT_ENABLED
 from wbcbench.robots import load_robot
+from wbcbench.side import Side
 from wbcbench.sim.simulator import Simulator
-from wbcbench.types import References
 
 
-def set_compiled(ctrl, on: bool) -> None:
-    """Switch a controller between the compiled kernels (wbcbench.qp._jit) and the numpy reference code."""
-    if hasattr(ctrl, "jit"):
-        ctrl.jit = on
-    solver = getattr(ctrl, "solver", None)
-    if solver is not None and hasattr(solver, "jit"):
-        solver.jit = on
+def standing_references(robot, q):
+    """Both feet down, the CoM held where it is, the ZMP under it (with either version of `References`)."""
+    data = robot.model.createData()
+    com = pin.centerOfMass(robot.model, data, q).copy()
+    pin.framesForwardKinematics(robot.model, data, q)
+    ground = min(data.oMf[robot.sole_frame_id(s)].translation[2] for s in Side)
+    zmp = np.array([com[0], com[1], ground])
+    if hasattr(_types, "PointReference"):
+        return _types.References(t=0.0, com=_types.PointReference(com), zmp=zmp)
+    return _types.References(t=0.0, com=com, com_vel=np.zeros(3), com_acc=np.zeros(3), zmp=zmp)
 
 
-def bench(robot, name: str, ticks: int, compiled: bool = True) -> dict:
+def bench(robot, name: str, ticks: int) -> dict:
     ctrl = make_controller(name, robot, None, 1e-3)
-    set_compiled(ctrl, compiled and JIT_ENABLED)
     sim = Simulator(robot, mode=ctrl.mode)
-    refs = References(t=0.0)
     meas = sim.measure()
+    refs = standing_references(robot, meas.q)
     ctrl.reset(meas, refs)
     total = np.empty(ticks)
     split = {}
@@ -66,29 +80,54 @@ def _line(name: str, r: dict) -> str:
     return line
 
 
+def against(args, names: list[str]) -> None:
+    """Alternate this checkout and `args.against`, one process per round and side, pinned to one core."""
+    here = Path(__file__).resolve().parents[1]
+    sides = {"new": here, "other": Path(args.against).resolve()}
+    env0 = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    pin_cmd = ["taskset", "-c", args.core] if args.core else []
+    rounds: dict[str, list[dict]] = {k: [] for k in sides}
+    for r in range(args.rounds):
+        for side, root in sides.items():
+            with tempfile.NamedTemporaryFile(suffix=".json") as f:
+                cmd = pin_cmd + [sys.executable, str(Path(__file__).resolve()), "--ticks", str(args.ticks),
+                                 "--controllers", ",".join(names), "--robot", args.robot, "--json", f.name]
+                subprocess.run(cmd, env={**env0, "PYTHONPATH": str(root)}, check=True, stdout=subprocess.DEVNULL)
+                rounds[side].append(json.loads(Path(f.name).read_text()))
+        print(f"  round {r + 1}/{args.rounds} done", flush=True)
+    print(f"new: {sides['new']}\nother: {sides['other']}\n{args.rounds} rounds x {args.ticks} ticks, "
+          f"core {args.core or 'any'}; median of the rounds' medians [us] (p99 likewise)")
+    for name in names:
+        med = {k: float(np.median([x[name]["median_us"] for x in v])) for k, v in rounds.items()}
+        p99 = {k: float(np.median([x[name]["p99_us"] for x in v])) for k, v in rounds.items()}
+        print(f"  {name:14s} new {med['new']:7.1f} (p99 {p99['new']:7.1f})   other {med['other']:7.1f} "
+              f"(p99 {p99['other']:7.1f})   new/other {med['new'] / med['other']:.3f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--ticks", type=int, default=3000)
     p.add_argument("--json", default=None, help="write {controller: {median_us, p99_us, ...}} here")
     p.add_argument("--controllers", default=None, help="comma-separated names (default: all but joint-pd)")
     p.add_argument("--robot", default="talos")
-    p.add_argument("--numpy", action="store_true",
-                   help="also time the numpy reference path (kernels off) and print the ratio")
+    p.add_argument("--against", default=None, help="another checkout to time in the same run (e.g. previous main)")
+    p.add_argument("--rounds", type=int, default=3, help="alternating rounds with --against (default 3)")
+    p.add_argument("--core", default="1", help="CPU core to pin to with --against ('' for none; default 1)")
     args = p.parse_args()
-    robot = load_robot(args.robot)
     names = args.controllers.split(",") if args.controllers else [n for n in available_controllers()
                                                                   if n != "joint-pd"]
+    if args.against:
+        against(args, names)
+        return
+    robot = load_robot(args.robot)
     results = {}
     print(f"{robot!r}, standing on two feet, {args.ticks} closed-loop ticks (first 10% discarded)")
-    print(f"  compiled kernels: {'on' if JIT_ENABLED else 'OFF (WBCBENCH_JIT=0 or numba missing)'}")
+    jit = os.environ.get("WBCBENCH_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
+    print(f"  compiled kernels: {'on' if jit else 'OFF (WBCBENCH_JIT=0: the kernels run as plain Python)'}")
     for name in names:
         r = bench(robot, name, args.ticks)
         results[name] = r
         print(_line(name, r))
-        if args.numpy and JIT_ENABLED:
-            ref = bench(robot, name, args.ticks, compiled=False)
-            r["numpy_median_us"], r["numpy_p99_us"] = ref["median_us"], ref["p99_us"]
-            print(_line(f"{name} (numpy)", ref) + f"   compiled/numpy {r['median_us'] / ref['median_us']:.2f}")
     ref = "tsid-torque"
     if ref in results:
         for name, r in results.items():

@@ -1,10 +1,11 @@
 """Time the QP layer on random TALOS-sized problems; prints median and p99 microseconds per call.
 
-Weighted QP (TSID-like): 62 variables (38 accelerations + 24 contact-force components), 18 equalities
+Weighted QP (TSID-like) solves: 62 variables (38 accelerations + 24 contact-force components), 18 equalities
 (6 floating-base dynamics + 12 contact accelerations), 36 inequalities (friction pyramids and unilateral
-rows), 7 cost terms of 1-32 rows (CoM 2 + 1 rows, waist 3, posture 32 on the joints, angular momentum 3,
-force regularisation 24, a zero-weight term) plus Tikhonov regularisation, box bounds on the accelerations.
-Each tick perturbs the targets slightly, as a control loop does, so warm starts are realistic.
+rows), cost terms of 1-32 rows (CoM 2 + 1 rows, waist 3, posture 32 on the joints, angular momentum 3, force
+regularisation 24) plus Tikhonov regularisation, box bounds on the accelerations. Each tick perturbs the targets
+slightly, as a control loop does, so warm starts are realistic. (The assembly of such a QP on the real robot is
+the inverse-dynamics formulation's: bench_controllers.py.)
 
 Hierarchical (IK-like): 38 variables, 5 levels of 12 (feet), 1 (CoM height), 2 (CoM x-y), 3 (waist), 32
 (posture) rows, box bounds. "fast" has bounds that do not bind (null-space path on every level), "qp" is the
@@ -21,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from wbcbench.qp import EqualityTask, HierarchicalSolver, Level, WeightedQP, make_solver, solver_names
+from wbcbench.qp import EqualityTask, HierarchicalSolver, Level, QPProblem, make_solver, solver_names
 
 N_WEIGHTED, N_EQ, N_IN, N_ACC = 62, 18, 36, 38
 N_IK = 38
@@ -62,54 +63,32 @@ def weighted_case(rng: np.random.Generator) -> dict[str, np.ndarray]:
     }
 
 
-def fill_weighted(qp: WeightedQP, case: dict[str, np.ndarray], t: np.ndarray, diagonal: bool = True) -> None:
-    """One tick of input; posture and force regularisation as diagonal terms, or as rows (``diagonal=False``)."""
-    qp.clear()
-    qp.add_cost(case["com"][:2], t[0:2], 1e3, cols=slice(0, N_ACC), name="com_xy")
-    qp.add_cost(case["com"][2:], t[2:3], 1e3, cols=slice(0, N_ACC), name="com_z")
-    qp.add_cost(case["waist"], t[3:6], 1.0, cols=slice(0, N_ACC), name="waist")
-    qp.add_cost(case["am"], t[38:41], 2e-2, cols=slice(0, N_ACC), name="angular_momentum")
-    qp.add_cost(case["am"], t[38:41], 0.0, cols=slice(0, N_ACC), name="disabled")
-    if diagonal:
-        qp.add_diagonal_cost(0.1, t[6:38], cols=slice(6, N_ACC), name="posture")
-        qp.add_diagonal_cost(1e-5, cols=slice(N_ACC, N_WEIGHTED), name="forces")
-    else:
-        qp.add_cost(case["posture"], t[6:38], 0.1, cols=slice(0, N_ACC), name="posture")
-        qp.add_cost(case["eye24"], case["zeros24"], 1e-5, cols=slice(N_ACC, N_WEIGHTED), name="forces")
-    qp.add_equality(case["A_eq"], case["b_eq"], name="dynamics+contacts")
-    qp.add_inequality(case["C"], upper=case["u"], name="friction")
+def weighted_problem(case: dict[str, np.ndarray], t: np.ndarray) -> QPProblem:
+    """One tick's QP: the cost terms summed into H and g (their assembly on a real robot is the inverse-dynamics
+    formulation's, timed by bench_controllers.py), the equalities, the friction rows and box bounds."""
+    H = np.zeros((N_WEIGHTED, N_WEIGHTED))
+    g = np.zeros(N_WEIGHTED)
+    acc = slice(0, N_ACC)
+    for A, b, w in ((case["com"][:2], t[0:2], 1e3), (case["com"][2:], t[2:3], 1e3), (case["waist"], t[3:6], 1.0),
+                    (case["am"], t[38:41], 2e-2), (case["posture"], t[6:38], 0.1)):
+        H[acc, acc] += w * A.T @ A
+        g[acc] -= w * A.T @ b
+    H[N_ACC:, N_ACC:] += 1e-5 * np.eye(N_WEIGHTED - N_ACC)
+    H += 1e-6 * np.eye(N_WEIGHTED)
     lb = np.full(N_WEIGHTED, -np.inf)
     ub = np.full(N_WEIGHTED, np.inf)
     lb[:N_ACC], ub[:N_ACC] = case["x0"][:N_ACC] - 50.0, case["x0"][:N_ACC] + 50.0
-    qp.set_bounds(lb, ub)
+    return QPProblem(H, g, case["A_eq"], case["b_eq"], case["C"], np.full(N_IN, -np.inf), case["u"], lb, ub)
 
 
 def bench_weighted(ticks: int, seed: int) -> list[tuple[str, float, float, str]]:
     rng = np.random.default_rng(seed)
     case = weighted_case(rng)
-    noise = 0.01 * rng.standard_normal((ticks + 64, case["targets"].size))
+    noise = 0.01 * rng.standard_normal((64, case["targets"].size))
+    problems = [weighted_problem(case, case["targets"] + noise[i]) for i in range(64)]
     rows = []
-    targets = case["targets"] + noise
-    for diagonal, label in ((True, "posture, forces diagonal"), (False, "all terms as rows")):
-        qp = WeightedQP(N_WEIGHTED)
-        state = {"i": 0}
-
-        def assemble() -> None:
-            state["i"] += 1
-            fill_weighted(qp, case, targets[state["i"] % len(targets)], diagonal)
-            qp.build()
-
-        med, p99 = timed(assemble, ticks)
-        rows.append((f"weighted: assembly, {label}", med, p99, "7 terms, 18 eq, 36 ineq, box"))
     for name in solver_names():
         solver = make_solver(name)
-        qp = WeightedQP(N_WEIGHTED, solver=solver)
-        problems = []
-        for i in range(64):
-            fill_weighted(qp, case, case["targets"] + noise[i])
-            p = qp.build()
-            fields = ("H", "g", "A_eq", "b_eq", "C", "l", "u", "lb", "ub")
-            problems.append(type(p)(**{k: None if getattr(p, k) is None else getattr(p, k).copy() for k in fields}))
         counter = {"i": 0, "iters": []}
 
         def solve() -> None:

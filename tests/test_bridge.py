@@ -8,7 +8,7 @@ import pytest
 from wbcbench.robots import Side
 from wbcbench.sim.model import ft_site_name, sole_geom_name
 from wbcbench.sim.simulator import Simulator
-from wbcbench.sim.terrain import Terrain
+from wbcbench.scene import Terrain
 
 
 def random_state(robot, rng):

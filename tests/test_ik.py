@@ -1,6 +1,8 @@
 """The hierarchical IK controller: sway and a short walk in closed loop, strict priorities on the robot,
 graceful degradation when a level is out of reach, bad task files."""
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -12,7 +14,7 @@ from wbcbench.runner import run
 from wbcbench.side import Side
 from wbcbench.sim.model import ActuationMode
 from wbcbench.sim.simulator import Simulator
-from wbcbench.types import References
+from wbcbench.types import PointReference, References
 
 
 def test_ik_sway_within_1cm(talos, tmp_path):
@@ -25,7 +27,9 @@ def test_ik_sway_within_1cm(talos, tmp_path):
 
 def _ik(talos):
     sim = Simulator(talos, mode="position")
-    ctrl = IKController(talos, ActuationMode.POSITION, 1e-3)
+    # no stabilizer: these tests give no ZMP plan (the DCM stabilizer needs one, see test_stabilizer_protocol.py)
+    spec = replace(load_taskset(taskset_path(talos, "ik"), talos, max_level=8), stabilizer=None)
+    ctrl = IKController(talos, ActuationMode.POSITION, 1e-3, spec)
     meas = sim.measure()
     ctrl.reset(meas, References(t=0.0))
     return sim, ctrl, meas
@@ -39,7 +43,7 @@ def test_out_of_reach_com_degrades_gracefully_and_feet_keep_priority(talos):
     pin.framesForwardKinematics(talos.model, d, ctrl.q_int)
     feet0 = {s: d.oMf[talos.sole_frame_id(s)].copy() for s in Side}
     com0 = pin.centerOfMass(talos.model, d, ctrl.q_int)
-    refs = References(t=0.0, com=com0 + [0.0, 0.0, 0.6], com_vel=np.zeros(3), com_acc=np.zeros(3))
+    refs = References(t=0.0, com=PointReference(com0 + [0.0, 0.0, 0.6]))
     for _ in range(200):
         cmd = ctrl.step(meas, refs)
         assert np.all(np.isfinite(cmd.q))
@@ -61,7 +65,7 @@ def test_lower_level_does_not_disturb_a_higher_one(talos):
     sim, ctrl, meas = _ik(talos)
     d = talos.model.createData()
     com0 = pin.centerOfMass(talos.model, d, ctrl.q_int)
-    refs = References(t=0.0, com=com0 + [0.02, 0.03, 0.0], com_vel=np.zeros(3), com_acc=np.zeros(3))
+    refs = References(t=0.0, com=PointReference(com0 + [0.02, 0.03, 0.0]))
     seen = {}
     solve = ctrl.solver.solve
 
@@ -83,7 +87,9 @@ def test_lower_level_does_not_disturb_a_higher_one(talos):
 @pytest.mark.parametrize("old,new,needles", [
     ("frame: base,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
     ("name: com_xy,", "name: com_z,", ["tasks[1].name", "twice"]),
-    ("kp: 100.0, priority: 4}", "kp: 100.0, priority: 9}", ["tasks[3].priority"]),
+    ("kp: 100.0, level: 4}", "kp: 100.0, level: 9}", ["tasks[3].level", "between 1 and 8"]),
+    ("kp: 100.0, level: 4}", "kp: 100.0, priority: 4}", ["tasks[3].priority", "level"]),
+    ("kp: 100.0, level: 1}", "kp: 100.0, level: 0}", ["tasks[0].level", ">= 1"]),
 ])
 def test_bad_ik_task_files(talos, tmp_path, old, new, needles):
     text = taskset_path(talos, "ik").read_text()
@@ -91,15 +97,16 @@ def test_bad_ik_task_files(talos, tmp_path, old, new, needles):
     p = tmp_path / "ik.yaml"
     p.write_text(text.replace(old, new))
     with pytest.raises(ConfigError) as err:
-        load_taskset(p, talos, max_priority=8)
+        load_taskset(p, talos, max_level=8)
     for n in needles + [str(p)]:
         assert n in str(err.value), str(err.value)
 
 
-def test_ik_rejects_a_task_on_the_feet_level(talos, tmp_path):
-    text = taskset_path(talos, "ik").read_text().replace("kp: 100.0, priority: 1}", "kp: 100.0, priority: 0}")
+def test_ik_rejects_a_hard_task(talos, tmp_path):
+    """`hard` makes an equality constraint of the inverse-dynamics QP; a hierarchy orders tasks by level."""
+    text = taskset_path(talos, "ik").read_text().replace("kp: 100.0, level: 1}", "kp: 100.0, level: 1, hard: true}")
     p = tmp_path / "ik.yaml"
     p.write_text(text)
-    spec = load_taskset(p, talos, max_priority=8)
-    with pytest.raises(ConfigError, match="feet level"):
+    spec = load_taskset(p, talos, max_level=8)
+    with pytest.raises(ConfigError, match="com_z.*level"):
         IKController(talos, ActuationMode.POSITION, 1e-3, spec)

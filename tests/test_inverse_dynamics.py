@@ -16,12 +16,14 @@ from wbcbench.runner import run
 from wbcbench.side import Side
 from wbcbench.sim.model import ActuationMode
 from wbcbench.sim.simulator import Simulator
-from wbcbench.types import References
+from wbcbench.types import PointReference, PoseReference, References
 
 
 
 def _controller(robot, cls=TSIDTorque, mode=ActuationMode.TORQUE, taskset=None):
     sim = Simulator(robot, mode=mode)
+    if taskset is None and cls is TSIDPosition:  # these ticks give no ZMP plan: no DCM stabilizer
+        taskset = replace(load_taskset(taskset_path(robot, cls.name), robot), stabilizer=None)
     ctrl = cls(robot, mode, 1e-3, taskset)
     meas = sim.measure()
     ctrl.reset(meas, References(t=0.0))
@@ -78,7 +80,7 @@ def _solve_once(robot, taskset, com_ref=None):
     sim, ctrl, meas = _controller(robot, taskset=taskset)
     refs = References(t=0.0)
     if com_ref is not None:
-        refs = References(t=0.0, com=com_ref, com_vel=np.zeros(3), com_acc=np.zeros(3))
+        refs = References(t=0.0, com=PointReference(com_ref))
     ctrl.step(meas, refs)
     return ctrl.dv.copy(), {s: w.copy() for s, w in ctrl.wrench.items()}
 
@@ -86,7 +88,7 @@ def _solve_once(robot, taskset, com_ref=None):
 def test_zero_weight_task_changes_nothing(talos):
     spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
     hand = TaskSpec(name="hand", type="frame", weight=0.0, kp=np.full(6, 100.0), kd=None,
-                    frame=talos.profile.hands[Side.LEFT])
+                    options={"frame": talos.profile.hands[Side.LEFT]})
     with_hand = replace(spec, tasks=spec.tasks + (hand,))
     dv0, w0 = _solve_once(talos, spec, com_ref=np.array([0.01, 0.02, 0.87]))
     dv1, w1 = _solve_once(talos, with_hand, com_ref=np.array([0.01, 0.02, 0.87]))
@@ -95,8 +97,7 @@ def test_zero_weight_task_changes_nothing(talos):
     weighted = replace(spec, tasks=spec.tasks + (replace(hand, weight=10.0),))
     sim, ctrl, meas = _controller(talos, taskset=weighted)
     ctrl.task_by_name["hand"].set_reference(pin.SE3(np.eye(3), np.array([0.3, 0.3, 1.2])))
-    ctrl.step(meas, References(t=0.0, com=np.array([0.01, 0.02, 0.87]), com_vel=np.zeros(3),
-                               com_acc=np.zeros(3)))
+    ctrl.step(meas, References(t=0.0, com=PointReference([0.01, 0.02, 0.87])))
     assert np.abs(ctrl.dv - dv0).max() > 1e-3
 
 
@@ -161,8 +162,9 @@ def test_infeasible_limits_are_relaxed_and_logged(talos, tmp_path):
     """Joints locked by their position limits and torque limits far too low to stand: the QP is infeasible,
     so it is solved again without the limit rows, and says so."""
     sim, ctrl, meas = _controller(talos)
-    ctrl.tau_max = np.full(talos.na, 1.0)
-    ctrl.q_lo, ctrl.q_hi = meas.q[7:] - 1e-9, meas.q[7:] + 1e-9
+    F = ctrl.formulation
+    F.tau_max = np.full(talos.na, 1.0)
+    F.q_lo, F.q_hi = meas.q[7:] - 1e-9, meas.q[7:] + 1e-9
     ctrl.step(meas, References(t=0.0))
     assert ctrl.qp_status == QP_RELAXED and ctrl.status()["qp_relaxed_ticks"] == 1
     _check_tick(ctrl, meas.q, meas.v)
@@ -178,7 +180,7 @@ def _bad_taskset(tmp_path, talos, old, new):
 
 @pytest.mark.parametrize("old,new,needles", [
     ("frame: base,", "frame: torso_9_link,", ["tasks[2].frame", "torso_9_link"]),
-    ("type: angular_momentum,", "type: angular_momentom,", ["tasks[3].type", "angular_momentum"]),
+    ("type: angular_momentum,", "type: angular_momentom,", ["tasks[3].type", "angular_momentum", "unknown task type"]),
     ("mask: [0, 0, 1]", "mask: [0, 1]", ["tasks[1].mask", "3 entries"]),
     ("weight: 0.02, kp: 10.0", "weight: 0.02, kp: -10.0", ["tasks[3].kp", ">= 0"]),
     ("weight: 1.0, kp: 100.0", "weight: -1.0, kp: 100.0", ["tasks[2].weight", ">= 0"]),
@@ -202,7 +204,7 @@ def test_position_mode_feeds_back_the_integrated_state(talos):
     q1 = ctrl.q_int.copy()
     bogus = replace(meas, q=meas.q + np.concatenate([[0.1, 0, 0], np.zeros(talos.nq - 3)]))
     ctrl.step(bogus, refs)
-    ctrl2 = TSIDPosition(talos, ActuationMode.POSITION, 1e-3)
+    ctrl2 = TSIDPosition(talos, ActuationMode.POSITION, 1e-3, ctrl.spec)
     ctrl2.reset(meas, refs)
     ctrl2.step(meas, refs)
     ctrl2.step(meas, refs)
@@ -214,11 +216,11 @@ def test_named_frame_targets_drive_their_task(talos):
     """References.targets sets a named frame task's reference: a weighted hand task pulls the hand."""
     spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
     hand = TaskSpec(name="left_hand", type="frame", weight=100.0, kp=np.full(6, 100.0), kd=None,
-                    frame=talos.profile.hands[Side.LEFT], mask=(True, True, True, False, False, False))
+                    mask=(True, True, True, False, False, False), options={"frame": talos.profile.hands[Side.LEFT]})
     sim, ctrl, meas = _controller(talos, taskset=replace(spec, tasks=spec.tasks + (hand,)))
     target = ctrl.task_by_name["left_hand"].placement(ctrl.model, ctrl.data)
     target.translation += np.array([0.1, 0.0, 0.1])
-    refs = References(t=0.0, targets={"left_hand": target})
+    refs = References(t=0.0, targets={"left_hand": PoseReference.from_se3(target)})
     fid = talos.model.getFrameId(talos.profile.hands[Side.LEFT])
     d = talos.model.createData()
     pin.framesForwardKinematics(talos.model, d, meas.q)

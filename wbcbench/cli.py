@@ -13,7 +13,7 @@ def _lists() -> tuple[list[str], list[str], list[str], list[str]]:
     from .controllers.base import available_controllers
     from .robots import available_robots
     from .scenarios import available_scenarios
-    from .sim.model import ActuationMode
+    from .types import ActuationMode
 
     return (available_scenarios(), list(available_controllers()), available_robots(),
             [m.value for m in ActuationMode])
@@ -34,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--robot", "-r", default="talos", help="robot name or profile YAML path (default: talos)")
     r.add_argument("--mode", "-m", default=None, help="actuation mode (default: the controller's)")
     r.add_argument("--duration", "-d", type=float, default=None, help="override the scenario duration [s]")
+    r.add_argument("--taskset", "-t", default=None,
+                   help="task-set YAML for the controller (default: tasksets/<robot>/<controller>.yaml)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
@@ -55,13 +57,14 @@ def _cmd_run(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise WbcError(f"--duration must be > 0, got {args.duration}")
     if args.quiet:
-        result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out)
+        result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
+                     taskset=args.taskset)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
             task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                         progress=lambda f: prog.update(task, completed=f))
+                         progress=lambda f: prog.update(task, completed=f), taskset=args.taskset)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

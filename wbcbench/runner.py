@@ -24,6 +24,7 @@ from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
 from .scenarios import Scenario, load_scenario
 from .sim.model import SimOptions
+from .stabilizers.base import MissingReferenceError
 from .sim.simulator import Simulator
 
 
@@ -51,7 +52,7 @@ def step_time_stats(us: np.ndarray) -> dict:
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
-        probes: Sequence = ()) -> RunResult:
+        probes: Sequence = (), taskset: str | Path | None = None) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -79,7 +80,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             raise ConfigError(f"mode '{mode}' differs from the controller's '{ctrl.mode.value}'", key="--mode")
         controller = ctrl.name
     else:
-        ctrl = make_controller(controller, robot, mode, spec.control_dt)
+        ctrl = make_controller(controller, robot, mode, spec.control_dt, taskset)
     sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes)
 
     if out is None:
@@ -89,6 +90,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     run_dir.mkdir(parents=True, exist_ok=True)
     config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
               "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
+              "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
               "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
               "sim": {"timestep": options.timestep, "integrator": options.integrator,
                       "noslip_iterations": options.noslip_iterations, "substeps": substeps,
@@ -129,7 +131,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     tick = 0
     try:
         meas = sim.measure()
-        ctrl.reset(meas, scen.references(0.0))
+        try:
+            ctrl.reset(meas, scen.references(0.0))
+        except MissingReferenceError as exc:  # the scenario lacks what the controller's stabilizer needs
+            raise ConfigError(f"scenario '{spec.name}' with controller '{controller}': {exc}",
+                              file=spec.file) from None
         for tick in range(n_ticks):
             t = tick * spec.control_dt
             refs = scen.references(t)
@@ -149,11 +155,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             row[s_com] = data.com[0]
             row[s_vcom] = data.vcom[0]
             if refs.com is not None:
-                row[s_ref] = refs.com
+                row[s_ref] = refs.com.position
             if refs.zmp is not None:
                 row[s_zmp] = refs.zmp
             for s, foot in refs.feet.items():
-                row[s_fref[s]] = foot[0]
+                row[s_fref[s]] = foot.position
             cws = sim.contact_wrenches()
             meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             for s in Side:

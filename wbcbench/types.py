@@ -3,10 +3,26 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 
-from .robots import Side
+from .side import Side
+
+
+class ActuationMode(str, Enum):
+    """How joint commands reach the simulated robot.
+
+    TORQUE: motors, the command is joint torque (clamped to the URDF effort limits).
+    POSITION: MuJoCo position servos, torque = kp (q_ref - q) + kd (v_ref - v), with the profile's
+        `position_gains`; the damping is integrated implicitly (integrator implicitfast).
+    SPD: stable PD (Tan, Liu and Turk 2011): torque = kp (q_ref - q - dt v) + kd (v_ref - v - dt a), with
+        the next acceleration a predicted from the full mass matrix, same gains as POSITION.
+    """
+
+    TORQUE = "torque"
+    POSITION = "position"
+    SPD = "spd"
 
 
 @dataclass
@@ -45,25 +61,130 @@ class Command:
     v: np.ndarray | None = None
 
 
-@dataclass
+def _frozen_vector(value, n: int, what: str) -> np.ndarray:
+    """A read-only float (n,) array of `value` (no copy when it already is one)."""
+    a = value if type(value) is np.ndarray and value.dtype == np.float64 else np.asarray(value, dtype=np.float64)
+    if a.shape != (n,):
+        raise ValueError(f"{what} must have shape ({n},), got {a.shape}")
+    return a
+
+
+_ZERO3 = np.zeros(3)
+_ZERO6 = np.zeros(6)
+_ZERO3.flags.writeable = False
+_ZERO6.flags.writeable = False
+
+
+@dataclass(frozen=True, slots=True)
+class PointReference:
+    """A point's reference in the world frame (e.g. the CoM): position [m], velocity [m/s], acceleration
+    [m/s^2], each (3,). Velocity and acceleration default to zero (a shared read-only array)."""
+
+    position: np.ndarray
+    velocity: np.ndarray = None  # type: ignore[assignment]  (None: zero)
+    acceleration: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self):
+        setattr_ = object.__setattr__
+        setattr_(self, "position", _frozen_vector(self.position, 3, "PointReference.position"))
+        setattr_(self, "velocity", _ZERO3 if self.velocity is None else
+                 _frozen_vector(self.velocity, 3, "PointReference.velocity"))
+        setattr_(self, "acceleration", _ZERO3 if self.acceleration is None else
+                 _frozen_vector(self.acceleration, 3, "PointReference.acceleration"))
+
+
+@dataclass(frozen=True, slots=True)
+class PoseReference:
+    """A frame's SE(3) reference in the world: position (3,) [m], rotation (3, 3) or None, and the twist
+    velocity (6,) [m/s, rad/s] and acceleration (6,) in LOCAL_WORLD_ALIGNED axes (linear first).
+
+    `rotation` None means "hold the orientation the frame's task has" (a swing foot that only translates).
+    Velocity and acceleration default to zero."""
+
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+    velocity: np.ndarray = None  # type: ignore[assignment]  (None: zero)
+    acceleration: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self):
+        setattr_ = object.__setattr__
+        setattr_(self, "position", _frozen_vector(self.position, 3, "PoseReference.position"))
+        if self.rotation is not None:
+            R = np.asarray(self.rotation, dtype=np.float64)
+            if R.shape != (3, 3):
+                raise ValueError(f"PoseReference.rotation must have shape (3, 3), got {R.shape}")
+            setattr_(self, "rotation", R)
+        setattr_(self, "velocity", _ZERO6 if self.velocity is None else
+                 _frozen_vector(self.velocity, 6, "PoseReference.velocity"))
+        setattr_(self, "acceleration", _ZERO6 if self.acceleration is None else
+                 _frozen_vector(self.acceleration, 6, "PoseReference.acceleration"))
+
+    @classmethod
+    def from_se3(cls, pose, velocity=None, acceleration=None) -> "PoseReference":
+        """From a `pinocchio.SE3` (copied)."""
+        return cls(pose.translation.copy(), pose.rotation.copy(), velocity, acceleration)
+
+    @classmethod
+    def translating(cls, position, velocity=None, acceleration=None, rotation=None) -> "PoseReference":
+        """A frame moving its origin (linear velocity / acceleration (3,) [m/s, m/s^2]); orientation `rotation`
+        (3, 3), or None to hold the task's."""
+        v = None if velocity is None else np.concatenate((velocity, _ZERO3))
+        a = None if acceleration is None else np.concatenate((acceleration, _ZERO3))
+        return cls(position, rotation, v, a)
+
+
+@dataclass(frozen=True, slots=True)
 class References:
-    """What a scenario (planner, teleoperation source) asks for at one tick. Unused fields stay None.
+    """What a scenario (planner, teleoperation source) asks for at one tick, and what stabilizers correct.
+    Unused fields stay None / empty.
 
     contacts: feet that should be in contact.
-    com, com_vel, com_acc: (3,) CoM reference [m, m/s, m/s^2], world frame.
-    feet: per swinging/moving foot, (position (3,), velocity (3,), acceleration (3,)) of the sole frame origin
-        in the world; orientation held at its current/start value unless `feet_rotation` gives it.
+    com: the CoM reference (world frame).
     zmp: (3,) planned ZMP [m], world frame (walking scenarios).
-    targets: references for the controller's named frame tasks (e.g. teleoperation hands and head):
-        task name -> pin.SE3, or (pin.SE3, velocity (6,), acceleration (6,)) in LOCAL_WORLD_ALIGNED axes.
+    feet: per swinging/moving foot, the sole frame's reference (`PoseReference`, rotation None: held).
+    targets: references of the controller's named frame tasks (e.g. teleoperation hands, head, torso).
+    wrench_targets: per contact, a (6,) wrench the inverse-dynamics QP regularises the contact wrench towards
+        [N, N m], LOCAL sole frame at its origin, exerted by the ground (e.g. the force-based stabilizer's
+        Eq. 6-7 split); empty: no target.
+    contact_poses: per active contact, the reference pose of the contact (`pinocchio.SE3`, world) replacing the
+        one it took at touch-down (e.g. the ankle admittance's tilt, Eq. 3); empty: keep it.
     """
 
     t: float
     contacts: frozenset = frozenset({Side.LEFT, Side.RIGHT})
-    com: np.ndarray | None = None
-    com_vel: np.ndarray | None = None
-    com_acc: np.ndarray | None = None
-    feet: dict = field(default_factory=dict)
-    feet_rotation: dict = field(default_factory=dict)
+    com: PointReference | None = None
     zmp: np.ndarray | None = None
+    feet: dict = field(default_factory=dict)
     targets: dict = field(default_factory=dict)
+    wrench_targets: dict = field(default_factory=dict)
+    contact_poses: dict = field(default_factory=dict)
+
+    def missing(self, names) -> list[str]:
+        """The fields among `names` this tick leaves unset (None or empty)."""
+        out = []
+        for n in names:
+            v = getattr(self, n)
+            if v is None or (isinstance(v, (dict, frozenset)) and not v):
+                out.append(n)
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class ModelFeedback:
+    """What a controller tells its stabilizer about its own model at a tick (a stabilizer reads nothing else of
+    the controller).
+
+    q: (nq,) the model's configuration (the integrated one in position mode, the measured one in torque mode).
+    active: the contacts the model holds.
+    wrenches: per side, the (6,) contact wrench of the last solve [N, N m], LOCAL sole frame (zeros if none).
+    contact_poses: per active contact, the world placement of the contact frame at the last solve (SE3).
+    contact_references: per contact, its current reference pose (SE3; absent before the first touch-down).
+    task_references: the controller's frame-task references by task name (SE3), e.g. the torso's.
+    """
+
+    q: np.ndarray
+    active: frozenset = frozenset()
+    wrenches: dict = field(default_factory=dict)
+    contact_poses: dict = field(default_factory=dict)
+    contact_references: dict = field(default_factory=dict)
+    task_references: dict = field(default_factory=dict)

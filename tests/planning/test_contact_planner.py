@@ -21,7 +21,7 @@ from wbcbench.planning import (
     plan_contacts,
     stairs_boxes,
 )
-from wbcbench.sim.terrain import Box
+from wbcbench.scene import Box
 
 SOLE = SoleRectangle(0.20, 0.13)
 TIMING = StepTiming(single_support=1.2, double_support=0.4, initial_double_support=1.5, final_double_support=2.0)

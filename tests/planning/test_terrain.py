@@ -19,7 +19,7 @@ from wbcbench.planning import (
     stairs_boxes,
 )
 from wbcbench.planning.terrain import _obb_penetration
-from wbcbench.sim.terrain import Box, Terrain, parse_terrain, stairs
+from wbcbench.scene import Box, Terrain, parse_terrain, stairs
 
 SOLE = SoleRectangle(0.20, 0.13)
 angles = st.floats(-np.pi, np.pi, allow_nan=False)

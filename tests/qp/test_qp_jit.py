@@ -1,5 +1,5 @@
-"""The compiled kernels (wbcbench.qp._jit and controllers/_kernels) against their numpy/LAPACK twins: the same
-decisions and the same answers, on random problems and on the controllers' own closed-loop ticks."""
+"""The compiled QP kernels (wbcbench.qp._jit) against their numpy/LAPACK twins: the same decisions and the same
+answers, on random problems (the controllers' kernels: tests/test_controller_kernels.py)."""
 
 from __future__ import annotations
 
@@ -134,48 +134,6 @@ def test_hierarchy_with_and_without_the_kernel_agree():
     np.testing.assert_allclose(a.x, b.x, atol=1e-10)
     assert [r.residual for r in a.levels] == pytest.approx([r.residual for r in b.levels], abs=1e-9)
     assert a.met == tuple(r.met for r in a.levels)
-
-
-def _closed_loop_pair(name: str, ticks: int):
-    """Two controllers, compiled and not, fed the same measurements of one closed loop (the compiled one acts)."""
-    from wbcbench.controllers.base import make_controller
-    from wbcbench.robots import load_robot
-    from wbcbench.sim.simulator import Simulator
-    from wbcbench.types import References
-
-    robot = load_robot("talos")
-    fast, ref = make_controller(name, robot, None, 1e-3), make_controller(name, robot, None, 1e-3)
-    ref.solver.jit = False  # ID: ActiveSetGuessSolver; IK: HierarchicalSolver
-    if hasattr(ref, "jit"):
-        ref.jit = False  # ID: the assembly and torque kernels
-    sim = Simulator(robot, mode=fast.mode)
-    meas = sim.measure()
-    t = np.arange(ticks) * 1e-3
-    com0 = None
-    out = []
-    for k in range(ticks):
-        refs = References(t=t[k])
-        if k == 0:
-            fast.reset(meas, refs)
-            ref.reset(meas, refs)
-            com0 = fast.data.com[0].copy()
-        refs = References(t=t[k], com=com0 + np.array([0.0, 0.03 * np.sin(2 * np.pi * t[k]), 0.0]))
-        a, b = fast.step(meas, refs), ref.step(meas, refs)
-        out.append((a, b))
-        sim.apply(a)
-        sim.step()
-        meas = sim.measure()
-    return out
-
-
-def test_tsid_torques_equal_with_and_without_the_kernels():
-    for a, b in _closed_loop_pair("tsid-torque", 300):
-        np.testing.assert_allclose(a.tau, b.tau, atol=1e-7 * max(1.0, float(np.abs(b.tau).max())), rtol=0)
-
-
-def test_ik_commands_equal_with_and_without_the_kernel():
-    for a, b in _closed_loop_pair("ik", 300):
-        np.testing.assert_allclose(a.q, b.q, atol=1e-10, rtol=0)
 
 
 def test_environment_switch_turns_the_kernels_off():

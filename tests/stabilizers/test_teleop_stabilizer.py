@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 from wbcbench.config import Section
 from wbcbench.errors import ConfigError
 from wbcbench.side import Side
+from wbcbench.stabilizers.base import parse_stabilizer
 from wbcbench.stabilizers.teleop import (AdmittanceGains, ZmpDistributorGains, ankle_admittance, com_admittance,
-                                         foot_force_difference, parse_teleop_section, wrench_admittance,
+                                         foot_force_difference, wrench_admittance,
                                          zmp_distributor)
 
 DT = 1e-3
@@ -92,27 +93,32 @@ def test_wrench_admittance_eq7():
 
 
 def test_parse_section_and_errors():
-    spec = parse_teleop_section(Section({
-        "wrench_regularization": 1e-2,
-        "stabilizer": {"cop_cutoff_hz": 20, "com_admittance": {"kd": [0.1, 0.2], "ka": 1e-7},
-                       "ankle_admittance": {"enabled": False, "kd": 1.0},
-                       "foot_force_difference": {"kd": 1e-4, "limit": 0.1},
-                       "zmp_distributor": {"kp": 0.5, "kd": [0, 0, 1e-3, 0, 0, 0]}}}, "f.yaml", "teleop"))
-    st_ = spec.stabilizer
-    assert spec.wrench_regularization == 1e-2 and st_.enabled and st_.cop_cutoff_hz == 20
+    spec = parse_stabilizer(Section({
+        "type": "force", "cop_cutoff_hz": 20, "com_admittance": {"kd": [0.1, 0.2], "ka": 1e-7},
+        "ankle_admittance": {"enabled": False, "kd": 1.0},
+        "foot_force_difference": {"kd": 1e-4, "limit": 0.1},
+        "zmp_distributor": {"kp": 0.5, "kd": [0, 0, 1e-3, 0, 0, 0]}}, "f.yaml", "stabilizer"))
+    st_ = spec.spec
+    assert spec.type == "force" and st_.enabled and st_.cop_cutoff_hz == 20
     assert st_.com_admittance.kd == (0.1, 0.2) and st_.com_admittance.ka == (1e-7, 1e-7)
     assert st_.ankle_admittance is None
     assert st_.foot_force_difference.limit == 0.1
     assert st_.zmp_distributor.kd[2] == 1e-3
-    with pytest.raises(ConfigError, match="f.yaml.*teleop.stabilizer.com_admittance.kd"):
-        parse_teleop_section(Section({"stabilizer": {"com_admittance": {"kd": [1, 2, 3]}}}, "f.yaml", "teleop"))
+
+    def parse(data):
+        return parse_stabilizer(Section({"type": "force", **data}, "f.yaml", "stabilizer"))
+
+    with pytest.raises(ConfigError, match="f.yaml.*stabilizer.com_admittance.kd"):
+        parse({"com_admittance": {"kd": [1, 2, 3]}})
     with pytest.raises(ConfigError, match="unknown key"):
-        parse_teleop_section(Section({"stabilizer": {"com_admitance": {}}}, "f.yaml", "teleop"))
+        parse({"com_admitance": {}})
     with pytest.raises(ConfigError, match=">= 0"):
-        parse_teleop_section(Section({"stabilizer": {"com_admittance": {"kd": -1}}}, "f.yaml", "teleop"))
+        parse({"com_admittance": {"kd": -1}})
     # the ankle law has only a position gain (the contact task takes a pose reference)
     with pytest.raises(ConfigError, match="unknown key"):
-        parse_teleop_section(Section({"stabilizer": {"ankle_admittance": {"kd": 1, "kv": 1}}}, "f.yaml", "teleop"))
+        parse({"ankle_admittance": {"kd": 1, "kv": 1}})
+    with pytest.raises(ConfigError, match="unknown stabilizer type 'forse'.*did you mean 'force'"):
+        parse_stabilizer(Section({"type": "forse"}, "f.yaml", "stabilizer"))
 
 
 # ---- the per-tick measurement and the reference split ------------------------------------------------------

@@ -54,9 +54,9 @@ def test_profile_repulsors_become_self_collision_tasks(talos):
 def test_no_repulsors_drops_the_tasks(talos):
     assert not any(t.type == "self_collision" for t in teleop_taskset(talos, repulsors=False).tasks)
     ctrl = TSIDTeleop(talos, "spd", 1e-3, repulsors=False, stabilizer=False)
-    assert not ctrl.repulsors and ctrl.teleop_stabilizer is None
+    assert not ctrl.repulsors and ctrl.stabilizer is None
     ctrl = TSIDTeleop(talos, "spd", 1e-3)
-    assert ctrl.repulsors and ctrl.teleop_stabilizer is not None
+    assert ctrl.repulsors and ctrl.stabilizer is not None and ctrl.stabilizer.type == "force"
 
 
 def _write(tmp_path: Path, name: str, data: dict) -> Path:

@@ -29,20 +29,20 @@ def test_references_name_the_table_i_tasks_and_hold_the_com(talos):
     assert set(refs.targets) == {"left_hand", "right_hand", "head", "head_pitch", "head_yaw"}
     assert refs.targets["head"] is refs.targets["head_pitch"]
     assert refs.contacts == frozenset(Side)
-    np.testing.assert_array_equal(refs.com, sc.com0)
+    np.testing.assert_array_equal(refs.com.position, sc.com0)
 
 
 def test_engagement_starts_on_the_robot_and_ends_on_the_operator(talos):
     sc = _setup(talos, duration=3.0, engage_time=1.0, anchor="absolute")
     start = sc.references(0.0).targets
     for k, M in sc.initial_poses.items():
-        assert np.allclose(start[k][0].translation, M.translation) and np.allclose(start[k][0].rotation, M.rotation)
+        assert np.allclose(start[k].position, M.translation) and np.allclose(start[k].rotation, M.rotation)
     raw = sc.trajectory
     k = int(round(1.5 / DT))
-    late = sc.references(1.5).targets["left_hand"][0]
-    np.testing.assert_allclose(late.translation, raw.position["left_hand"][k])
+    late = sc.references(1.5).targets["left_hand"]
+    np.testing.assert_allclose(late.position, raw.position["left_hand"][k])
     # TALOS: the operator's hands along the body are 0.2-0.3 m from the robot's half-sitting grippers
-    assert np.linalg.norm(raw.position["left_hand"][0] - start["left_hand"][0].translation) > 0.2
+    assert np.linalg.norm(raw.position["left_hand"][0] - start["left_hand"].position) > 0.2
 
 
 def test_rest_anchor_puts_the_operator_at_rest_on_the_robot_at_rest_and_reaching_hands_absolutely(talos):
@@ -97,10 +97,10 @@ def test_feedforward_matches_finite_differences_and_speed(talos):
 
 def test_after_the_recording_the_last_targets_are_held_and_reported(talos):
     sc = _setup(talos, duration=13.0, engage_time=0.0)
-    last = sc.references(11.99).targets["right_hand"][0]
+    last = sc.references(11.99).targets["right_hand"]
     after = sc.references(12.5).targets["right_hand"]
-    np.testing.assert_allclose(after[0].translation, last.translation, atol=1e-3)
-    assert not np.any(after[1])
+    np.testing.assert_allclose(after.position, last.position, atol=1e-3)
+    assert not np.any(after.velocity)
     assert sc.record_valid[-1] is False and sc.loss_events == 1
 
 
@@ -109,7 +109,7 @@ def test_on_loss_reference_returns_to_the_reference_posture(talos):
     for t in np.arange(11.0, 14.0, 0.01):
         refs = sc.references(float(t))
     for k, M in sc.reference_poses.items():
-        np.testing.assert_allclose(refs.targets[k][0].translation, M.translation, atol=1e-9)
+        np.testing.assert_allclose(refs.targets[k].position, M.translation, atol=1e-9)
 
 
 def test_out_of_reach_targets_are_clamped_and_flagged(talos):

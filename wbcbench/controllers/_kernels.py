@@ -1,8 +1,8 @@
-"""Compiled kernels of the controllers' ticks (see :mod:`wbcbench.qp._jit`): the inverse-dynamics QP assembly and
-torques, the IK's velocity bounds.
+"""Compiled kernels of the formulations' ticks (see :mod:`wbcbench.qp._jit`): the inverse-dynamics QP assembly and
+torques (id_formulation.py), the IK's velocity bounds (ik_formulation.py).
 
-Each kernel does exactly what the numpy code beside it in the controller does (that code stays the reference,
-used when ``WBCBENCH_JIT=0``); the tests check that both give the same QP, torques and commands.
+One implementation each: with ``WBCBENCH_JIT=0`` the same functions run as plain Python. The tests check them
+against numpy references of the formulas (tests/test_controller_kernels.py).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ __all__ = ["assemble", "ik_bounds", "torques"]
 @njit
 def assemble(A_cost, b_cost, sw, reg_dv, H, g, M_base, nle_base, Jc, A_hard, b_hard, A_eq, b_eq,
              q_joints, v_joints, QL, VL, horizon, dt, lb_joints, ub_joints):
-    """Fill the QP of one tick in place (the buffers of ``_QPLayout``).
+    """Fill the QP of one tick in place (the buffers of ``id_formulation._Layout``).
 
     Cost: ``H[:nv, :nv] = Aw' Aw + reg_dv I``, ``g[:nv] = -Aw' (sw * b)`` with ``Aw = sw * A_cost`` (the wrench
     block of ``H`` and of ``g`` is left as it is: constant). Equalities: ``[M_b  -Jc_b'] x = -h_b`` and the hard

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot
-from ..sim.model import ActuationMode
+from ..types import ActuationMode
 from ..types import Command, Measurement, References
 
 
@@ -65,7 +65,10 @@ def available_controllers() -> dict[str, type[Controller]]:
     return dict(sorted(_REGISTRY.items()))
 
 
-def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, dt: float) -> Controller:
+def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, dt: float,
+                    taskset: str | None = None) -> Controller:
+    """A registered controller for `robot` at control period `dt` [s], in `mode` (None: its default), with the task
+    set of file `taskset` when given (controllers with a task set only)."""
     ctrls = available_controllers()
     if name not in ctrls:
         raise UnknownNameError("controller", name, ctrls, key="--controller")
@@ -77,4 +80,14 @@ def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, d
     except ValueError:
         raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in ActuationMode)}",
                           key="--mode") from None
-    return cls(robot, mode, dt)
+    if taskset is None:
+        return cls(robot, mode, dt)
+    import inspect
+
+    if "taskset" not in inspect.signature(cls).parameters:
+        raise ConfigError(f"controller '{name}' takes no task set", key="--taskset")
+    from pathlib import Path
+
+    if not Path(taskset).is_file():
+        raise ConfigError(f"no such file: {taskset}", key="--taskset")
+    return cls(robot, mode, dt, taskset=taskset)

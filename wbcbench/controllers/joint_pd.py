@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..robots import Robot, Side
-from ..sim.model import ActuationMode
+from ..types import ActuationMode
 from ..types import Command, Measurement, References
 from .base import Controller, register
 

@@ -1,13 +1,17 @@
-"""Task sets: the tasks, contacts and gains of a controller, from YAML (inria_wbc style: named tasks dispatched
-on `type:`) or built in Python. The YAML parses into these frozen dataclasses, which are the API.
+"""Task sets: the tasks, contacts, gains and stabilizer of a controller, from YAML (named tasks dispatched on
+`type:`) or built in Python. The YAML parses into these frozen dataclasses, which are the API.
 
-Frames may be given symbolically, resolved through the robot profile: `base`, `torso`, `head`, `left_hand`,
-`right_hand`, `left_foot`, `right_foot`; any other string is a frame name of the model.
+Every task entry has `name`, `type`, `weight`, `kp`, optional `kd` (default 2 sqrt(kp)) and `mask`, and:
+  hard: true|false   (default false) an equality constraint of the inverse-dynamics QP instead of a weighted cost;
+  level: N           (default 1) the strict-priority level in a hierarchical formulation (the IK: 1 is the first
+                     level after the feet); a weighted QP accepts level 1 only.
+The `type` picks a class of the task registry (`wbcbench.tasks.registry`: `com`, `frame`, `posture`,
+`angular_momentum`, `self_collision`, and any type a user registers), which parses its own options: `frame` for
+frame tasks (a model frame or a symbolic one of the robot profile: `base`, `torso`, `head`, `left_hand`,
+`right_hand`, `left_foot`, `right_foot`), `side: left|right` for self_collision tasks (the profile's repulsion
+points; one axis per point, so `kp`/`kd`/`mask` are a number or one value per point).
 
-Task types: `com`, `frame`, `posture`, `angular_momentum`, and `self_collision` (paper 004 Eq. 8-13): `side:
-left|right` picks the robot profile's `repulsors` set for that side (protected point, r_frame, exponent, the
-repulsion points and their radii); the task has one axis per repulsion point, so `kp`/`kd`/`mask` are a number
-or one value per point.
+`stabilizer:` (optional) selects a stabilizer by `type:` (`wbcbench.stabilizers`: `dcm`, `force`) with its gains.
 """
 
 from __future__ import annotations
@@ -18,31 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from ..config import Section, load_yaml
-from ..errors import ConfigError, UnknownNameError
-from ..robots import RepulsorSpec, Robot, Side
+from ..errors import ConfigError
+from ..robots import Robot
+from ..tasks.registry import TaskSpec, resolve_frame, task_class
+
+__all__ = ["ContactSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame", "taskset_path"]
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
-TASK_TYPES = ("com", "frame", "posture", "angular_momentum", "self_collision")
-MASK_LENGTH = {"com": 3, "frame": 6, "angular_momentum": 3}
-
-
-@dataclass(frozen=True)
-class TaskSpec:
-    """One task. `kp`/`kd` are per-axis arrays (posture: per joint, resolved from joint-name prefixes);
-    `kd` None means 2 sqrt(kp). `repulsors` (self_collision tasks): the profile's repulsor set of the task's
-side. `priority`: for the inverse-dynamics QP, 0 makes the task a hard equality
-    constraint and 1 a weighted cost; for the hierarchical IK it is the task's level (0 is the feet, tasks of
-    one level are weighted against each other)."""
-
-    name: str
-    type: str
-    weight: float
-    kp: np.ndarray
-    kd: np.ndarray | None
-    mask: tuple[bool, ...] | None = None
-    frame: str | None = None
-    priority: int = 1
-    repulsors: RepulsorSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -64,15 +50,19 @@ class ContactSpec:
 
 @dataclass(frozen=True)
 class TaskSetSpec:
+    """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||w||^2;
+    `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
+    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one."""
+
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
     swing_foot: TaskSpec
     regularization_dv: float = 1e-6
     regularization_wrench: float = 1e-5
     joint_limit_horizon: float = 0.01
+    regularization_wrench_target: float = 0.0
     solver: str = "daqp"
-    stabilizer: "DcmGains | None" = None
-    teleop: "TeleopSpec | None" = None
+    stabilizer: "StabilizerConfig | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -80,14 +70,6 @@ class TaskSetSpec:
             if t.name == name:
                 return t
         raise KeyError(name)
-
-
-def resolve_frame(robot: Robot, frame: str) -> str:
-    p = robot.profile
-    symbolic = {"base": p.base_frame, "torso": p.torso_frame, "head": p.head_frame,
-                "left_hand": p.hands[Side.LEFT], "right_hand": p.hands[Side.RIGHT],
-                "left_foot": p.feet[Side.LEFT].frame, "right_foot": p.feet[Side.RIGHT].frame}
-    return symbolic.get(frame, frame)
 
 
 def taskset_path(robot: Robot, controller: str) -> Path:
@@ -125,21 +107,13 @@ def _gain_vector(sec: Section, key: str, n: int, robot: Robot | None, posture: b
     return val
 
 
-def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priority: int = 1) -> TaskSpec:
+def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_level: int = 1) -> TaskSpec:
     name = name or sec.str("name")
-    ttype = sec.str("type", choices=TASK_TYPES)
-    repulsors = None
-    if ttype == "self_collision":
-        side = Side(sec.str("side", choices=[s.value for s in Side]))
-        repulsors = robot.profile.repulsors.get(side)
-        if repulsors is None:
-            raise sec.error("side", f"the robot profile {robot.profile.file} has no `repulsors.{side.value}` "
-                                    "section (the repulsion points of a self_collision task come from the profile)")
-        n = len(repulsors.points)
-    else:
-        n = robot.na if ttype == "posture" else MASK_LENGTH[ttype]
+    cls = task_class(sec.str("type"), file=sec.file, key=sec.key("type"))
+    options = cls.parse_options(sec, robot)
+    n = cls.axes(robot, options)
     mask = None
-    if ttype != "posture" and sec.has("mask"):
+    if cls.maskable and sec.has("mask"):
         m = sec.raw("mask")
         if isinstance(m, str):
             m = [c for c in m]
@@ -148,36 +122,33 @@ def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_priorit
         except (TypeError, ValueError):
             raise sec.error("mask", f"must be {n} zeros/ones, got {m!r}") from None
         if len(mask) != n or any(int(x) not in (0, 1) for x in m):
-            axes = ("one per repulsion point" if ttype == "self_collision" else
-                    "x y z roll pitch yaw" if n == 6 else "x y z")
-            raise sec.error("mask", f"must have {n} entries of 0 or 1 (axes {axes}), got {m!r}")
-    frame = None
-    if ttype == "frame":
-        frame = resolve_frame(robot, sec.str("frame"))
-        if not robot.model.existFrame(frame):
-            raise UnknownNameError("frame", frame, [f.name for f in robot.model.frames], file=sec.file,
-                                   key=sec.key("frame"))
+            axes = "x y z roll pitch yaw" if n == 6 else "x y z" if n == 3 else f"{n} axes"
+            raise sec.error("mask", f"must have {n} entries of 0 or 1 ({axes}), got {m!r}")
     weight = sec.float("weight", min=0.0)
-    kp = _gain_vector(sec, "kp", n, robot, ttype == "posture")
-    kd = _gain_vector(sec, "kd", n, robot, ttype == "posture", default=None)
-    priority = sec.int("priority", 1, min=0)
-    if priority > max_priority:
-        raise sec.error("priority", f"must be between 0 and {max_priority} for this controller "
-                        + ("(0: hard constraint, 1: weighted cost)" if max_priority == 1 else "(0 is the feet)"))
+    kp = _gain_vector(sec, "kp", n, robot, cls.per_joint_gains)
+    kd = _gain_vector(sec, "kd", n, robot, cls.per_joint_gains, default=None)
+    if sec.has("priority"):
+        raise sec.error("priority", "was replaced by `hard: true` (an equality constraint of the inverse-dynamics "
+                                    "QP) and `level: N` (the strict-priority level of a hierarchical formulation)")
+    hard = sec.bool("hard", False)
+    level = sec.int("level", 1, min=1)
+    if level > max_level:
+        raise sec.error("level", f"must be between 1 and {max_level} for this controller"
+                        + (" (a weighted QP has one level; use weights)" if max_level == 1 else ""))
     sec.finish()
-    return TaskSpec(name=name, type=ttype, weight=weight, kp=kp, kd=kd, mask=mask, frame=frame, priority=priority,
-                    repulsors=repulsors)
+    return TaskSpec(name=name, type=cls.yaml_type, weight=weight, kp=kp, kd=kd, mask=mask, hard=hard, level=level,
+                    options=options)
 
 
-def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskSetSpec:
-    """Parse and validate a task-set file for `robot`; errors name the file and key. `max_priority` is the
-    largest priority the controller accepts (1 for the weighted QP; the number of levels for the IK)."""
+def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetSpec:
+    """Parse and validate a task-set file for `robot`; errors name the file and key. `max_level` is the largest
+    level the controller accepts (1 for a weighted QP; the number of levels of a hierarchy)."""
     file = str(path)
     root = Section(load_yaml(path), file)
     tasks = []
     names = set()
     for i, raw in enumerate(root.list("tasks")):
-        t = _parse_task(Section(raw, file, f"tasks[{i}]"), robot, max_priority=max_priority)
+        t = _parse_task(Section(raw, file, f"tasks[{i}]"), robot, max_level=max_level)
         if t.name in names:
             raise ConfigError(f"task name '{t.name}' used twice", file=file, key=f"tasks[{i}].name")
         names.add(t.name)
@@ -196,30 +167,20 @@ def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskS
     sw = root.section("swing_foot")
     sw.data.setdefault("type", "frame")
     sw.data.setdefault("frame", "left_foot")
-    swing = _parse_task(sw, robot, name="swing_foot", max_priority=max_priority)
+    swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
     stab = None
     if root.has("stabilizer"):
-        from ..stabilizers import DcmGains
+        from ..stabilizers.base import parse_stabilizer
 
-        st = root.section("stabilizer")
-        cutoff = st.raw("zmp_cutoff_hz", None)
-        stab = DcmGains(kp_adm=st.float("kp_adm", min=0.0), kp_dcm=st.float("kp_dcm", min=0.0),
-                        ki_dcm=st.float("ki_dcm", min=0.0), kz_dcm=st.float("kz_dcm", min=0.0),
-                        integral_limit=st.float("integral_limit", 0.1, positive=True),
-                        zmp_cutoff_hz=None if cutoff is None else st.float("zmp_cutoff_hz", positive=True))
-        st.finish()
-    teleop = None
-    if root.has("teleop"):
-        from ..stabilizers.teleop import parse_teleop_section
-
-        teleop = parse_teleop_section(root.section("teleop"))
+        stab = parse_stabilizer(root.section("stabilizer"))
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
+                       regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       teleop=teleop, file=file)
+                       file=file)
     reg.finish()
     root.finish()
     return spec

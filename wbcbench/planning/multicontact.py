@@ -275,7 +275,7 @@ def terrain_walk(boxes: Sequence[object], start_feet: Mapping[Side, Footstep], g
     """All in one: scene boxes -> contact terrain -> contact plan to `goal` -> multi-contact walk.
 
     Args:
-        boxes: the scene's boxes (`wbcbench.sim.terrain.Box`, e.g. `stairs_boxes()` or `platform_boxes()`).
+        boxes: the scene's boxes (`wbcbench.scene.Box`, e.g. `stairs_boxes()` or `platform_boxes()`).
         start_feet: Side -> Footstep at t = 0. goal: (x, y) [m] of the final feet midpoint.
         timing, sole: step durations and the foot rectangle.
         mass: robot mass [kg]. com_height: nominal CoM height above the support [m] (both ignored when

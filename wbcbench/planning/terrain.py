@@ -1,6 +1,6 @@
 """Terrain for planning: the scene's boxes as oriented boxes and their top faces as contact surfaces.
 
-The simulator builds its scene from `wbcbench.sim.terrain.Terrain` (a floor plane at z = 0 and boxes given
+The simulator builds its scene from `wbcbench.scene.Terrain` (a floor plane at z = 0 and boxes given
 by centre, full size and roll-pitch-yaw). The planner reads the same data: `ContactTerrain.from_terrain`
 (or `from_boxes`) turns every box into an oriented box (for collision checks) and its top face into a
 `ContactSurface`, a convex polygon with its outward unit normal. So the footholds the planner chooses are the
@@ -17,7 +17,7 @@ Conventions:
 - A surface polygon is (k, 3) world vertices, counter-clockwise seen from the outward normal (from above).
 
 Geometry of the two uneven-terrain scenarios (paper 000, Sections 6.3-6.4) as box lists, for scenario files:
-`stairs_boxes` (6 steps of 10 cm x 30 cm by default, `wbcbench.sim.terrain.stairs`) and `platform_boxes`
+`stairs_boxes` (6 steps of 10 cm x 30 cm by default, `wbcbench.scene.stairs`) and `platform_boxes`
 (pitched platforms of alternating slope, 15 degrees by default; see its docstring for the numbers).
 """
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..sim.terrain import Box, Terrain, stairs
+from ..scene import Box, Terrain, stairs
 from .geometry import SoleRectangle
 
 __all__ = [
@@ -322,7 +322,7 @@ class ContactTerrain:
     @classmethod
     def from_boxes(cls, boxes: Iterable[Box | OrientedBox], *, floor: bool = True, friction: float = 1.0,
                    max_slope: float = np.deg2rad(40.0), floor_extent: float = 50.0) -> "ContactTerrain":
-        """Build from scene boxes (`wbcbench.sim.terrain.Box`, or anything with center, size, rpy).
+        """Build from scene boxes (`wbcbench.scene.Box`, or anything with center, size, rpy).
 
         Args:
             boxes: the boxes; unnamed ones are called box_<i>.
@@ -416,7 +416,7 @@ def stairs_boxes(count: int = 6, height: float = 0.10, depth: float = 0.30, widt
                  start_x: float = 0.3) -> tuple[Box, ...]:
     """Stairs going up along +x (paper 000, Section 6.4: 6 steps, 10 cm high, 30 cm deep).
 
-    Exactly `wbcbench.sim.terrain.stairs` (YAML: `terrain: {type: stairs, count: 6, height: 0.1, depth: 0.3,
+    Exactly `wbcbench.scene.stairs` (YAML: `terrain: {type: stairs, count: 6, height: 0.1, depth: 0.3,
     width: 1.0, start_x: 0.3}`): step i (1-based) is a block from the floor to z = i * height, its tread
     covering x in [start_x + (i - 1) depth, start_x + i depth], y in [-width / 2, width / 2].
     """

@@ -1,10 +1,10 @@
-"""QP layer: a problem container, two backends behind one interface, a weighted builder, a hierarchical solver.
+"""QP layer: a problem container, two backends behind one interface, a hierarchical solver.
 
 - :class:`QPProblem`: ``min 1/2 x^T H x + g^T x`` s.t. ``A_eq x = b_eq``, ``l <= C x <= u``, ``lb <= x <= ub``.
 - :class:`QPSolver` with :class:`DaqpSolver` (default) and :class:`ProxsuiteSolver`; :func:`make_solver` by name;
   :class:`ActiveSetGuessSolver` in front of one for QPs solved again and again (a controller's tick).
 - :class:`QPResult` with a :class:`QPStatus`; ``x`` is None unless the solve is optimal.
-- :class:`WeightedQP`: cost terms ``w ||A x - b||^2`` plus constraints, assembled into a :class:`QPProblem`.
+  The weighted inverse-dynamics QP is assembled by `wbcbench.controllers.id_formulation` (one builder).
 - :class:`HierarchicalSolver`: strict (lexicographic) priorities over :class:`Level` of
   :class:`EqualityTask` and :class:`InequalityTask`, under hard bounds.
 """
@@ -18,7 +18,6 @@ from wbcbench.qp.proxsuite_solver import ProxsuiteSolver
 from wbcbench.qp.registry import DEFAULT_SOLVER, make_solver, solver_names
 from wbcbench.qp.result import QPResult, QPSolveError, QPStatus
 from wbcbench.qp.solver import QPSolver
-from wbcbench.qp.weighted import WeightedQP
 
 __all__ = [
     "DEFAULT_SOLVER",
@@ -37,7 +36,6 @@ __all__ = [
     "QPSolveError",
     "QPSolver",
     "QPStatus",
-    "WeightedQP",
     "make_solver",
     "solver_names",
 ]

@@ -4,7 +4,7 @@ that gives the per-tick references and the scenario's own metrics."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -14,8 +14,8 @@ from ..config import Section, load_yaml
 from ..errors import UnknownNameError
 from ..robots import Robot, Side
 from ..sim.push import Push, parse_push
-from ..sim.terrain import Terrain, parse_terrain
-from ..types import References
+from ..scene import Terrain, parse_terrain
+from ..types import PointReference, References
 
 SCENARIO_DIR = Path(__file__).parent
 
@@ -54,9 +54,26 @@ class Scenario:
         """Called once with the initial configuration and CoM, before the first tick."""
         self.q0 = q0
         self.com0 = com0
+        self._ground = None
+        self._standing = None
+
+    def ground_height(self) -> float:
+        """Height [m] of the lower sole at the initial configuration (the ground under the robot)."""
+        if self._ground is None:
+            import pinocchio as pin
+
+            data = self.robot.model.createData()
+            pin.framesForwardKinematics(self.robot.model, data, self.q0)
+            self._ground = min(float(data.oMf[self.robot.sole_frame_id(s)].translation[2]) for s in Side)
+        return self._ground
 
     def references(self, t: float) -> References:
-        return References(t=t, contacts=frozenset(Side))
+        """Stand still: both feet in contact, the CoM held where it starts, the ZMP under it."""
+        if self._standing is None:
+            com = self.com0
+            self._standing = References(t=0.0, contacts=frozenset(Side), com=PointReference(com.copy()),
+                                        zmp=np.array([com[0], com[1], self.ground_height()]))
+        return replace(self._standing, t=t)
 
     def metrics(self, log: dict[str, np.ndarray]) -> dict:
         """Scenario-specific metrics computed from the run log."""

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..recorder import channel
 from ..robots import Side
-from ..types import References
+from ..types import PointReference, PoseReference, References
 from .base import Scenario, register_kind
 
 
@@ -39,7 +39,7 @@ class SwayScenario(Scenario):
         com, acc = self.com0 + a * s, -a * w * w * s
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
         zmp = np.array([*(com[:2] - (com[2] - self.ground) / 9.81 * acc[:2]), self.ground])
-        return References(t=t, contacts=frozenset(Side), com=com, com_vel=a * w * c, com_acc=acc, zmp=zmp)
+        return References(t=t, contacts=frozenset(Side), com=PointReference(com, a * w * c, acc), zmp=zmp)
 
     def metrics(self, log):
         com = channel(log, "com")
@@ -86,8 +86,11 @@ class OneFootScenario(Scenario):
             u, du, ddu = _min_jerk((t - self.shift_time) / self.lift_time)
             p0 = self.feet0[self.swing].translation
             up = np.array([0, 0, self.lift])
-            feet[self.swing] = (p0 + u * up, up * du / self.lift_time, up * ddu / self.lift_time ** 2)
-        return References(t=t, contacts=contacts, com=com, com_vel=com_vel, com_acc=com_acc, feet=feet)
+            feet[self.swing] = PoseReference.translating(p0 + u * up, up * du / self.lift_time,
+                                                         up * ddu / self.lift_time ** 2)
+        # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
+        zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / 9.81 * com_acc[:2]), self.ground_height()])
+        return References(t=t, contacts=contacts, com=PointReference(com, com_vel, com_acc), feet=feet, zmp=zmp)
 
     def metrics(self, log):
         com = channel(log, "com")
@@ -166,17 +169,18 @@ class WalkScenario(Scenario):
     def references(self, t):
         w = self.walk
         k = min(int(round(t / w.dt)), w.n_ticks - 1)
-        feet, rot = {}, {}
+        feet = {}
         contacts = []
         for s in Side:
             f = w.feet[s]
             if f.in_contact[k]:
                 contacts.append(s)
             else:
-                feet[s] = (f.p_world_sole[k], f.v_world_sole[k], f.a_world_sole[k])
-                rot[s] = f.R_world_sole[k]
-        return References(t=t, contacts=frozenset(contacts), com=w.p_world_com[k], com_vel=w.v_world_com[k],
-                          com_acc=w.a_world_com[k], feet=feet, feet_rotation=rot, zmp=w.p_world_zmp_ref[k])
+                feet[s] = PoseReference.translating(f.p_world_sole[k], f.v_world_sole[k], f.a_world_sole[k],
+                                                    f.R_world_sole[k])
+        return References(t=t, contacts=frozenset(contacts),
+                          com=PointReference(w.p_world_com[k], w.v_world_com[k], w.a_world_com[k]), feet=feet,
+                          zmp=w.p_world_zmp_ref[k])
 
     def metrics(self, log):
         com = channel(log, "com")

@@ -74,7 +74,7 @@ import pinocchio as pin
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
-from ..types import References
+from ..types import PointReference, PoseReference, References
 from .base import Scenario, ScenarioSpec, register_kind
 
 DEFAULT_TARGETS = {"left_hand": ("left_hand",), "right_hand": ("right_hand",),
@@ -181,7 +181,7 @@ class TeleopScenario(Scenario):
                     control_dt: float = 1e-3, **params) -> "TeleopScenario":
         """A teleop scenario without a YAML file. `mocap`: what the `mocap` param accepts, or a
         `MocapRecording` / `UdpPoseReceiver` object; other keyword arguments are the params above."""
-        from ..sim.terrain import Terrain
+        from ..scene import Terrain
 
         spec = ScenarioSpec(name=name, kind=cls.kind, description="whole-body teleoperation", duration=duration,
                             control_dt=control_dt, terrain=Terrain(), pushes=(), file="")
@@ -237,6 +237,7 @@ class TeleopScenario(Scenario):
         from ..teleop import Retargeter
 
         super().setup(q0, com0)
+        self._com_ref = PointReference(np.array(com0, dtype=float))
         self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion)
         self.reference_poses = {k: pin.SE3(v) for k, v in self.retargeter.reference_poses.items()}
         model = self.robot.model
@@ -399,10 +400,11 @@ class TeleopScenario(Scenario):
             self.record_pose[k].append(np.concatenate([M.translation, M.rotation.reshape(-1)]))
         named = {}
         for effector, tasks in self.targets.items():
+            M, vel, acc = targets[effector]
+            ref = PoseReference(M.translation, M.rotation, vel, acc)
             for task in tasks:
-                named[task] = targets[effector]
-        return References(t=t, contacts=frozenset(Side), com=self.com0, com_vel=np.zeros(3),
-                          com_acc=np.zeros(3), targets=named)
+                named[task] = ref
+        return References(t=t, contacts=frozenset(Side), com=self._com_ref, targets=named)
 
     def _engage(self, t: float, targets: dict) -> dict:
         """Min-jerk blend from the robot's initial effector poses into `targets` (see `engage_time`)."""

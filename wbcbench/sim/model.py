@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from enum import Enum
 
 import mujoco
 import numpy as np
@@ -32,22 +31,8 @@ import pinocchio as pin
 
 from ..errors import ConfigError
 from ..robots import Robot, Side
-from .terrain import Terrain
-
-
-class ActuationMode(str, Enum):
-    """How joint commands reach the simulated robot.
-
-    TORQUE: motors, the command is joint torque (clamped to the URDF effort limits).
-    POSITION: MuJoCo position servos, torque = kp (q_ref - q) + kd (v_ref - v), with the profile's
-        `position_gains`; the damping is integrated implicitly (integrator implicitfast).
-    SPD: stable PD (Tan, Liu and Turk 2011): torque = kp (q_ref - q - dt v) + kd (v_ref - v - dt a), with
-        the next acceleration a predicted from the full mass matrix, same gains as POSITION.
-    """
-
-    TORQUE = "torque"
-    POSITION = "position"
-    SPD = "spd"
+from ..types import ActuationMode  # noqa: F401  (re-exported: the mode belongs to the shared vocabulary)
+from ..scene import Terrain
 
 
 @dataclass

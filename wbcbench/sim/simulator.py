@@ -14,7 +14,7 @@ from ..types import Command, Measurement
 from .bridge import StateBridge
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
-from .terrain import Terrain
+from ..scene import Terrain
 
 
 @dataclass(frozen=True)

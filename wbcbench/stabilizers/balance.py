@@ -9,20 +9,36 @@ from dataclasses import replace
 import numpy as np
 import pinocchio as pin
 
+from ..config import Section
 from ..estimation import BalanceEstimator
 from ..robots import Robot
 from ..side import Side
-from ..types import Measurement, References
+from ..types import Measurement, ModelFeedback, PointReference, References
+from .base import Stabilizer, register_stabilizer
 from .dcm import DcmGains, DcmStabilizer
 
 
-class BalanceStabilizer:
-    """Corrects each tick's CoM reference from the measured ZMP and anchored CoM.
+@register_stabilizer
+class BalanceStabilizer(Stabilizer):
+    """Corrects each tick's CoM reference from the measured ZMP and anchored CoM (task-set `type: dcm`).
 
-    `log_values()` gives (measured ZMP x y, desired ZMP x y, measured DCM x y) of the last tick [m].
+    Needs the scenario's CoM and ZMP plans. `log` holds (measured ZMP x y, desired ZMP x y, measured DCM x y)
+    of the last tick [m]. The anchored CoM uses the controller's model configuration (`ModelFeedback.q`).
     """
 
-    LOG_LABELS = ["zmp_x", "zmp_y", "zmp_des_x", "zmp_des_y", "dcm_x", "dcm_y"]
+    type = "dcm"
+    requires = ("com", "zmp")
+    LOG_LABELS = ("zmp_x", "zmp_y", "zmp_des_x", "zmp_des_y", "dcm_x", "dcm_y")
+
+    @classmethod
+    def parse(cls, sec: Section) -> DcmGains:
+        cutoff = sec.raw("zmp_cutoff_hz", None)
+        gains = DcmGains(kp_adm=sec.float("kp_adm", min=0.0), kp_dcm=sec.float("kp_dcm", min=0.0),
+                         ki_dcm=sec.float("ki_dcm", min=0.0), kz_dcm=sec.float("kz_dcm", min=0.0),
+                         integral_limit=sec.float("integral_limit", 0.1, positive=True),
+                         zmp_cutoff_hz=None if cutoff is None else sec.float("zmp_cutoff_hz", positive=True))
+        sec.finish()
+        return gains
 
     def __init__(self, robot: Robot, gains: DcmGains, dt: float):
         self.robot = robot
@@ -32,8 +48,9 @@ class BalanceStabilizer:
         self.dcm: DcmStabilizer | None = None
         self.log = np.full(6, np.nan)
 
-    def reset(self, q_model: np.ndarray) -> None:
-        """Restart from a configuration standing on the ground (sets the nominal CoM height)."""
+    def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
+        """Restart from the model's configuration standing on the ground (sets the nominal CoM height)."""
+        q_model = feedback.q
         m = self.robot.model
         d = m.createData()
         pin.framesForwardKinematics(m, d, q_model)
@@ -43,18 +60,19 @@ class BalanceStabilizer:
         self.dcm = DcmStabilizer(self.gains, dt=self.dt, com_height=float(com[2] - ground))
         self.log[:] = np.nan
 
-    def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
-        """The references with the CoM corrected; unchanged when the scenario gives no ZMP/CoM plan or no foot
-        is loaded."""
-        if refs.zmp is None or refs.com is None:
+    def correct(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> References:
+        """The references with the CoM corrected; unchanged while no foot is loaded (no measured ZMP), or on a
+        tick without a CoM/ZMP plan."""
+        com = refs.com
+        if refs.zmp is None or com is None:
             return refs
         est = self.estimator
-        est.update(meas, q_model)
-        if not np.all(np.isfinite(est.zmp)):
+        est.update(meas, feedback.q)
+        if not np.isfinite(est.zmp).all():
             return refs
-        out = self.dcm.step(p_com_ref=refs.com, v_com_ref=refs.com_vel, a_com_ref=refs.com_acc, p_zmp_ref=refs.zmp,
-                            p_com=est.com, v_com=est.com_vel, p_zmp=est.zmp)
+        out = self.dcm.step(p_com_ref=com.position, v_com_ref=com.velocity, a_com_ref=com.acceleration,
+                            p_zmp_ref=refs.zmp, p_com=est.com, v_com=est.com_vel, p_zmp=est.zmp)
         self.log[:2] = out.p_world_zmp_measured
         self.log[2:4] = out.p_world_zmp_desired
         self.log[4:6] = out.p_world_dcm
-        return replace(refs, com=out.p_world_com, com_vel=out.v_world_com, com_acc=out.a_world_com)
+        return replace(refs, com=PointReference(out.p_world_com, out.v_world_com, out.a_world_com))

@@ -1,6 +1,6 @@
 """The force-based stabilizer of whole-body teleoperation, paper 004 (Dalin et al. 2021) Section III, Eq. 2-7.
 
-Four strategies, each switchable with its gains in the task set's `teleop.stabilizer` section, all driven by
+Four strategies, each switchable with its gains in the task set's `stabilizer:` section (`type: force`), all driven by
 the ankle force/torque sensors (contact wrenches by `measured_wrench`, the per-tick twin of
 `estimation.contact_wrench_from_ft`: the foot below the sensor removed) and by the controller's model (the QP's
 contact wrenches of the previous tick):
@@ -26,7 +26,8 @@ contact wrenches of the previous tick):
       normal forces, its roll (x) part given to the foot on the side it loads;
   F = split of the reference ZMP (the CoM reference's cart-table ZMP), F^d = split of the measured ZMP,
       F* = F - kp (F - F^d) - kd (F - F^d) / dt                                            (Eq. 7)
-  F* are the targets of the contact-force regularisation, `weight ||w - F*||^2` in the QP (tsid-teleop). In
+  F* are the targets of the contact-force regularisation, `weight ||w - F*||^2` in the QP (`References.wrench_targets`,
+  weighted by the task set's `regularization.wrench_target`). In
   position and SPD modes only the total of the two wrenches reaches the motion (through the floating-base rows);
   the split matters in torque mode.
 
@@ -46,14 +47,14 @@ from ..config import Section
 from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
-from ..types import Measurement, References
+from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
+from .base import Stabilizer, register_stabilizer
 
 __all__ = [
     "AdmittanceGains",
     "ZmpDistributorGains",
     "TeleopStabilizerSpec",
-    "TeleopSpec",
-    "parse_teleop_section",
+    "parse_teleop_stabilizer",
     "com_admittance",
     "ankle_admittance",
     "foot_force_difference",
@@ -109,21 +110,6 @@ class TeleopStabilizerSpec:
                                            self.zmp_distributor))
 
 
-@dataclass(frozen=True)
-class TeleopSpec:
-    """The `teleop:` section of a task set (read by tsid-teleop only).
-
-    wrench_regularization: weight of `||w_i - w_i*||^2` on each contact wrench [1/N^2], w_i* the ZMP
-        distributor's target F* (Eq. 7) when it runs, else F, the split of the reference ZMP
-        (`reference_wrench_targets`); 0: off. It also keeps the QP well conditioned next to Table I's CoM
-        weight 2e6.
-    stabilizer: the strategies (None: no stabilizer).
-    """
-
-    wrench_regularization: float = 0.0
-    stabilizer: TeleopStabilizerSpec | None = None
-
-
 def _gains(sec: Section, n: int, names: str, *, kv_ka: bool = True) -> AdmittanceGains:
     def vec(key: str) -> tuple[float, ...]:
         return tuple(float(x) for x in _vector_or_scalar(sec, key, n, names))
@@ -135,41 +121,36 @@ def _gains(sec: Section, n: int, names: str, *, kv_ka: bool = True) -> Admittanc
     return AdmittanceGains(kd, kv, ka, limit)
 
 
-def parse_teleop_section(sec: Section) -> TeleopSpec:
-    """Parse a task set's `teleop:` section (errors name the file and key)."""
-    reg = sec.float("wrench_regularization", 0.0, min=0.0)
-    st = None
-    if sec.has("stabilizer") and sec.raw("stabilizer") is not None:
-        s = sec.section("stabilizer")
-        parts = {}
-        for key, n, names, kv_ka in (("com_admittance", 2, "x y", True), ("ankle_admittance", 2, "pitch roll", False),
-                                     ("foot_force_difference", 1, "roll", True)):
-            if s.has(key):
-                g = s.section(key)
-                if g.bool("enabled", True):
-                    parts[key] = _gains(g, n, names, kv_ka=kv_ka)
-                else:
-                    for k in list(g.data):
-                        g.raw(k)
-                g.finish()
-        if s.has("zmp_distributor"):
-            z = s.section("zmp_distributor")
-            if z.bool("enabled", True):
-                parts["zmp_distributor"] = ZmpDistributorGains(
-                    kp=tuple(float(x) for x in _vector_or_scalar(z, "kp", 6)),
-                    kd=tuple(float(x) for x in _vector_or_scalar(z, "kd", 6)))
+def parse_teleop_stabilizer(s: Section) -> TeleopStabilizerSpec:
+    """Parse a task set's `stabilizer:` section of `type: force` (errors name the file and key)."""
+    parts = {}
+    for key, n, names, kv_ka in (("com_admittance", 2, "x y", True), ("ankle_admittance", 2, "pitch roll", False),
+                                 ("foot_force_difference", 1, "roll", True)):
+        if s.has(key):
+            g = s.section(key)
+            if g.bool("enabled", True):
+                parts[key] = _gains(g, n, names, kv_ka=kv_ka)
             else:
-                for k in list(z.data):
-                    z.raw(k)
-            z.finish()
-        cutoff = s.raw("cop_cutoff_hz", None)
-        st = TeleopStabilizerSpec(**parts,
-                                  cop_cutoff_hz=None if cutoff is None else s.float("cop_cutoff_hz", positive=True),
-                                  min_normal_force=s.float("min_normal_force", 10.0, min=0.0),
-                                  torso_task=s.str("torso_task", "torso"))
-        s.finish()
-    sec.finish()
-    return TeleopSpec(wrench_regularization=reg, stabilizer=st)
+                for k in list(g.data):
+                    g.raw(k)
+            g.finish()
+    if s.has("zmp_distributor"):
+        z = s.section("zmp_distributor")
+        if z.bool("enabled", True):
+            parts["zmp_distributor"] = ZmpDistributorGains(
+                kp=tuple(float(x) for x in _vector_or_scalar(z, "kp", 6)),
+                kd=tuple(float(x) for x in _vector_or_scalar(z, "kd", 6)))
+        else:
+            for k in list(z.data):
+                z.raw(k)
+        z.finish()
+    cutoff = s.raw("cop_cutoff_hz", None)
+    spec = TeleopStabilizerSpec(**parts,
+                                cop_cutoff_hz=None if cutoff is None else s.float("cop_cutoff_hz", positive=True),
+                                min_normal_force=s.float("min_normal_force", 10.0, min=0.0),
+                                torso_task=s.str("torso_task", "torso"))
+    s.finish()
+    return spec
 
 
 def _vector_or_scalar(sec: Section, key: str, n: int, names: str | None = None) -> np.ndarray:
@@ -342,18 +323,25 @@ def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: 
     return split_to_local(F, feet, centres)
 
 
-class TeleopStabilizer:
-    """Applies the enabled strategies of a `TeleopStabilizerSpec` to a `tsid-teleop` controller's references.
+@register_stabilizer
+class TeleopStabilizer(Stabilizer):
+    """The enabled strategies of a `TeleopStabilizerSpec` (task-set `stabilizer: {type: force}`).
 
-    `correct(meas, refs, ctrl)` (before the QP) returns the references with the CoM (Eq. 2) and the torso target
-    (Eq. 4-5) corrected and sets `ctrl.wrench_targets` (Eq. 6-7); `apply_to_contacts(ctrl)` (after the
-    controller has set its references) tilts the contact references (Eq. 3). `log` holds, per tick: measured
-    ZMP x y, model CoP x y, CoM correction x y [m], torso roll correction [rad], left/right ankle tilt norms
-    [rad], alpha.
+    `correct(meas, refs, feedback)` returns the references with the CoM (Eq. 2) and the torso target (Eq. 4-5)
+    corrected, the wrench targets F* (Eq. 6-7, `wrench_targets`) and the tilted contact poses (Eq. 3,
+    `contact_poses`) of the active contacts. The model side comes from `ModelFeedback`: the QP wrenches and the
+    contact placements of the previous tick, the contact and torso references at reset (the nominal poses).
+    `log` holds, per tick: measured ZMP x y, model CoP x y, CoM correction x y [m], torso roll correction [rad],
+    left/right ankle tilt norms [rad], alpha.
     """
 
+    type = "force"
     LOG_LABELS = ("zmp_x", "zmp_y", "cop_model_x", "cop_model_y", "dcom_x", "dcom_y", "torso_roll",
                   "tilt_left", "tilt_right", "alpha")
+
+    @classmethod
+    def parse(cls, sec: Section) -> TeleopStabilizerSpec:
+        return parse_teleop_stabilizer(sec)
 
     def __init__(self, robot, spec: TeleopStabilizerSpec, dt: float):
         self.robot = robot
@@ -369,9 +357,9 @@ class TeleopStabilizer:
         self.sole_center = np.array([*robot.profile.sole.center, 0.0])
         self.mass = robot.mass
         self.log = np.full(len(self.LOG_LABELS), np.nan)
-        self.reset(None)
+        self._clear()
 
-    def reset(self, ctrl) -> None:
+    def _clear(self) -> None:
         self._filters = {k: _LowPass(self.spec.cop_cutoff_hz, self.dt)
                          for k in ("zmp", "cop_left", "cop_right", "f_left", "f_right")}
         self._contact_nominal: dict[Side, pin.SE3] = {}
@@ -380,14 +368,15 @@ class TeleopStabilizer:
         self._prev_error = {s: None for s in Side}
         self.measured = _Measured()
         self.log[:] = np.nan
-        if ctrl is not None:
-            for s, cs in ctrl.contacts.items():
-                ref = cs.contact.reference
-                if ref is not None:
-                    self._contact_nominal[s] = pin.SE3(ref)
-            torso = ctrl.task_by_name.get(self.spec.torso_task)
-            if torso is not None and getattr(torso, "reference", None) is not None:
-                self._torso_nominal = pin.SE3(torso.reference)
+
+    def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
+        """Forget the filters; the contact and torso references of `feedback` become the nominal poses."""
+        self._clear()
+        for s, ref in feedback.contact_references.items():
+            self._contact_nominal[s] = pin.SE3(ref)
+        torso = feedback.task_references.get(self.spec.torso_task)
+        if torso is not None:
+            self._torso_nominal = pin.SE3(torso)
 
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
@@ -427,15 +416,14 @@ class TeleopStabilizer:
         return out
 
     @staticmethod
-    def model_cop(ctrl) -> np.ndarray | None:
-        """ZMP (x, y) of the controller's QP wrenches of the last tick, world frame; None when unloaded."""
-        m, d = ctrl.model, ctrl.data
+    def model_cop(feedback: ModelFeedback) -> np.ndarray | None:
+        """ZMP (x, y) of the model's QP wrenches of the last tick, world frame; None when unloaded."""
         fz_t = mx_t = my_t = 0.0
         for s in Side:
-            w = ctrl.wrench[s]
-            if not ctrl.contacts[s].active or w[2] <= 0.0:
+            M = feedback.contact_poses.get(s)
+            w = feedback.wrenches.get(s)
+            if M is None or w is None or s not in feedback.active or w[2] <= 0.0:
                 continue
-            M = pin.updateFramePlacement(m, d, ctrl.contacts[s].contact.frame_id)
             f = M.rotation @ w[:3]
             mx, my = _moment_about(f, M.rotation @ w[3:], M.translation, 0.0)
             fz_t += f[2]
@@ -446,7 +434,7 @@ class TeleopStabilizer:
         return np.array([-my_t / fz_t, mx_t / fz_t])
 
     # -------------------------------------------------------------- the corrections
-    def correct(self, meas: Measurement, refs: References, ctrl) -> References:
+    def correct(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> References:
         spec, dt = self.spec, self.dt
         meas_ = self._measure(meas)
         self.measured = meas_
@@ -454,71 +442,74 @@ class TeleopStabilizer:
         log = self.log
         log[:] = np.nan
         log[0:2] = meas_.zmp
-        cop_model = self.model_cop(ctrl)
+        cop_model = self.model_cop(feedback)
         if cop_model is not None:
             log[2:4] = cop_model
         targets = refs.targets
-        com, com_vel, com_acc = refs.com, refs.com_vel, refs.com_acc
+        com_ref = refs.com
         # Eq. 2
         g = spec.com_admittance
-        if g is not None and com is not None and cop_model is not None and zmp_ok:
-            v0 = com_vel if com_vel is not None else np.zeros(3)
-            a0 = com_acc if com_acc is not None else np.zeros(3)
-            p1, v1, a1 = com_admittance(com, v0, a0, cop_model, meas_.zmp, g, dt)
+        if g is not None and com_ref is not None and cop_model is not None and zmp_ok:
+            com = com_ref.position
+            p1, v1, a1 = com_admittance(com, com_ref.velocity, com_ref.acceleration, cop_model, meas_.zmp, g, dt)
             log[4:6] = (p1 - com)[:2]
-            com, com_vel, com_acc = p1, v1, a1
-        both = ctrl.contacts[Side.LEFT].active and ctrl.contacts[Side.RIGHT].active
+            com_ref = PointReference(p1, v1, a1)
+        active = feedback.active
+        both = Side.LEFT in active and Side.RIGHT in active
         # Eq. 4-5
         g = spec.foot_force_difference
         if g is not None and self._torso_nominal is not None and both:
-            f_model = (max(ctrl.wrench[Side.LEFT][2], 0.0), max(ctrl.wrench[Side.RIGHT][2], 0.0))
+            wl, wr = feedback.wrenches[Side.LEFT], feedback.wrenches[Side.RIGHT]
+            f_model = (max(wl[2], 0.0), max(wr[2], 0.0))
             f_meas = (meas_.normal_force[Side.LEFT], meas_.normal_force[Side.RIGHT])
             roll, wx, ax = foot_force_difference(f_model, f_meas, g, dt)
             base = targets.get(spec.torso_task)
-            M0 = (base[0] if isinstance(base, tuple) else base) if base is not None else self._torso_nominal
+            nominal = self._torso_nominal
+            if base is not None:
+                p0, R0 = base.position, (base.rotation if base.rotation is not None else nominal.rotation)
+            else:
+                p0, R0 = nominal.translation, nominal.rotation
             c, s_ = math.cos(roll), math.sin(roll)
-            R = np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]]) @ M0.rotation
+            R = np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]]) @ R0
             targets = dict(targets)
-            targets[spec.torso_task] = (pin.SE3(R, M0.translation), np.array([0, 0, 0, wx, 0, 0.0]),
-                                        np.array([0, 0, 0, ax, 0, 0.0]))
+            targets[spec.torso_task] = PoseReference(p0, R, np.array([0, 0, 0, wx, 0, 0.0]),
+                                                     np.array([0, 0, 0, ax, 0, 0.0]))
             log[6] = roll
         # Eq. 6-7
+        wrench_targets = refs.wrench_targets
         z = spec.zmp_distributor
-        if z is not None and both and zmp_ok:
-            feet = {s: self._contact_nominal.get(s, ctrl.contacts[s].contact.reference) for s in Side}
+        if z is not None and both and zmp_ok and com_ref is not None:
+            feet = {s: self._contact_nominal.get(s, feedback.contact_references.get(s)) for s in Side}
             centre = {s: feet[s].act(self.sole_center) for s in Side}
-            p_ref = _cart_table_zmp(com, com_acc, centre)
+            p_ref = _cart_table_zmp(com_ref.position, com_ref.acceleration, centre)
             F, _ = zmp_distributor(p_ref, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
             Fd, alpha = zmp_distributor(meas_.zmp, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
             star = {}
             for s in Side:
                 star[s] = wrench_admittance(F[s], Fd[s], z, dt, self._prev_error[s])
                 self._prev_error[s] = F[s] - Fd[s]
-            ctrl.wrench_targets = split_to_local(star, feet, centre)
+            wrench_targets = split_to_local(star, feet, centre)
             log[9] = alpha
-        else:
-            ctrl.wrench_targets = None
-        if com is refs.com and targets is refs.targets:
+        # Eq. 3: tilt each loaded, active contact's reference from its nominal pose
+        contact_poses = refs.contact_poses
+        g = spec.ankle_admittance
+        if g is not None:
+            contact_poses = dict(contact_poses)
+            for i, s in enumerate(Side):
+                nominal = self._contact_nominal.get(s)
+                if nominal is None or s not in active:
+                    continue
+                cop = meas_.cop_sole.get(s)
+                if cop is None:
+                    contact_poses[s] = nominal
+                    continue
+                R = ankle_admittance(nominal.rotation, cop, g)
+                contact_poses[s] = pin.SE3(R, nominal.translation)
+                log[7 + i] = float(np.linalg.norm(pin.log3(nominal.rotation.T @ R)))
+        if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
+                and contact_poses is refs.contact_poses):
             return refs
-        return replace(refs, com=com, com_vel=com_vel, com_acc=com_acc, targets=targets)
-
-    def apply_to_contacts(self, ctrl) -> None:
-        """Eq. 3: tilt each loaded, active contact's reference from its nominal pose."""
-        g = self.spec.ankle_admittance
-        if g is None:
-            return
-        for i, s in enumerate(Side):
-            cs = ctrl.contacts[s]
-            nominal = self._contact_nominal.get(s)
-            if nominal is None or not cs.active:
-                continue
-            cop = self.measured.cop_sole.get(s)
-            if cop is None:
-                cs.contact.set_reference(nominal)
-                continue
-            R = ankle_admittance(nominal.rotation, cop, g)
-            cs.contact.set_reference(pin.SE3(R, nominal.translation))
-            self.log[7 + i] = float(np.linalg.norm(pin.log3(nominal.rotation.T @ R)))
+        return replace(refs, com=com_ref, targets=targets, wrench_targets=wrench_targets, contact_poses=contact_poses)
 
 
 def _cart_table_zmp(com: np.ndarray, com_acc: np.ndarray | None, centre: dict) -> np.ndarray:

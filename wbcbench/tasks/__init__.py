@@ -23,6 +23,7 @@ from wbcbench.tasks.formulation import acceleration_rows, velocity_rows
 from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.kinematics import update_kinematics, update_kinematics_velocity_level
 from wbcbench.tasks.posture_task import PostureTask
+from wbcbench.tasks.registry import TaskSpec, register_task, task_class, task_types
 from wbcbench.tasks.rows import Inequality, Rows
 from wbcbench.tasks.self_collision import RepulsionPoint, SelfCollisionTask
 from wbcbench.tasks.stack import TaskStack
@@ -41,9 +42,13 @@ __all__ = [
     "SelfCollisionTask",
     "Task",
     "TaskConfigError",
+    "TaskSpec",
     "TaskStack",
     "UnknownNameError",
     "acceleration_rows",
+    "register_task",
+    "task_class",
+    "task_types",
     "update_kinematics",
     "update_kinematics_velocity_level",
     "velocity_rows",

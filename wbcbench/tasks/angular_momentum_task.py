@@ -12,12 +12,14 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.task import Task
+from wbcbench.tasks.registry import register_task
 
 __all__ = ["AngularMomentumTask"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
+@register_task
 class AngularMomentumTask(Task):
     """Regulate the centroidal angular momentum ``h_ang`` (about the CoM, world axes, kg m^2/s).
 
@@ -45,6 +47,20 @@ class AngularMomentumTask(Task):
 
     AXES = ("Lx", "Ly", "Lz")
     UNITS = ("kg m^2/s", "kg m^2/s", "kg m^2/s")
+
+    yaml_type = "angular_momentum"
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        return 3
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> AngularMomentumTask:
+        # the paper's "Kp am" is the rate gain of dh = -Kp h: the task's kd
+        return cls(robot.model, name=spec.name, weight=spec.weight, kd=spec.kp, mask=spec.mask)
+
+    def reset_reference(self, model: pin.Model, data: pin.Data, q_reference: FloatArray) -> None:
+        self.set_reference()
 
     def __init__(
         self,

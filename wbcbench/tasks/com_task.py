@@ -12,12 +12,14 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.task import Task
+from wbcbench.tasks.registry import register_task
 
 __all__ = ["CoMTask"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
+@register_task
 class CoMTask(Task):
     """Track a reference CoM position ``p_world_com`` (m, world axes x y z).
 
@@ -38,6 +40,16 @@ class CoMTask(Task):
 
     AXES = ("x", "y", "z")
     UNITS = ("m", "m", "m")
+
+    yaml_type = "com"
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        return 3
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> CoMTask:
+        return cls(robot.model, name=spec.name, weight=spec.weight, kp=spec.kp, kd=spec.kd, mask=spec.mask)
 
     def __init__(
         self,

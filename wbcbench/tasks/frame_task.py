@@ -12,6 +12,7 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError, TaskConfigError
 from wbcbench.tasks.task import Task
+from wbcbench.tasks.registry import register_task
 
 __all__ = ["FrameTask"]
 
@@ -20,6 +21,7 @@ FloatArray = npt.NDArray[np.float64]
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
+@register_task
 class FrameTask(Task):
     """Track a reference pose ``T_world_ref`` with frame ``frame``; 6 axes ``x y z roll pitch yaw``.
 
@@ -51,6 +53,30 @@ class FrameTask(Task):
 
     AXES = ("x", "y", "z", "roll", "pitch", "yaw")
     UNITS = ("m", "m", "m", "rad", "rad", "rad")
+
+    yaml_type = "frame"
+
+    @classmethod
+    def parse_options(cls, sec: Any, robot: Any) -> dict:
+        """`frame`: a model frame name or a symbolic one of the robot profile (`base`, `torso`, `head`,
+        `left_hand`, `right_hand`, `left_foot`, `right_foot`)."""
+        from wbcbench.errors import UnknownNameError
+        from wbcbench.tasks.registry import resolve_frame
+
+        frame = resolve_frame(robot, sec.str("frame"))
+        if not robot.model.existFrame(frame):
+            raise UnknownNameError("frame", frame, [f.name for f in robot.model.frames], file=sec.file,
+                                   key=sec.key("frame"))
+        return {"frame": frame}
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        return 6
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> FrameTask:
+        return cls(robot.model, spec.options["frame"], name=spec.name, weight=spec.weight, kp=spec.kp, kd=spec.kd,
+                   mask=spec.mask)
 
     def __init__(
         self,

@@ -12,6 +12,7 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError, TaskConfigError
 from wbcbench.tasks.task import Task
+from wbcbench.tasks.registry import register_task
 
 __all__ = ["PostureTask"]
 
@@ -34,6 +35,7 @@ _SUBTRACTION_JOINTS = frozenset({
 """Joints whose ``pin.difference`` is ``q1 - q0`` on their single coordinate (bounded revolute, prismatic)."""
 
 
+@register_task
 class PostureTask(Task):
     """Track a reference configuration ``q_ref`` on a set of actuated joints.
 
@@ -59,6 +61,21 @@ class PostureTask(Task):
     """
 
     _constant_jacobian = True
+
+    yaml_type = "posture"
+    per_joint_gains = True
+    maskable = False
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        return robot.na
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> PostureTask:
+        return cls(robot.model, name=spec.name, weight=spec.weight, kp=spec.kp, kd=spec.kd, joints=robot.joint_names)
+
+    def reset_reference(self, model: pin.Model, data: pin.Data, q_reference: FloatArray) -> None:
+        self.set_reference(q_reference)
 
     def __init__(
         self,

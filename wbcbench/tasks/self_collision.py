@@ -48,6 +48,7 @@ from wbcbench.qp._jit import JIT_ENABLED, njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.task import Task
+from wbcbench.tasks.registry import register_task
 
 __all__ = ["RepulsionPoint", "SelfCollisionTask", "attractor"]
 
@@ -219,6 +220,7 @@ class _Cache:
     drift: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
+@register_task
 class SelfCollisionTask(Task):
     """Keep a point of frame ``frame`` away from repulsion points (see the module docstring).
 
@@ -244,6 +246,33 @@ class SelfCollisionTask(Task):
         TaskConfigError: no repulsor, negative radius, ``r_rep + r_frame = 0``, ``p < 2``, duplicate axis name,
             invalid gain, mask or weight.
     """
+
+    yaml_type = "self_collision"
+
+    @classmethod
+    def parse_options(cls, sec: Any, robot: Any) -> dict:
+        """`side: left|right` picks the robot profile's `repulsors` set of that side (protected point, its frame,
+        exponent, the repulsion points and their radii); one axis per repulsion point."""
+        from wbcbench.side import Side
+
+        side = Side(sec.str("side", choices=[s.value for s in Side]))
+        repulsors = robot.profile.repulsors.get(side)
+        if repulsors is None:
+            raise sec.error("side", f"the robot profile {robot.profile.file} has no `repulsors.{side.value}` "
+                                    "section (the repulsion points of a self_collision task come from the profile)")
+        return {"side": side, "repulsors": repulsors}
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        return len(options["repulsors"].points)
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> SelfCollisionTask:
+        rep = spec.options["repulsors"]
+        points = [RepulsionPoint(p.frame, p.radius, p.offset, p.name) for p in rep.points]
+        return cls(robot.model, rep.frame, points, radius=rep.radius, offset=rep.offset, exponent=rep.exponent,
+                   normalized=rep.normalized, kp=spec.kp, kd=spec.kd, weight=spec.weight, mask=spec.mask,
+                   name=spec.name)
 
     def __init__(
         self,

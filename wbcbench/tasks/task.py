@@ -57,6 +57,37 @@ class Task(ABC):
     _constant_jacobian: ClassVar[bool] = False
     """True when :meth:`jacobian` never changes (posture): a stack writes it once per layout, not per tick."""
 
+    # ---- task-set YAML (see wbcbench.tasks.registry)
+    yaml_type: ClassVar[str | None] = None
+    """The `type:` of this task in task-set files (None: not available from YAML)."""
+
+    per_joint_gains: ClassVar[bool] = False
+    """Gains may be given per joint-name prefix (a mapping) instead of per axis (posture)."""
+
+    maskable: ClassVar[bool] = True
+    """A `mask:` key selects axes."""
+
+    @classmethod
+    def parse_options(cls, sec: Any, robot: Any) -> dict:
+        """The type's own options from its task-set entry (a `wbcbench.config.Section`; read the keys with it,
+        errors then name the file and key). Default: none."""
+        return {}
+
+    @classmethod
+    def axes(cls, robot: Any, options: dict) -> int:
+        """The number of axes of a task of this type with these options (the length of kp, kd and mask)."""
+        raise NotImplementedError(f"{cls.__name__} does not say its number of axes")
+
+    @classmethod
+    def from_spec(cls, robot: Any, spec: Any) -> Task:
+        """Build the task for `robot` (a `wbcbench.robots.Robot`) from its parsed `TaskSpec`."""
+        raise NotImplementedError(f"{cls.__name__} cannot be built from a task set")
+
+    def reset_reference(self, model: pin.Model, data: pin.Data, q_reference: FloatArray) -> None:
+        """Set the reference a controller starts a run with (after `update_kinematics` at the initial state): by
+        default where the task is now; posture tasks take `q_reference`, momentum tasks zero."""
+        self.set_reference_to_current(model, data)
+
     def __init__(
         self,
         *,

@@ -1,4 +1,6 @@
-"""Terrains: a flat floor, tilted platforms (boxes with poses), stairs. Parsed from a scenario's `terrain:`."""
+"""The scene description: a flat floor, tilted platforms (boxes with poses), stairs; parsed from a scenario's
+`terrain:`. Plain data read by both the simulator (`sim/`, which builds MuJoCo geoms from it) and the planners
+(`planning/`, which turn it into contact surfaces), so neither imports the other."""
 
 from __future__ import annotations
 
@@ -6,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Section
+from .config import Section
 
 
 @dataclass(frozen=True)

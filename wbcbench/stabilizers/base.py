@@ -1,0 +1,105 @@
+"""The Stabilizer protocol and the stabilizer registry.
+
+A stabilizer sits between the scenario and the controller: each tick it reads the `Measurement` (what the robot's
+sensors give), the scenario's `References` and the controller's `ModelFeedback` (its model configuration, contacts
+and last QP wrenches), and returns corrected `References`. It never reads or writes a controller's attributes:
+everything it changes travels in the references (the CoM, task targets, `wrench_targets`, `contact_poses`).
+
+A task set selects one with its `stabilizer:` section, dispatched on `type:` (`dcm`: the DCM PI + CoM admittance
+of the position-controlled schemes, paper 000 Eq. 2-4; `force`: the force-based teleoperation stabilizer, paper
+004 Eq. 2-7). Each class parses its own section into a frozen spec.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..config import Section
+from ..errors import ConfigError, UnknownNameError
+from ..types import Measurement, ModelFeedback, References
+
+__all__ = ["MissingReferenceError", "Stabilizer", "StabilizerConfig", "available_stabilizers", "make_stabilizer",
+           "parse_stabilizer", "register_stabilizer"]
+
+
+class MissingReferenceError(ConfigError):
+    """A scenario does not give a reference a stabilizer needs (e.g. a ZMP plan for the DCM stabilizer)."""
+
+
+class Stabilizer(ABC):
+    """A feedback law correcting references from measurements (module docstring).
+
+    Class attributes: `type` (the YAML `stabilizer.type`), `requires` (the `References` fields the scenario must
+    give, checked at reset), `LOG_LABELS` (components of the per-tick log channel `stabilizer`). `log` holds the
+    last tick's values (NaN where a law did not run).
+    """
+
+    type: ClassVar[str] = ""
+    requires: ClassVar[tuple[str, ...]] = ()
+    LOG_LABELS: ClassVar[tuple[str, ...]] = ()
+
+    log: np.ndarray
+
+    @classmethod
+    @abstractmethod
+    def parse(cls, sec: Section) -> Any:
+        """The frozen spec of this stabilizer from its task-set section (without `type`); errors name the key."""
+
+    @abstractmethod
+    def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
+        """Start a run: `refs` are the scenario's first references, `feedback` the controller's model at rest."""
+
+    @abstractmethod
+    def correct(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> References:
+        """The references of this tick, corrected (the same object when nothing changes)."""
+
+    def check(self, refs: References) -> None:
+        """Raise `MissingReferenceError` if the scenario's references lack a field this stabilizer needs."""
+        missing = refs.missing(self.requires)
+        if missing:
+            raise MissingReferenceError(
+                f"the '{self.type}' stabilizer needs the scenario to give {' and '.join(repr(m) for m in missing)} "
+                f"references, and it gives none (give the scenario a {missing[0]} plan, or use a task set without "
+                "this stabilizer)", key="stabilizer")
+
+
+_TYPES: dict[str, type[Stabilizer]] = {}
+
+
+def register_stabilizer(cls: type[Stabilizer]) -> type[Stabilizer]:
+    """Class decorator: make `cls` selectable as `stabilizer: {type: <cls.type>}` in task sets."""
+    if not cls.type:
+        raise TypeError(f"{cls.__name__} has no `type`")
+    _TYPES[cls.type] = cls
+    return cls
+
+
+def available_stabilizers() -> dict[str, type[Stabilizer]]:
+    from . import balance, teleop  # noqa: F401  (the built-in types register on import)
+    return dict(sorted(_TYPES.items()))
+
+
+@dataclass(frozen=True)
+class StabilizerConfig:
+    """A task set's `stabilizer:` section: the registered `type` and its parsed `spec`."""
+
+    type: str
+    spec: Any
+
+
+def parse_stabilizer(sec: Section) -> StabilizerConfig:
+    """Parse a `stabilizer:` section (`type:` defaults to `dcm`, the paper's walking stabilizer)."""
+    types = available_stabilizers()
+    name = sec.str("type", "dcm")
+    if name not in types:
+        raise UnknownNameError("stabilizer type", name, types, file=sec.file, key=sec.key("type"))
+    return StabilizerConfig(name, types[name].parse(sec))
+
+
+def make_stabilizer(config: StabilizerConfig, robot, dt: float) -> Stabilizer:
+    """The stabilizer of a task set, for `robot` at control period `dt` [s]."""
+    return available_stabilizers()[config.type](robot, config.spec, dt)

@@ -1,0 +1,94 @@
+"""The task registry: YAML `type:` -> task class. Each task class names its type and parses its own options.
+
+A task set entry such as ``{name: waist, type: frame, frame: base, mask: [0, 0, 0, 1, 1, 1], weight: 1.0,
+kp: 300.0}`` is read in two parts: the keys every task has (name, weight, kp, kd, mask, hard, level; parsed by
+`wbcbench.controllers.taskset`) and the options of its type, parsed by the class registered for that type
+(`parse_options`), which also says how many axes the task has (for the lengths of gains and masks). The task is
+then built by the class from the parsed `TaskSpec` (`from_spec`).
+
+To add a task type: subclass `Task`, set `yaml_type`, implement `axes`, `parse_options` (if it has options) and
+`from_spec`, and decorate the class with `register_task`. Nothing else in wbcbench changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import UnknownNameError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .task import Task
+
+__all__ = ["TaskSpec", "register_task", "resolve_frame", "task_class", "task_types"]
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """One task of a task set, as parsed from YAML (or built in Python).
+
+    kp / kd: per-axis gains (posture: per joint); kd None means 2 sqrt(kp). mask: one bool per axis, None for
+    all. hard: an equality constraint of the inverse-dynamics QP instead of a weighted cost. level: the task's
+    strict-priority level in a hierarchical (IK) formulation (1 is the highest after the feet; tasks of one
+    level are weighted against each other); a weighted QP has a single level. options: the type's own options
+    (e.g. `frame`, resolved to a model frame name; `repulsors` of a self_collision task).
+    """
+
+    name: str
+    type: str
+    weight: float
+    kp: np.ndarray
+    kd: np.ndarray | None
+    mask: tuple[bool, ...] | None = None
+    hard: bool = False
+    level: int = 1
+    options: dict = field(default_factory=dict)
+
+    @property
+    def frame(self) -> str | None:
+        """The model frame of a frame task (None for other types)."""
+        return self.options.get("frame")
+
+
+_TYPES: dict[str, type[Task]] = {}
+
+
+def register_task(cls: type[Task]) -> type[Task]:
+    """Class decorator: make `cls` available as `type: <cls.yaml_type>` in task sets."""
+    name = getattr(cls, "yaml_type", None)
+    if not name:
+        raise TypeError(f"{cls.__name__} has no `yaml_type`")
+    other = _TYPES.get(name)
+    if other is not None and other is not cls:
+        raise TypeError(f"task type '{name}' is already registered by {other.__module__}.{other.__qualname__}")
+    _TYPES[name] = cls
+    return cls
+
+
+def task_types() -> dict[str, type[Task]]:
+    """The registered task types by YAML name."""
+    from . import (angular_momentum_task, com_task, frame_task, posture_task,  # noqa: F401  (registration)
+                   self_collision)
+    return dict(sorted(_TYPES.items()))
+
+
+def task_class(name: str, *, file: str | None = None, key: str | None = None) -> type[Task]:
+    """The class of a task type; an unknown name is a `ConfigError` naming the file, key and known types."""
+    types = task_types()
+    if name not in types:
+        raise UnknownNameError("task type", name, types, file=file, key=key)
+    return types[name]
+
+
+def resolve_frame(robot: Any, frame: str) -> str:
+    """A frame name of the model from a symbolic one of the robot profile (`base`, `torso`, `head`, `left_hand`,
+    `right_hand`, `left_foot`, `right_foot`); any other string is returned as is."""
+    from ..side import Side
+
+    p = robot.profile
+    symbolic = {"base": p.base_frame, "torso": p.torso_frame, "head": p.head_frame,
+                "left_hand": p.hands[Side.LEFT], "right_hand": p.hands[Side.RIGHT],
+                "left_foot": p.feet[Side.LEFT].frame, "right_foot": p.feet[Side.RIGHT].frame}
+    return symbolic.get(frame, frame)
