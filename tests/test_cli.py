@@ -74,3 +74,16 @@ def test_run_writes_a_run_directory(tmp_path: Path):
     assert proc.returncode == 0, proc.stderr
     assert (out / "summary.json").exists() and (out / "log.parquet").exists() and (out / "config.json").exists()
     assert "completed" in proc.stdout
+
+
+def test_unwritable_run_directory(tmp_path: Path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    proc = run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--out", str(blocker / "run"))
+    _one_line_error(proc, "--out", "cannot write the run directory", str(blocker / "run"))
+
+
+def test_missing_taskset_file(tmp_path: Path):
+    proc = run_cli("run", "stand", "-c", "tsid-torque", "--duration", "0.01", "--taskset", str(tmp_path / "no.yaml"),
+                   "--out", str(tmp_path / "r"))
+    _one_line_error(proc, "--taskset", "no such file")

@@ -87,7 +87,12 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"{spec.name}-{controller}-{ctrl.mode.value}-{robot.name}-{stamp}"
     run_dir = Path(out)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / ".write-test").touch()
+        (run_dir / ".write-test").unlink()
+    except OSError as exc:
+        raise ConfigError(f"cannot write the run directory {run_dir}: {exc.strerror or exc}", key="--out") from None
     config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
               "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
               "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
