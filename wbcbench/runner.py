@@ -24,6 +24,7 @@ from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
 from .scenarios import Scenario, load_scenario
 from .sim.model import SimOptions
+from .sensing import make_sensor_model
 from .stabilizers.base import MissingReferenceError
 from .sim.simulator import Simulator
 
@@ -52,7 +53,7 @@ def step_time_stats(us: np.ndarray) -> dict:
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
-        probes: Sequence = (), taskset: str | Path | None = None) -> RunResult:
+        probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -82,6 +83,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     else:
         ctrl = make_controller(controller, robot, mode, spec.control_dt, taskset)
     sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes)
+    # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
+    sensing = make_sensor_model(sensors if sensors is not None else spec.sensors, robot, spec.control_dt, seed)
 
     if out is None:
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -101,6 +104,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                       "noslip_iterations": options.noslip_iterations, "substeps": substeps,
                       "self_collision": options.self_collision},
               "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
+              "sensors": {**sensing.profile.__dict__, "seed": seed},
               "versions": _versions()}
     (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
 
@@ -124,6 +128,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     extra = ctrl.log_channels()
     s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
     s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
+    s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
+             if sensing.estimator is not None else None)
 
     model, data = robot.model, robot.model.createData()
     q_true = sim.true_q()
@@ -135,7 +141,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     wall0 = time.perf_counter()
     tick = 0
     try:
-        meas = sim.measure()
+        meas = sensing.measure(sim.measure())
         try:
             ctrl.reset(meas, scen.references(0.0))
         except MissingReferenceError as exc:  # the scenario lacks what the controller's stabilizer needs
@@ -166,15 +172,18 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             for s, foot in refs.feet.items():
                 row[s_fref[s]] = foot.position
             cws = sim.contact_wrenches()
-            meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
+            true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
+            meas = sensing.measure(true_meas)
             for s in Side:
                 row[s_cw[s]] = cws[s]
-                row[s_ft[s]][:3] = meas.ft_force[s]
-                row[s_ft[s]][3:] = meas.ft_torque[s]
+                row[s_ft[s]][:3] = true_meas.ft_force[s]
+                row[s_ft[s]][3:] = true_meas.ft_torque[s]
                 row[s_in[s]] = float(s in refs.contacts)
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
+            if s_est is not None:
+                row[s_est] = sensing.base_error()
             for slices, p in zip(s_probe, probes):
                 for sl, val in zip(slices, p.values()):
                     row[sl] = val
@@ -200,6 +209,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
         "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
         "controller_status": ctrl.status(),
+        "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
         "metrics": {},
     }
     log = {}
@@ -222,8 +232,15 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
 def _common_metrics(log: dict[str, np.ndarray]) -> dict:
     z = log["q.z"]
     z0 = z[0]
-    return {"base_height_change_m": float(z[-1] - z0), "base_height_max_deviation_m": float(np.abs(z - z0).max()),
-            "com_final_m": [float(log[f"com.{a}"][-1]) for a in "xyz"]}
+    out = {"base_height_change_m": float(z[-1] - z0), "base_height_max_deviation_m": float(np.abs(z - z0).max()),
+           "com_final_m": [float(log[f"com.{a}"][-1]) for a in "xyz"]}
+    if "base_estimate_error.x" in log:  # the sensor model estimated the base: how far from the truth
+        pos = np.linalg.norm(np.column_stack([log[f"base_estimate_error.{a}"] for a in "xyz"]), axis=1)
+        rot = np.linalg.norm(np.column_stack([log[f"base_estimate_error.r{a}"] for a in "xyz"]), axis=1)
+        out["base_estimate_error"] = {"position_rms_m": float(np.sqrt(np.mean(pos ** 2))),
+                                      "position_max_m": float(pos.max()), "position_final_m": float(pos[-1]),
+                                      "orientation_max_rad": float(rot.max())}
+    return out
 
 
 def _versions() -> dict:

@@ -34,6 +34,8 @@ class ScenarioSpec:
     file: str
     #: simulator settings the scene needs (`sim:` section; only `noslip_iterations` for now), applied by the runner
     sim: Mapping[str, Any] = field(default_factory=dict)
+    #: the sensor profile of the scene (`sensors:` a profile name, file or mapping; None: ideal sensing)
+    sensors: Any = None
 
 
 class Scenario:
@@ -116,6 +118,18 @@ def _parse_sim(sec: Section) -> dict:
     return out
 
 
+def _parse_sensors(root: Section):
+    """The `sensors:` key: a profile name (`ideal`, `talos-like`), a profile file, or an inline profile."""
+    if not root.has("sensors"):
+        return None
+    from ..sensing import load_sensor_profile, parse_sensor_profile
+
+    raw = root.raw("sensors")
+    if isinstance(raw, str):
+        return load_sensor_profile(raw, key="sensors")
+    return parse_sensor_profile(root.section("sensors"), name="inline")
+
+
 def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
     """Load and validate a scenario by name or path; `duration` overrides the file's."""
     from . import kinds  # noqa: F401  (registers the scenario kinds)
@@ -139,6 +153,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         pushes=pushes,
         file=file,
         sim=_parse_sim(root.section("sim", {})),
+        sensors=_parse_sensors(root),
     )
     if duration is not None:
         root.raw("duration", None)
