@@ -46,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_subcommands(sub)
     from .teleop.commands import add_subcommand as add_teleop
     add_teleop(sub)
+    from .robustness.commands import add_subcommand as add_robustness
+    add_robustness(sub)
     return p
 
 
@@ -86,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         from .report.commands import COMMANDS, run_command
         if args.command in COMMANDS:
             return run_command(args)
+        if args.command == "robustness":
+            from .robustness.commands import run_command as run_robustness
+            return run_robustness(args)
         if args.command == "teleop":
             from .teleop.commands import run_command as run_teleop
             return run_teleop(args)

@@ -1,0 +1,85 @@
+"""`wbcbench robustness push SCENARIO --controller C [...]`: the push-recovery protocol from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from ..errors import ConfigError
+
+
+def add_subcommand(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser("robustness", help="robustness protocols (push recovery)")
+    rs = r.add_subparsers(dest="protocol", required=True)
+    p = rs.add_parser("push", help="largest impulse survived per push direction and gait phase (bisection)")
+    p.add_argument("scenario", help="scenario name or YAML (e.g. stand, walk-20cm)")
+    p.add_argument("--controller", "-c", action="append", required=True,
+                   help="controller (repeat, or comma-separated, for several)")
+    p.add_argument("--directions", type=int, default=8, help="push directions around the robot (default 8)")
+    p.add_argument("--phases", default=None,
+                   help="comma-separated among ds, ss-early, ss-mid, ss-late (default: ds for standing scenarios, "
+                        "all four for walking ones)")
+    p.add_argument("--seeds", type=int, default=None, help="seeds per cell (default 1; 3 when --sensors is noisy)")
+    p.add_argument("--push-duration", type=float, default=0.1, help="[s] (default 0.1)")
+    p.add_argument("--max-impulse", type=float, default=60.0, help="[N s] top of the bisection (default 60)")
+    p.add_argument("--iterations", type=int, default=None, help="bisection steps (default 5; 3 with --quick)")
+    p.add_argument("--tolerance", type=float, default=0.10, help="[m] CoM back within this of the plan")
+    p.add_argument("--sensors", default=None, help="sensor profile (default ideal)")
+    p.add_argument("--robot", "-r", default="talos")
+    p.add_argument("--quick", action="store_true", help="3 bisection steps (7.5 N s resolution at 60 N s)")
+    p.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
+    p.add_argument("--out", "-o", required=True, help="output directory (report, polar plot, raw runs)")
+    p.add_argument("--quiet", "-q", action="store_true")
+
+
+def run_command(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from ..sensing import load_sensor_profile
+    from .push import PHASES, PushStudy, phase_times, run_study, write_report
+
+    controllers = tuple(c for arg in args.controller for c in arg.split(",") if c)
+    from ..controllers.base import available_controllers
+    from ..errors import UnknownNameError
+
+    known = available_controllers()
+    for c in controllers:
+        if c not in known:
+            raise UnknownNameError("controller", c, known, key="--controller")
+    for key, val in (("--directions", args.directions), ("--iterations", args.iterations), ("--jobs", args.jobs),
+                     ("--seeds", args.seeds)):
+        if val is not None and val < 1:
+            raise ConfigError(f"must be >= 1, got {val}", key=key)
+    for key, val in (("--push-duration", args.push_duration), ("--max-impulse", args.max_impulse),
+                     ("--tolerance", args.tolerance)):
+        if not val > 0:
+            raise ConfigError(f"must be > 0, got {val}", key=key)
+    noisy = args.sensors is not None and not load_sensor_profile(args.sensors).ideal
+    times = phase_times(args.scenario, args.robot)
+    if args.phases:
+        phases = tuple(p.strip() for p in args.phases.split(","))
+        bad = [p for p in phases if p not in PHASES]
+        if bad:
+            raise ConfigError(f"unknown phase(s) {', '.join(bad)}; allowed: {', '.join(PHASES)}", key="--phases")
+    else:
+        phases = tuple(times)
+    study = PushStudy(args.scenario, controllers, directions=args.directions, phases=phases,
+                      seeds=args.seeds or (3 if noisy else 1), push_duration=args.push_duration,
+                      max_impulse=args.max_impulse, iterations=args.iterations or (3 if args.quick else 5),
+                      tolerance=args.tolerance, robot=args.robot, sensors=args.sensors)
+    console = Console()
+    jobs = args.jobs or os.cpu_count() or 1
+    if args.quiet:
+        results = run_study(study, args.out, jobs=jobs)
+    else:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(TextColumn("[bold]push cells"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      console=console, transient=True) as prog:
+            task = prog.add_task("cells", total=None)
+            results = run_study(study, args.out, jobs=jobs,
+                                progress=lambda k, n: prog.update(task, completed=k, total=n))
+    md = write_report(study, results, args.out)
+    console.print(md.read_text())
+    console.print(f"report: {md}, polar plot: {md.parent / 'push_polar.png'}, raw runs: {md.parent / 'runs'}")
+    return 0
