@@ -95,7 +95,9 @@ def main(argv: list[str] | None = None) -> int:
             from .teleop.commands import run_command as run_teleop
             return run_teleop(args)
     except WbcError as exc:
-        print(f"wbcbench: error: {exc}", file=sys.stderr)
+        from .errors import one_line
+
+        print(f"wbcbench: error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("wbcbench: interrupted", file=sys.stderr)

@@ -22,7 +22,7 @@ class ConfigError(WbcError):
             where = f"{file}: "
         if key:
             where += f"option {key}: " if key.startswith("--") else f"key '{key}': "
-        super().__init__(where + message)
+        super().__init__(one_line(where + message))
         self.file = file
         self.key = key
 
@@ -39,6 +39,13 @@ class UnknownNameError(ConfigError):
         super().__init__(f"unknown {kind} '{name}'{hint}; known: {listing}", file=file, key=key)
         self.name = name
         self.valid = valid
+
+
+def one_line(text: str) -> str:
+    """`text` on one line: control characters (a key named with a newline, say) shown escaped."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def did_you_mean(name: str, valid: Iterable[str]) -> str:

@@ -115,15 +115,12 @@ def _parse_task(sec: Section, robot: Robot, name: str | None = None, max_level: 
     mask = None
     if cls.maskable and sec.has("mask"):
         m = sec.raw("mask")
-        if isinstance(m, str):
-            m = [c for c in m]
-        try:
-            mask = tuple(bool(int(x)) for x in m)
-        except (TypeError, ValueError):
-            raise sec.error("mask", f"must be {n} zeros/ones, got {m!r}") from None
-        if len(mask) != n or any(int(x) not in (0, 1) for x in m):
+        items = list(m) if isinstance(m, (list, str)) else None
+        if items is None or len(items) != n or not all(
+                (isinstance(x, int) and x in (0, 1)) or x in ("0", "1") for x in items):
             axes = "x y z roll pitch yaw" if n == 6 else "x y z" if n == 3 else f"{n} axes"
             raise sec.error("mask", f"must have {n} entries of 0 or 1 ({axes}), got {m!r}")
+        mask = tuple(x in (1, "1") for x in items)
     weight = sec.float("weight", min=0.0)
     kp = _gain_vector(sec, "kp", n, robot, cls.per_joint_gains)
     kd = _gain_vector(sec, "kd", n, robot, cls.per_joint_gains, default=None)
