@@ -39,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--sensors", "-s", default=None,
                    help="sensor profile: ideal (default), talos-like, or a profile YAML (overrides the scenario's)")
     r.add_argument("--seed", type=int, default=0, help="random seed of the sensor model (default 0)")
+    r.add_argument("--model-error", default=None, metavar="FILE.yaml",
+                   help="how the simulated robot differs from the controller's model (masses, payloads, friction, "
+                        "ground softness; see wbcbench/sim/model_error.py)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
@@ -63,14 +66,14 @@ def _cmd_run(args) -> int:
         raise WbcError(f"--duration must be > 0, got {args.duration}")
     if args.quiet:
         result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                     taskset=args.taskset, sensors=args.sensors, seed=args.seed)
+                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
             task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                          progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
-                         sensors=args.sensors, seed=args.seed)
+                         sensors=args.sensors, seed=args.seed, model_error=args.model_error)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

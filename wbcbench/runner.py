@@ -53,7 +53,8 @@ def step_time_stats(us: np.ndarray) -> dict:
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
-        probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0) -> RunResult:
+        probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
+        model_error=None) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -82,7 +83,13 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         controller = ctrl.name
     else:
         ctrl = make_controller(controller, robot, mode, spec.control_dt, taskset)
-    sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes)
+    if isinstance(model_error, (str, Path)):
+        from .config import Section, load_yaml
+        from .sim.model_error import parse_model_error
+
+        model_error = parse_model_error(Section(load_yaml(model_error), str(model_error)))
+    model_error = model_error if model_error is not None else spec.model_error
+    sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
     # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
     sensing = make_sensor_model(sensors if sensors is not None else spec.sensors, robot, spec.control_dt, seed)
 
@@ -105,6 +112,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                       "self_collision": options.self_collision},
               "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
               "sensors": {**sensing.profile.__dict__, "seed": seed},
+              "model_error": {"spec": model_error.__dict__ if model_error is not None else None,
+                              "applied": sim.model_error},
               "versions": _versions()}
     (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
 

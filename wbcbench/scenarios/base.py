@@ -36,6 +36,8 @@ class ScenarioSpec:
     sim: Mapping[str, Any] = field(default_factory=dict)
     #: the sensor profile of the scene (`sensors:` a profile name, file or mapping; None: ideal sensing)
     sensors: Any = None
+    #: how the simulated robot differs from the controller's model (`model_error:`; None: it does not)
+    model_error: Any = None
 
 
 class Scenario:
@@ -130,6 +132,14 @@ def _parse_sensors(root: Section):
     return parse_sensor_profile(root.section("sensors"), name="inline")
 
 
+def _parse_model_error(root: Section):
+    if not root.has("model_error"):
+        return None
+    from ..sim.model_error import parse_model_error
+
+    return parse_model_error(root.section("model_error"))
+
+
 def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
     """Load and validate a scenario by name or path; `duration` overrides the file's."""
     from . import kinds  # noqa: F401  (registers the scenario kinds)
@@ -154,6 +164,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         file=file,
         sim=_parse_sim(root.section("sim", {})),
         sensors=_parse_sensors(root),
+        model_error=_parse_model_error(root),
     )
     if duration is not None:
         root.raw("duration", None)

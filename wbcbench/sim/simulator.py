@@ -31,12 +31,19 @@ class Simulator:
     """
 
     def __init__(self, robot: Robot, terrain: Terrain | None = None, mode: ActuationMode | str = "torque",
-                 options: SimOptions | None = None, pushes: tuple[Push, ...] = ()):
+                 options: SimOptions | None = None, pushes: tuple[Push, ...] = (), model_error=None):
         self.robot = robot
         self.mode = ActuationMode(mode)
         self.options = options or SimOptions()
         self.terrain = terrain or Terrain()
         self.model = build_mujoco_model(robot, self.terrain, self.mode, self.options)
+        # the simulated robot may differ from the controller's model (masses, payloads, friction, ground)
+        self.model_error = {}
+        if model_error is not None:
+            from .model_error import apply_model_error
+
+            ground = [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0]
+            self.model_error = apply_model_error(self.model, model_error, ground)
         self.data = mujoco.MjData(self.model)
         self.bridge = StateBridge(robot, self.model)
         self.dt = float(self.model.opt.timestep)
