@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--model-error", default=None, metavar="FILE.yaml",
                    help="how the simulated robot differs from the controller's model (masses, payloads, friction, "
                         "ground softness; see wbcbench/sim/model_error.py)")
+    r.add_argument("--fault", action="append", default=[], metavar="TYPE[:TARGET]@START[+DURATION]",
+                   help="inject a fault, e.g. sensor_nan:ft_left@1.0+0.2, qp_failure@2+0.05, "
+                        "joint_locked:leg_left_4_joint@1.5 (repeatable; see wbcbench/faults.py)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
@@ -64,16 +67,23 @@ def _cmd_run(args) -> int:
     console = Console()
     if args.duration is not None and args.duration <= 0:
         raise WbcError(f"--duration must be > 0, got {args.duration}")
+    faults = []
+    if args.fault:
+        from .faults import parse_fault_option
+        from .robots import load_robot
+
+        joints = load_robot(args.robot).joint_names
+        faults = [parse_fault_option(f, joints) for f in args.fault]
     if args.quiet:
         result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error)
+                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
             task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                          progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
-                         sensors=args.sensors, seed=args.seed, model_error=args.model_error)
+                         sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

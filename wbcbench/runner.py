@@ -24,6 +24,7 @@ from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
 from .scenarios import Scenario, load_scenario
 from .sim.model import SimOptions
+from .faults import FaultInjector
 from .sensing import make_sensor_model
 from .stabilizers.base import MissingReferenceError
 from .sim.simulator import Simulator
@@ -54,7 +55,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
-        model_error=None) -> RunResult:
+        model_error=None, faults: Sequence = ()) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -92,6 +93,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
     # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
     sensing = make_sensor_model(sensors if sensors is not None else spec.sensors, robot, spec.control_dt, seed)
+    injector = FaultInjector(tuple(faults) + tuple(spec.faults), robot, spec.control_dt)
 
     if out is None:
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -139,6 +141,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
     s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
              if sensing.estimator is not None else None)
+    s_fault = rec.add_channel("faults", list(injector.LOG_LABELS)) if injector.enabled else None
 
     model, data = robot.model, robot.model.createData()
     q_true = sim.true_q()
@@ -150,7 +153,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     wall0 = time.perf_counter()
     tick = 0
     try:
+        if injector.enabled:
+            injector.update(0.0, sim, ctrl)
         meas = sensing.measure(sim.measure())
+        if injector.enabled:
+            meas = injector.measurement(meas)
         try:
             ctrl.reset(meas, scen.references(0.0))
         except MissingReferenceError as exc:  # the scenario lacks what the controller's stabilizer needs
@@ -162,6 +169,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             c0 = time.perf_counter()
             cmd = ctrl.step(meas, refs)
             ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
+            if injector.enabled:
+                cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
             sim.apply(cmd)
             sim.step(substeps)
             # ---- record the state after the step (ground truth) and what was commanded
@@ -183,6 +192,10 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             cws = sim.contact_wrenches()
             true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             meas = sensing.measure(true_meas)
+            if injector.enabled:
+                row[s_fault] = injector.log
+                injector.update((tick + 1) * spec.control_dt, sim, ctrl)
+                meas = injector.measurement(meas)
             for s in Side:
                 row[s_cw[s]] = cws[s]
                 row[s_ft[s]][:3] = true_meas.ft_force[s]
@@ -219,6 +232,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
         "controller_status": ctrl.status(),
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
+        "faults": injector.summary() if injector.enabled else None,
         "metrics": {},
     }
     log = {}

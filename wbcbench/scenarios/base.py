@@ -38,6 +38,8 @@ class ScenarioSpec:
     sensors: Any = None
     #: how the simulated robot differs from the controller's model (`model_error:`; None: it does not)
     model_error: Any = None
+    #: scheduled faults (`faults:`, wbcbench/faults.py)
+    faults: tuple = ()
 
 
 class Scenario:
@@ -132,6 +134,14 @@ def _parse_sensors(root: Section):
     return parse_sensor_profile(root.section("sensors"), name="inline")
 
 
+def _parse_faults(root: Section, robot: Robot) -> tuple:
+    if not root.has("faults"):
+        return ()
+    from ..faults import parse_faults
+
+    return parse_faults(root.list("faults"), root.file, joints=robot.joint_names)
+
+
 def _parse_model_error(root: Section):
     if not root.has("model_error"):
         return None
@@ -165,6 +175,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         sim=_parse_sim(root.section("sim", {})),
         sensors=_parse_sensors(root),
         model_error=_parse_model_error(root),
+        faults=_parse_faults(root, robot),
     )
     if duration is not None:
         root.raw("duration", None)

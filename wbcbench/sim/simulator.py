@@ -141,6 +141,32 @@ class Simulator:
             w[5] = (pos[:, 0] * f[:, 1] - pos[:, 1] * f[:, 0]).sum()
         return out
 
+    def set_joint_fault(self, joint: str, kind: str | None) -> None:
+        """A joint's actuator fails (inria_wbc's CUT / LOCKED / PASSIVE): `cut` gives no torque, `passive` only
+        damps (the profile's kd), `locked` brakes the joint where it is (heavy joint damping, no actuator torque);
+        None restores it. The controller is not told."""
+        m = self.model
+        a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, joint)
+        if a < 0:
+            raise UnknownNameError("joint", joint, self.robot.joint_names, key="faults.target")
+        dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
+        saved = self.__dict__.setdefault("_joint_saved", {})
+        if joint not in saved:
+            saved[joint] = (m.actuator_gainprm[a].copy(), m.actuator_biasprm[a].copy(), int(m.actuator_biastype[a]),
+                            float(m.dof_damping[dof]))
+        gain, bias, btype, damping = saved[joint]
+        m.actuator_gainprm[a], m.actuator_biasprm[a], m.actuator_biastype[a] = gain, bias, btype
+        m.dof_damping[dof] = damping
+        if kind is None:
+            return
+        m.actuator_gainprm[a] = 0.0
+        m.actuator_biasprm[a] = 0.0
+        if kind == "passive":
+            m.actuator_biastype[a] = mujoco.mjtBias.mjBIAS_AFFINE
+            m.actuator_biasprm[a, 2] = -float(self.kd[self.robot.joint_names.index(joint)])
+        elif kind == "locked":
+            m.dof_damping[dof] = 1e5
+
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
         q = self.data.qpos
