@@ -42,6 +42,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--model-error", default=None, metavar="FILE.yaml",
                    help="how the simulated robot differs from the controller's model (masses, payloads, friction, "
                         "ground softness; see wbcbench/sim/model_error.py)")
+    r.add_argument("--predict-falls", action="store_true",
+                   help="log the predicted-fall signal (capture point vs support polygon, tilt rate) every tick")
+    r.add_argument("--safe-stop", action="store_true",
+                   help="on a predicted fall, switch to joint damping about the current posture (implies "
+                        "--predict-falls)")
     r.add_argument("--fault", action="append", default=[], metavar="TYPE[:TARGET]@START[+DURATION]",
                    help="inject a fault, e.g. sensor_nan:ft_left@1.0+0.2, qp_failure@2+0.05, "
                         "joint_locked:leg_left_4_joint@1.5 (repeatable; see wbcbench/faults.py)")
@@ -76,14 +81,16 @@ def _cmd_run(args) -> int:
         faults = [parse_fault_option(f, joints) for f in args.fault]
     if args.quiet:
         result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults)
+                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
             task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                          progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
-                         sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults)
+                         sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

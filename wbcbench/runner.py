@@ -24,6 +24,7 @@ from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
 from .scenarios import Scenario, load_scenario
 from .sim.model import SimOptions
+from .estimation.fall import FallPredictor
 from .faults import FaultInjector
 from .sensing import make_sensor_model
 from .stabilizers.base import MissingReferenceError
@@ -55,7 +56,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
-        model_error=None, faults: Sequence = ()) -> RunResult:
+        model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -142,6 +143,10 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
              if sensing.estimator is not None else None)
     s_fault = rec.add_channel("faults", list(injector.LOG_LABELS)) if injector.enabled else None
+    # predicted falls from the measurement (capture point vs support polygon, tilt rate); optional safe stop
+    predictor = FallPredictor(robot) if (predict_falls or safe_stop) else None
+    s_fall = rec.add_channel("fall_prediction", list(FallPredictor.LOG_LABELS)) if predictor else None
+    stopper = None
 
     model, data = robot.model, robot.model.createData()
     q_true = sim.true_q()
@@ -171,10 +176,21 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
             if injector.enabled:
                 cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
+            if predictor is not None:
+                fall_log = predictor.update(meas)
+                if safe_stop and predictor.first_prediction_t is not None:
+                    if stopper is None:  # joint-pd about the posture at the prediction, for good
+                        from .controllers.joint_pd import JointPD
+
+                        stopper = JointPD(robot, ctrl.mode, spec.control_dt)
+                        stopper.q_ref = meas.q[7:].copy()
+                    cmd = stopper.step(meas, refs)
             sim.apply(cmd)
             sim.step(substeps)
             # ---- record the state after the step (ground truth) and what was commanded
             row = rec.row
+            if predictor is not None:
+                row[s_fall] = fall_log
             q, v = sim.true_q(), sim.true_v()
             pin.centerOfMass(model, data, q, v)
             row[s_t] = (tick + 1) * spec.control_dt
@@ -233,6 +249,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         "controller_status": ctrl.status(),
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
         "faults": injector.summary() if injector.enabled else None,
+        "fall_prediction": None if predictor is None else {
+            "first_prediction_t": predictor.first_prediction_t, "safe_stop": safe_stop,
+            "time_to_fall_s": (sim_time - predictor.first_prediction_t
+                               if fell and predictor.first_prediction_t is not None else None),
+            "false_alarm": bool(predictor.first_prediction_t is not None and not fell)},
         "metrics": {},
     }
     log = {}

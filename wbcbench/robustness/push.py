@@ -114,10 +114,12 @@ def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple
                 duration=study.push_duration)
     end = cell.push_time + study.push_duration + study.settle
     scen.spec = replace(scen.spec, pushes=(push,), duration=end)
-    res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed)
+    res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
+              predict_falls=True)
     s = res.summary
     if s["fell"]:
-        return False, f"fell: {s['fall_reason']}"
+        ttf = s["fall_prediction"]["time_to_fall_s"]
+        return False, f"fell: {s['fall_reason']}" + (f" (predicted {ttf:.2f} s before)" if ttf is not None else "")
     log = res.log
     com = np.array([log[f"com.{a}"][-1] for a in "xyz"])
     ref = np.array([log[f"com_ref.{a}"][-1] for a in "xyz"])
