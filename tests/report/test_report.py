@@ -129,3 +129,24 @@ def test_cli_lists_report_commands(capsys):
         assert name in out
     assert main(["reproduce", "--jobs", "0", "--out", "x"]) == 2
     assert "--jobs" in capsys.readouterr().err
+
+
+def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
+    """`reproduce --sensors talos-like`: the sensing cell runs with the profile and is reported beside the ideal
+    cell of the same controller and scenario, without replacing it in the paper's tables."""
+    from wbcbench.report import matrix
+    from wbcbench.report.reproduce import reproduce
+
+    monkeypatch.setattr(matrix, "PAPER_MATRIX", (("tsid-torque", "walk-20cm"),))
+    monkeypatch.setattr(matrix, "FAST_MATRIX", ())
+    monkeypatch.setattr(matrix, "SENSING_MATRIX", (("tsid-torque", "walk-20cm"),))
+    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, sensors="talos-like")
+    sec = res.results["sensing"]
+    cell = sec["values"]["tsid-torque"]["walk-20cm"]
+    assert sec["profile"] == "talos-like" and cell["status"] == "ok" and cell["ideal_status"] == "ok"
+    assert cell["base_estimate_error"]["position_max_m"] > 0.0
+    zmp = cell["metrics"]["zmp x mean [m]"]
+    assert zmp["sensed"] != zmp["ideal"] and zmp["ideal"] == res.results["metrics"]["tsid-torque"]["walk-20cm"][
+        "zmp_error_m"]["x"]["mean"]
+    assert "Under 'talos-like' sensing" in (tmp_path / "report.md").read_text()
+    assert res.results["command"] == "reproduce --quick --sensors talos-like"

@@ -22,6 +22,8 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores available)")
     r.add_argument("--no-sanity", action="store_true", help="skip the standing scenarios' sanity section")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    r.add_argument("--sensors", default=None,
+                   help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories (from `wbcbench run`)")
     p.add_argument("--out", "-o", required=True, help="report directory")
@@ -43,7 +45,7 @@ def run_command(args: argparse.Namespace) -> int:
         if args.jobs is not None and args.jobs < 1:
             raise WbcError(f"--jobs must be >= 1, got {args.jobs}")
         res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
-                        sanity=not args.no_sanity)
+                        sanity=not args.no_sanity, sensors=args.sensors)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

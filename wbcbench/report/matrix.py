@@ -26,6 +26,11 @@ SANITY_SCENARIOS: tuple[str, ...] = ("stand", "sway", "push", "one-foot")
 SANITY_CONTROLLERS: tuple[str, ...] | None = None
 """Controllers for the sanity section; None = every registered controller."""
 
+SENSING_MATRIX: tuple[tuple[str, str], ...] = tuple((c, s) for s in ("walk-20cm", "platforms", "stairs")
+                                                    for c in CONTROLLERS)
+"""(controller, scenario) pairs run again under a sensor profile by `reproduce --sensors PROFILE` (section
+"sensing"), beside the ideal ones."""
+
 QUICK_WALK_CAP_S = 6.0
 """--quick: duration cap [s] of a walk that has no "<name>-quick" scenario file."""
 
@@ -44,6 +49,7 @@ class Job:
         scenario_run: scenario file to run (a "-quick" variant in quick mode when it exists); None if missing.
         duration_cap_s: duration override [s], None = the scenario's own duration.
         missing: why it cannot run (unknown scenario or controller), None if it can.
+        sensors: the sensor profile of the run (None: ideal).
     """
 
     section: str
@@ -52,6 +58,7 @@ class Job:
     scenario_run: str | None
     duration_cap_s: float | None
     missing: str | None
+    sensors: str | None = None
 
     @property
     def name(self) -> str:
@@ -92,8 +99,9 @@ def _job(section: str, controller: str, scenario: str, quick: bool, cap: float |
     return Job(section, controller, scenario, scenario, cap if quick else None, None)
 
 
-def plan_jobs(quick: bool = False, sanity: bool = True) -> list[Job]:
-    """The jobs of a reproduction: paper matrix, fast walk, then (if `sanity`) the sanity section."""
+def plan_jobs(quick: bool = False, sanity: bool = True, sensors: str | None = None) -> list[Job]:
+    """The jobs of a reproduction: paper matrix, fast walk, then (if `sanity`) the sanity section, then (if
+    `sensors`) the sensing section: the paper's walk, platforms and stairs under that sensor profile."""
     scenarios, controllers = available_scenarios(), available_controllers()
     jobs = [_job("paper", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in PAPER_MATRIX]
     jobs += [_job("fast", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in FAST_MATRIX]
@@ -101,4 +109,9 @@ def plan_jobs(quick: bool = False, sanity: bool = True) -> list[Job]:
         sanity_ctrls = list(SANITY_CONTROLLERS) if SANITY_CONTROLLERS is not None else controllers
         jobs += [_job("sanity", c, s, quick, QUICK_SANITY_CAP_S, scenarios, controllers)
                  for s in SANITY_SCENARIOS for c in sanity_ctrls]
+    if sensors:
+        from dataclasses import replace
+
+        jobs += [replace(_job("sensing", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers), sensors=sensors)
+                 for c, s in SENSING_MATRIX]
     return jobs

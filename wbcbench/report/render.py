@@ -184,6 +184,29 @@ def _sanity_table(res: dict) -> RenderTable:
     return table
 
 
+def _sensing_table(res: dict) -> RenderTable | None:
+    sec = res.get("sensing")
+    if not sec:
+        return None
+    labels = [lab for lab, _ in next(iter(next(iter(sec["values"].values())).values()))["metrics"].items()]
+    header = ["Controller", "Scenario", "Status (ideal)", "Base error rms/max [m]"]
+    for lab in labels:
+        header += [f"{lab} {sec['profile']}", f"{lab} ideal"]
+    table = RenderTable(f"Under '{sec['profile']}' sensing, beside ideal sensing", header)
+    for controller, per in sec["values"].items():
+        for scenario, v in per.items():
+            be = v.get("base_estimate_error") or {}
+            status = v["status"] + (f": {v['reason']}" if v.get("reason") else "") + f" ({v.get('ideal_status')})"
+            row = [CONTROLLER_LABELS.get(controller, controller), scenario, status,
+                   f"{fmt(be.get('position_rms_m'), 'm')} / {fmt(be.get('position_max_m'), 'm')}"]
+            for lab in labels:
+                m = v["metrics"][lab]
+                row += [fmt(m["sensed"]), fmt(m["ideal"])]
+            table.rows.append(row)
+    table.notes.append(sec["note"])
+    return table
+
+
 def _runs_table(res: dict) -> RenderTable:
     table = RenderTable("Runs", ["Section", "Controller", "Scenario", "Run as", "Status", "Reason", "Simulated [s]",
                                  "Wall [s]", "Run directory"])
@@ -210,6 +233,7 @@ def build_tables(res: dict) -> list[RenderTable]:
         _time_table(res),
         _fast_table(res),
         _sanity_table(res),
+        *([t] if (t := _sensing_table(res)) is not None else []),
     ]
 
 

@@ -87,7 +87,7 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     _send("start", job.name)
     try:
         result = run(job.scenario_run, job.controller, "talos", None, job.duration_cap_s, run_dir,
-                     progress=lambda f: _send("progress", job.name, f))
+                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
     except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)
@@ -204,7 +204,7 @@ def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: st
 
 
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
-              *, sanity: bool = True) -> ReportResult:
+              *, sanity: bool = True, sensors: str | None = None) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -214,6 +214,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         jobs: number of worker processes (default: the cores this process may use); 1 runs inline.
         progress: show a rich progress bar.
         sanity: also run the standing scenarios with every available controller.
+        sensors: a sensor profile (e.g. "talos-like"): the paper's walk, platforms and stairs are run again under
+            it, reported beside the ideal runs (section "sensing").
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -225,9 +227,16 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     n_jobs = default_jobs() if jobs is None else int(jobs)
     if n_jobs < 1:
         raise WbcError(f"--jobs must be >= 1, got {jobs}")
-    plan = matrix.plan_jobs(quick=quick, sanity=sanity)
+    if sensors is not None:
+        from ..sensing import load_sensor_profile
+
+        load_sensor_profile(sensors)  # a bad profile fails before anything runs
+    plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors)
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress)
-    results, figures = write_report(outcomes, out, command="reproduce --quick" if quick else "reproduce",
+    command = "reproduce --quick" if quick else "reproduce"
+    if sensors:
+        command += f" --sensors {sensors}"
+    results, figures = write_report(outcomes, out, command=command,
                                     quick=quick, jobs=n_jobs, started_at=t0)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
 

@@ -143,6 +143,8 @@ def load_run(run_dir: str | Path, section: str | None = None) -> RunOutcome:
     from .matrix import section_of
 
     fell = bool(summary.get("fell"))
+    if section is None and (summary.get("sensors") or {}).get("profile") not in (None, "ideal"):
+        section = "sensing"  # a run under a sensor profile is reported beside the ideal ones
     return RunOutcome(section=section or section_of(key), controller=str(summary.get("controller", "?")),
                       scenario=key, status=FELL if fell else OK, reason=summary.get("fall_reason") if fell else None,
                       scenario_run=scen, run_dir=str(d), summary=summary, metrics=metrics)
