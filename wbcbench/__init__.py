@@ -1,1 +1,51 @@
-"""wbcbench: whole-body controller benchmark."""
+"""wbcbench: run, compare, watch and teleoperate whole-body controllers on humanoid robots in simulation.
+
+The public API, imported lazily (``import wbcbench`` stays light and imports no simulator):
+
+    from wbcbench import run, load_robot, load_scenario, make_scenario, Controller, register
+    from wbcbench import References, PointReference, PoseReference, Measurement, Command, ActuationMode
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+_EXPORTS = {
+    # running
+    "run": "wbcbench.runner", "RunResult": "wbcbench.runner",
+    "load_robot": "wbcbench.robots", "Robot": "wbcbench.robots",
+    "load_scenario": "wbcbench.scenarios", "make_scenario": "wbcbench.scenarios", "Scenario": "wbcbench.scenarios",
+    "ScenarioSpec": "wbcbench.scenarios", "register_kind": "wbcbench.scenarios",
+    # controllers and their building blocks
+    "Controller": "wbcbench.controllers.base", "register": "wbcbench.controllers.base",
+    "available_controllers": "wbcbench.controllers.base", "make_controller": "wbcbench.controllers.base",
+    "InverseDynamicsFormulation": "wbcbench.controllers.id_formulation",
+    "KinematicHierarchy": "wbcbench.controllers.ik_formulation",
+    "TaskReferences": "wbcbench.controllers.task_references",
+    "Stabilizer": "wbcbench.stabilizers.base", "register_stabilizer": "wbcbench.stabilizers.base",
+    "register_task": "wbcbench.tasks",
+    # vocabulary
+    "References": "wbcbench.types", "PointReference": "wbcbench.types", "PoseReference": "wbcbench.types",
+    "Measurement": "wbcbench.types", "Command": "wbcbench.types", "ModelFeedback": "wbcbench.types",
+    "ActuationMode": "wbcbench.types", "Side": "wbcbench.side",
+    # errors
+    "WbcError": "wbcbench.errors", "ConfigError": "wbcbench.errors", "UnknownNameError": "wbcbench.errors",
+    "PluginError": "wbcbench.plugins",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'wbcbench' has no attribute '{name}'")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

@@ -95,14 +95,39 @@ def _cmd_run(args) -> int:
     return 1 if result.summary["fell"] else 0
 
 
+def _cmd_list() -> int:
+    """The registries, each entry with where it comes from; broken plugins one line each on stderr (exit 2)."""
+    from .controllers.base import available_controllers, builtin_controllers, controller_plugin_errors
+    from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
+    from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
+    from .sensing import available_profiles
+    from .stabilizers.base import available_stabilizers
+    from .tasks import task_types
+
+    def origin(module: str) -> str:
+        return "" if module.startswith("wbcbench.") else f" [{module.split('.')[0]}]"
+
+    s, _, _, m = _lists()
+    builtin = builtin_controllers()
+    ctrls = [n + ("" if n in builtin else origin(c.__module__)) for n, c in available_controllers().items()]
+    kinds = [n + ("" if n in _KINDS else origin(k.__module__)) for n, k in sorted(available_kinds().items())]
+    plug = plugin_robots()
+    robots = builtin_robots() + [f"{n} [{p}]" for n, p in sorted(plug.items())]
+    print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
+          f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
+          f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
+          f"sensors:     {', '.join(available_profiles())}")
+    errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values()]
+    for e in errors:
+        print(f"wbcbench: error: {e}", file=sys.stderr)
+    return 2 if errors else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command == "list":
-            s, c, r, m = _lists()
-            print(f"scenarios:   {', '.join(s)}\ncontrollers: {', '.join(c)}\nrobots:      {', '.join(r)}\n"
-                  f"modes:       {', '.join(m)}")
-            return 0
+            return _cmd_list()
         if args.command == "run":
             return _cmd_run(args)
         from .report.commands import COMMANDS, run_command

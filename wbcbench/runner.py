@@ -91,7 +91,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
 
         model_error = parse_model_error(Section(load_yaml(model_error), str(model_error)))
     model_error = model_error if model_error is not None else spec.model_error
-    sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+    try:
+        sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+    except ValueError as exc:  # MuJoCo refuses the model built from the profile's URDF
+        raise ConfigError(f"cannot build the MuJoCo model: {str(exc).splitlines()[0]}",
+                          file=robot.profile.file) from None
     # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
     sensing = make_sensor_model(sensors if sensors is not None else spec.sensors, robot, spec.control_dt, seed)
     injector = FaultInjector(tuple(faults) + tuple(spec.faults), robot, spec.control_dt)

@@ -55,14 +55,35 @@ _REGISTRY: dict[str, type[Controller]] = {}
 
 
 def register(cls: type[Controller]) -> type[Controller]:
-    """Class decorator adding a controller to the registry under `cls.name`."""
+    """Class decorator adding a controller to the built-in registry under `cls.name` (a package of yours
+    registers through the `wbcbench.controllers` entry point instead: wbcbench/plugins.py)."""
     _REGISTRY[cls.name] = cls
     return cls
 
 
-def available_controllers() -> dict[str, type[Controller]]:
+def builtin_controllers() -> dict[str, type[Controller]]:
     from . import ik, inverse_dynamics, joint_pd, teleop  # noqa: F401  (registration side effect of importing the modules)
-    return dict(sorted(_REGISTRY.items()))
+    return dict(_REGISTRY)
+
+
+def available_controllers() -> dict[str, type[Controller]]:
+    """Every usable controller by name: the built-in registry and the `wbcbench.controllers` entry points of
+    installed packages (wbcbench/plugins.py); broken plugins are left out (`controller_plugin_errors`)."""
+    from ..plugins import discover
+
+    out = builtin_controllers()
+    for p in discover("wbcbench.controllers", set(out)):
+        if p.error is None:
+            out[p.name] = p.obj
+    return dict(sorted(out.items()))
+
+
+def controller_plugin_errors() -> dict[str, str]:
+    """name -> one-line message, for the controller plugins that cannot be used."""
+    from ..plugins import discover, message
+
+    return {p.name: message(p) for p in discover("wbcbench.controllers", set(builtin_controllers()))
+            if p.error is not None}
 
 
 def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, dt: float,
@@ -71,6 +92,11 @@ def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, d
     set of file `taskset` when given (controllers with a task set only)."""
     ctrls = available_controllers()
     if name not in ctrls:
+        broken = controller_plugin_errors().get(name)
+        if broken is not None:
+            from ..plugins import PluginError
+
+            raise PluginError(broken, key="--controller")
         raise UnknownNameError("controller", name, ctrls, key="--controller")
     cls = ctrls[name]
     if mode is None:

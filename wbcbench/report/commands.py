@@ -22,6 +22,10 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores available)")
     r.add_argument("--no-sanity", action="store_true", help="skip the standing scenarios' sanity section")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    r.add_argument("--controllers", default=None,
+                   help="comma-separated controllers (default: the paper's three, every one in the sanity section); "
+                        "a controller of yours is run on the paper's scenarios and joins the tables")
+    r.add_argument("--scenarios", default=None, help="comma-separated scenarios to keep (default: all)")
     r.add_argument("--sensors", default=None,
                    help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
@@ -45,7 +49,9 @@ def run_command(args: argparse.Namespace) -> int:
         if args.jobs is not None and args.jobs < 1:
             raise WbcError(f"--jobs must be >= 1, got {args.jobs}")
         res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
-                        sanity=not args.no_sanity, sensors=args.sensors)
+                        sanity=not args.no_sanity, sensors=args.sensors,
+                        controllers=args.controllers.split(",") if args.controllers else None,
+                        scenarios=args.scenarios.split(",") if args.scenarios else None)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

@@ -99,19 +99,41 @@ def _job(section: str, controller: str, scenario: str, quick: bool, cap: float |
     return Job(section, controller, scenario, scenario, cap if quick else None, None)
 
 
-def plan_jobs(quick: bool = False, sanity: bool = True, sensors: str | None = None) -> list[Job]:
+def _select(pairs, only_controllers, only_scenarios) -> list[tuple[str, str]]:
+    """`pairs` restricted to the given controllers and scenarios; a controller the pairs do not have (a user's)
+    gets every scenario of the pairs, so that it is measured where the paper's controllers are."""
+    pairs = list(pairs)
+    if only_controllers is not None:
+        known = {c for c, _ in pairs}
+        scen = list(dict.fromkeys(s for _, s in pairs))
+        pairs = [(c, s) for c, s in pairs if c in only_controllers]
+        pairs += [(c, s) for c in only_controllers if c not in known for s in scen]
+    if only_scenarios is not None:
+        pairs = [(c, s) for c, s in pairs if s in only_scenarios]
+    return pairs
+
+
+def plan_jobs(quick: bool = False, sanity: bool = True, sensors: str | None = None,
+              controllers: list[str] | None = None, scenarios: list[str] | None = None) -> list[Job]:
     """The jobs of a reproduction: paper matrix, fast walk, then (if `sanity`) the sanity section, then (if
-    `sensors`) the sensing section: the paper's walk, platforms and stairs under that sensor profile."""
+    `sensors`) the sensing section: the paper's walk, platforms and stairs under that sensor profile.
+    `controllers` / `scenarios` restrict every section to those (a controller outside the paper's three is run on
+    the paper's scenarios: its rows join the tables, with no published number beside them)."""
+    only_c, only_s = controllers, scenarios
     scenarios, controllers = available_scenarios(), available_controllers()
-    jobs = [_job("paper", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in PAPER_MATRIX]
-    jobs += [_job("fast", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers) for c, s in FAST_MATRIX]
+    jobs = [_job("paper", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers)
+            for c, s in _select(PAPER_MATRIX, only_c, only_s)]
+    jobs += [_job("fast", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers)
+             for c, s in _select(FAST_MATRIX, only_c, only_s)]
     if sanity:
         sanity_ctrls = list(SANITY_CONTROLLERS) if SANITY_CONTROLLERS is not None else controllers
+        if only_c is not None:
+            sanity_ctrls = list(only_c)
         jobs += [_job("sanity", c, s, quick, QUICK_SANITY_CAP_S, scenarios, controllers)
-                 for s in SANITY_SCENARIOS for c in sanity_ctrls]
+                 for s in SANITY_SCENARIOS for c in sanity_ctrls if only_s is None or s in only_s]
     if sensors:
         from dataclasses import replace
 
         jobs += [replace(_job("sensing", c, s, quick, QUICK_WALK_CAP_S, scenarios, controllers), sensors=sensors)
-                 for c, s in SENSING_MATRIX]
+                 for c, s in _select(SENSING_MATRIX, only_c, only_s)]
     return jobs

@@ -204,7 +204,8 @@ def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: st
 
 
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
-              *, sanity: bool = True, sensors: str | None = None) -> ReportResult:
+              *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
+              scenarios: list[str] | None = None) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -216,6 +217,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         sanity: also run the standing scenarios with every available controller.
         sensors: a sensor profile (e.g. "talos-like"): the paper's walk, platforms and stairs are run again under
             it, reported beside the ideal runs (section "sensing").
+        controllers, scenarios: restrict the matrix to these (`matrix.plan_jobs`); a user's controller is run on
+            the paper's scenarios and joins the tables.
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -231,11 +234,27 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         from ..sensing import load_sensor_profile
 
         load_sensor_profile(sensors)  # a bad profile fails before anything runs
-    plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors)
+    if controllers is not None:
+        from ..controllers.base import available_controllers, controller_plugin_errors
+        from ..errors import UnknownNameError
+        from ..plugins import PluginError
+
+        known = available_controllers()
+        for c in controllers:
+            if c not in known:
+                if c in controller_plugin_errors():
+                    raise PluginError(controller_plugin_errors()[c], key="--controllers")
+                raise UnknownNameError("controller", c, known, key="--controllers")
+    plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
+                            scenarios=scenarios)
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress)
     command = "reproduce --quick" if quick else "reproduce"
     if sensors:
         command += f" --sensors {sensors}"
+    if controllers:
+        command += f" --controllers {','.join(controllers)}"
+    if scenarios:
+        command += f" --scenarios {','.join(scenarios)}"
     results, figures = write_report(outcomes, out, command=command,
                                     quick=quick, jobs=n_jobs, started_at=t0)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])

@@ -47,12 +47,16 @@ def table_results(table_id: str, cells: dict[tuple[str, str], RunOutcome]) -> di
     """One published table with our numbers: values[controller][scenario][metric] = {ours, paper, unit}."""
     t = PAPER_TABLES[table_id]
     values: dict = {}
-    for controller, scenario in t.cells():
+    paper_cells = t.cells()
+    table_scenarios = {s for _, s in paper_cells}
+    paper_controllers = {c for c, _ in paper_cells}
+    extra = sorted((c, s) for c, s in cells if c not in paper_controllers and s in table_scenarios)
+    for controller, scenario in paper_cells + extra:
         o = cells.get((controller, scenario))
         row = {"status": o.status if o else MISSING_VALUE}
+        published = t.values.get(controller, {}).get(scenario, {})
         for spec in t.metrics:
-            row[spec.key] = {"ours": ours(o, spec), "paper": t.values[controller][scenario][spec.key],
-                             "unit": spec.unit}
+            row[spec.key] = {"ours": ours(o, spec), "paper": published.get(spec.key), "unit": spec.unit}
         if table_id == "table6":  # the model-mass costs of transport, ours only
             for key in ("C_et", "C_mt"):
                 row[f"{key}_robot_mass"] = {"ours": ours(o, MetricSpec(key, key, "J/kg/m")), "paper": None,

@@ -124,10 +124,35 @@ class RobotProfile:
     repulsors: dict[Side, RepulsorSpec] = field(default_factory=dict)
     collision_check: dict[Side, CollisionCheckSpec] = field(default_factory=dict)
     file: str = field(default="", compare=False)
+    #: joint-name prefix -> effort [N m] / velocity [rad/s] limit, for joints whose URDF gives none (or a wrong one)
+    effort_overrides: dict[str, float] = field(default_factory=dict)
+    velocity_overrides: dict[str, float] = field(default_factory=dict)
+    #: lower bounds on every moving body's mass [kg] and principal inertias [kg m^2], for URDFs with massless
+    #: links (applied to the pinocchio and the MuJoCo model alike); 0: none
+    min_body_mass: float = 0.0
+    min_body_inertia: float = 0.0
+
+
+def builtin_robots() -> list[str]:
+    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+
+
+def plugin_robots() -> dict[str, Path]:
+    """Robot profiles of installed packages (`wbcbench.robots` entry points): name -> profile YAML path."""
+    from ..plugins import discover
+
+    return {p.name: Path(p.obj() if callable(p.obj) else p.obj)
+            for p in discover("wbcbench.robots", set(builtin_robots())) if p.error is None}
+
+
+def robot_plugin_errors() -> dict[str, str]:
+    from ..plugins import discover, message
+
+    return {p.name: message(p) for p in discover("wbcbench.robots", set(builtin_robots())) if p.error is not None}
 
 
 def available_robots() -> list[str]:
-    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+    return sorted({*builtin_robots(), *plugin_robots()})
 
 
 def _gains(sec: Section) -> GainSpec:
@@ -200,14 +225,24 @@ def _collision_check(root: Section) -> dict[Side, CollisionCheckSpec]:
 
 
 def load_profile(name_or_path: str | Path) -> RobotProfile:
-    """Load a robot profile by robot name (a file in wbcbench/robots/profiles) or by path to a YAML file."""
+    """Load a robot profile by robot name (a file in wbcbench/robots/profiles, or a `wbcbench.robots` plugin) or by
+    path to a YAML file."""
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml"):
         path = p
     else:
         path = PROFILE_DIR / f"{name_or_path}.yaml"
         if not path.exists():
-            raise UnknownNameError("robot", str(name_or_path), available_robots())
+            plugins = plugin_robots()
+            if str(name_or_path) in plugins:
+                path = plugins[str(name_or_path)]
+            else:
+                broken = robot_plugin_errors().get(str(name_or_path))
+                if broken is not None:
+                    from ..plugins import PluginError
+
+                    raise PluginError(broken, key="--robot")
+                raise UnknownNameError("robot", str(name_or_path), available_robots(), key="--robot")
     file = str(path)
     root = Section(load_yaml(path), file)
     posture = root.raw("reference_posture")
@@ -244,6 +279,13 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         overrides[jname] = (float(lo_hi[0]), float(lo_hi[1]))
     ov.finish()
     armature = lim.float("armature", min=0.0) if lim.has("armature") else None
+    limit_overrides = {}
+    for key in ("effort_overrides", "velocity_overrides"):
+        sec = lim.section(key, {})
+        limit_overrides[key] = {k: sec.float(k, positive=True) for k in list(sec.data)}
+        sec.finish()
+    min_mass = lim.float("min_body_mass", 0.0, min=0.0)
+    min_inertia = lim.float("min_body_inertia", 0.0, min=0.0)
     lim.finish()
     fall = root.section("fall")
     prof = RobotProfile(
@@ -260,6 +302,10 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         sole=sole,
         position_limit_overrides=overrides,
         armature=armature,
+        effort_overrides=limit_overrides["effort_overrides"],
+        velocity_overrides=limit_overrides["velocity_overrides"],
+        min_body_mass=min_mass,
+        min_body_inertia=min_inertia,
         position_gains=_gains(root.section("position_gains")),
         torque_pd_gains=_gains(root.section("torque_pd_gains")),
         min_base_height=fall.float("min_base_height", positive=True),

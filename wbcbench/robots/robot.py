@@ -63,12 +63,25 @@ class Robot:
             arm[6:] = profile.armature
             model.armature = arm
         self._apply_limits(model)
+        if profile.min_body_mass > 0 or profile.min_body_inertia > 0:
+            self._bound_inertias(model)
         self.model = model
         self._add_sole_frames()
         self.data = self.model.createData()
         self.q0 = self._reference_configuration()
 
     # ------------------------------------------------------------------ construction helpers
+    def _bound_inertias(self, model: pin.Model) -> None:
+        """Massless links get the profile's minimum mass and inertia (as MuJoCo's boundmass / boundinertia)."""
+        m_min, i_min = self.profile.min_body_mass, self.profile.min_body_inertia
+        for j in range(1, model.njoints):
+            Y = model.inertias[j]
+            if Y.mass < m_min or np.min(np.linalg.eigvalsh(Y.inertia)) < i_min:
+                I = Y.inertia.copy()
+                w, V = np.linalg.eigh(I)
+                I = V @ np.diag(np.maximum(w, i_min)) @ V.T
+                model.inertias[j] = pin.Inertia(max(Y.mass, m_min), Y.lever, I)
+
     def _apply_limits(self, model: pin.Model) -> None:
         lo, hi = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
         lo[:7], hi[:7] = -np.inf, np.inf
@@ -79,6 +92,23 @@ class Robot:
             jid = model.getJointId(jname)
             lo[model.idx_qs[jid]], hi[model.idx_qs[jid]] = a, b
         model.lowerPositionLimit, model.upperPositionLimit = lo, hi
+        # effort and velocity limits by joint-name prefix (the longest matching prefix wins)
+        for key, attr in (("effort_overrides", "effortLimit"), ("velocity_overrides", "velocityLimit")):
+            table = getattr(self.profile, key)
+            if not table:
+                continue
+            lim = getattr(model, attr).copy()
+            for jid in range(2, model.njoints):
+                name = model.names[jid]
+                best = max((p for p in table if name.startswith(p)), key=len, default=None)
+                if best is not None:
+                    lim[model.idx_vs[jid]:model.idx_vs[jid] + model.nvs[jid]] = table[best]
+            setattr(model, attr, lim)
+        bad = [model.names[j] for j in range(2, model.njoints) if model.effortLimit[model.idx_vs[j]] <= 0]
+        if bad:
+            raise ConfigError(f"joints without an effort limit in the URDF: {', '.join(bad[:6])}"
+                              f"{', ...' if len(bad) > 6 else ''}; give them one (joint-name prefix -> N m)",
+                              file=self.profile.file, key="limits.effort_overrides")
 
     def _frame_id(self, name: str, key: str) -> int:
         if not self.model.existFrame(name):

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..config import Section, load_yaml
-from ..errors import UnknownNameError
+from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
 from ..sim.push import Push, parse_push
 from ..scene import Terrain, parse_terrain
@@ -97,6 +97,25 @@ def register_kind(cls: type[Scenario]) -> type[Scenario]:
 register_kind(Scenario)
 
 
+def available_kinds() -> dict[str, type[Scenario]]:
+    """Scenario kinds by name: the built-in ones and the `wbcbench.scenarios` entry points (wbcbench/plugins.py)."""
+    from . import kinds, teleop_kind  # noqa: F401  (registers the built-in kinds)
+    from ..plugins import discover
+
+    out = dict(_KINDS)
+    for p in discover("wbcbench.scenarios", set(_KINDS)):
+        if p.error is None:
+            out[p.name] = p.obj
+    return out
+
+
+def kind_plugin_errors() -> dict[str, str]:
+    from . import kinds, teleop_kind  # noqa: F401
+    from ..plugins import discover, message
+
+    return {p.name: message(p) for p in discover("wbcbench.scenarios", set(_KINDS)) if p.error is not None}
+
+
 def available_scenarios() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
 
@@ -159,8 +178,14 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
     file = str(path)
     root = Section(load_yaml(path), file)
     kind = root.str("kind", "stand")
-    if kind not in _KINDS:
-        raise UnknownNameError("scenario kind", kind, _KINDS, file=file, key="kind")
+    kinds = available_kinds()
+    if kind not in kinds:
+        broken = kind_plugin_errors().get(kind)
+        if broken is not None:
+            from ..plugins import PluginError
+
+            raise PluginError(broken, file=file, key="kind")
+        raise UnknownNameError("scenario kind", kind, kinds, file=file, key="kind")
     pushes = tuple(parse_push(Section(p, file, f"pushes[{i}]")) for i, p in enumerate(root.list("pushes", [])))
     spec = ScenarioSpec(
         name=root.str("name", path.stem),
@@ -181,8 +206,33 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         root.raw("duration", None)
     params = root.section("params", {})
     root.finish()
-    scen = _KINDS[kind](spec, params, robot)
+    scen = kinds[kind](spec, params, robot)
     if spec.duration <= 0:
         if not hasattr(type(scen), "planned_duration"):
             raise root.error("duration", "is required")
+    return scen
+
+
+def make_scenario(kind: str, robot: Robot, *, name: str = "python", params: Mapping[str, Any] | None = None,
+                  duration: float = 0.0, control_dt: float = 1e-3, terrain: Terrain | None = None,
+                  pushes: tuple[Push, ...] = (), sim: Mapping[str, Any] | None = None, sensors: Any = None,
+                  model_error: Any = None, faults: tuple = (), description: str = "") -> Scenario:
+    """A scenario built in Python, without a file: the kind (built-in or a plugin's) parses and validates `params`
+    exactly as it does a YAML file's `params:` (errors name `<python:NAME>` and the key). `duration` 0 means the
+    kind's planned duration (walks); `sensors` a profile name or `SensorProfile`; `model_error` a `ModelError`;
+    `faults` `wbcbench.faults.Fault`s."""
+    kinds = available_kinds()
+    file = f"<python:{name}>"
+    if kind not in kinds:
+        raise UnknownNameError("scenario kind", kind, kinds, file=file, key="kind")
+    if isinstance(sensors, str):
+        from ..sensing import load_sensor_profile
+
+        sensors = load_sensor_profile(sensors, key="sensors")
+    spec = ScenarioSpec(name=name, kind=kind, description=description, duration=float(duration),
+                        control_dt=float(control_dt), terrain=terrain or Terrain(), pushes=tuple(pushes), file=file,
+                        sim=dict(sim or {}), sensors=sensors, model_error=model_error, faults=tuple(faults))
+    scen = kinds[kind](spec, Section(dict(params or {}), file, "params"), robot)
+    if spec.duration <= 0 and not hasattr(type(scen), "planned_duration"):
+        raise ConfigError(f"kind '{kind}' has no planned duration: give duration > 0", file=file, key="duration")
     return scen

@@ -154,6 +154,10 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
     spec.option.integrator = INTEGRATORS[options.integrator]
     spec.option.noslip_iterations = options.noslip_iterations
     spec.option.gravity = list(options.gravity)
+    if robot.profile.min_body_mass > 0:
+        spec.compiler.boundmass = robot.profile.min_body_mass
+    if robot.profile.min_body_inertia > 0:
+        spec.compiler.boundinertia = robot.profile.min_body_inertia
 
     # the body owning each pinocchio joint (MuJoCo body frame == URDF child link frame == pinocchio joint frame)
     body_of_joint = {}

@@ -1,0 +1,109 @@
+"""The examples/ folder, installed and run as a user would: a controller plugin (pip-installed into this
+environment, found through its entry point), a scenario built in Python, a third robot by YAML alone."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+
+
+def _cli(*args, check_rc=None):
+    out = subprocess.run([sys.executable, "-m", "wbcbench.cli", *args], capture_output=True, text=True)
+    if check_rc is not None:
+        assert out.returncode == check_rc, out.stderr + out.stdout
+    return out
+
+
+@pytest.fixture(scope="module")
+def weighted_ik():
+    """pip-install examples/weighted_ik into this environment for the module, uninstall afterwards."""
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    subprocess.run(pip + ["install", "--no-deps", "--no-build-isolation", str(EXAMPLES / "weighted_ik")],
+                   check=True, capture_output=True, text=True)
+    yield "weighted-ik"
+    subprocess.run(pip + ["uninstall", "-y", "wbcbench-weighted-ik"], capture_output=True, text=True)
+
+
+def test_the_example_controller_is_at_most_40_lines():
+    src = EXAMPLES / "weighted_ik" / "src" / "wbcbench_weighted_ik" / "__init__.py"
+    assert len(src.read_text().splitlines()) <= 40
+
+
+def test_plugin_controller_is_listed_and_keeps_talos_up_through_sway(weighted_ik, tmp_path):
+    out = _cli("list", check_rc=0)
+    line = next(l for l in out.stdout.splitlines() if l.startswith("controllers:"))
+    assert "weighted-ik [wbcbench_weighted_ik]" in line
+    _cli("run", "sway", "-c", weighted_ik, "--out", str(tmp_path / "sway"), "--quiet", check_rc=0)
+    s = json.loads((tmp_path / "sway" / "summary.json").read_text())
+    assert not s["fell"] and s["metrics"]["com_rms_error_m"] < 0.02 and s["mode"] == "position"
+
+
+def test_plugin_controller_joins_the_reproduce_report(weighted_ik, tmp_path):
+    out = tmp_path / "rep"
+    _cli("reproduce", "--quick", "--controllers", weighted_ik, "--scenarios", "walk-20cm,sway", "--jobs", "1",
+         "--quiet", "--out", str(out), check_rc=0)
+    res = json.loads((out / "results.json").read_text())
+    cell = res["tables"]["table2"]["values"][weighted_ik]["walk-20cm"]
+    assert cell["status"] in ("ok", "fell") and cell["zmp_error_m.x.mean"]["paper"] is None
+    assert isinstance(cell["zmp_error_m.x.mean"]["ours"], float)
+    assert res["sanity"][weighted_ik]["sway"]["status"] == "ok"
+    assert {(r["controller"], r["scenario"]) for r in res["runs"]} == {(weighted_ik, "walk-20cm"),
+                                                                       (weighted_ik, "sway")}
+    assert "Weighted" in (out / "report.md").read_text() or weighted_ik in (out / "report.md").read_text()
+
+
+def test_python_scenario_example(tmp_path):
+    out = subprocess.run([sys.executable, str(EXAMPLES / "python_scenario.py"), str(tmp_path / "run")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr + out.stdout
+    assert "slow-sway-and-push: fell=False" in out.stdout
+    cfg = json.loads((tmp_path / "run" / "config.json").read_text())
+    assert cfg["scenario_file"] == "<python:slow-sway-and-push>" and len(cfg["pushes"]) == 1
+
+
+def test_third_robot_by_yaml_alone(tmp_path):
+    profile = EXAMPLES / "robots" / "romeo.yaml"
+    _cli("run", "stand", "-c", "joint-pd", "--robot", str(profile), "--mode", "torque", "--duration", "2",
+         "--quiet", "--out", str(tmp_path / "r"), check_rc=0)
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert s["robot"] == "romeo" and not s["fell"] and abs(s["metrics"]["base_height_change_m"]) < 0.005
+
+
+def test_broken_plugins_are_one_line_and_break_nothing_else(tmp_path):
+    """A plugin that fails to import, and one that takes a built-in's name: `list` names both (exit 2) and still
+    lists the rest; using the broken name is one line, exit 2; the built-in still runs."""
+    pkg = tmp_path / "badplugins"
+    (pkg / "src" / "wbcbench_badplugins").mkdir(parents=True)
+    (pkg / "src" / "wbcbench_badplugins" / "__init__.py").write_text(
+        "import this_module_does_not_exist\n")
+    (pkg / "src" / "wbcbench_badplugins_dup.py").write_text(
+        "from wbcbench.controllers.joint_pd import JointPD\n\nclass Dup(JointPD):\n    name = 'joint-pd'\n")
+    (pkg / "pyproject.toml").write_text(
+        '[build-system]\nrequires = ["setuptools>=77"]\nbuild-backend = "setuptools.build_meta"\n'
+        '[project]\nname = "wbcbench-badplugins"\nversion = "0.0.1"\n'
+        '[project.entry-points."wbcbench.controllers"]\nbroken = "wbcbench_badplugins:Nothing"\n'
+        'joint-pd = "wbcbench_badplugins_dup:Dup"\n'
+        '[tool.setuptools]\npackage-dir = {"" = "src"}\npy-modules = ["wbcbench_badplugins_dup"]\n'
+        '[tool.setuptools.packages.find]\nwhere = ["src"]\n')
+    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
+    subprocess.run(pip + ["install", "--no-deps", "--no-build-isolation", str(pkg)], check=True, capture_output=True)
+    try:
+        out = _cli("list", check_rc=2)
+        assert "controllers:" in out.stdout and "tsid-torque" in out.stdout
+        errors = out.stderr.strip().splitlines()
+        assert len(errors) == 2
+        assert any("'broken'" in e and "wbcbench-badplugins" in e and "failed to import" in e for e in errors)
+        assert any("'joint-pd'" in e and "built-in" in e for e in errors)
+        out = _cli("run", "stand", "-c", "broken", "--duration", "0.01", "--out", str(tmp_path / "r"), check_rc=2)
+        assert len(out.stderr.strip().splitlines()) == 1 and "ModuleNotFoundError" in out.stderr
+        _cli("run", "stand", "-c", "joint-pd", "--duration", "0.05", "--quiet", "--out", str(tmp_path / "ok"),
+             check_rc=0)
+    finally:
+        subprocess.run(pip + ["uninstall", "-y", "wbcbench-badplugins"], capture_output=True)
