@@ -26,7 +26,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tolerance", type=float, default=0.10, help="[m] CoM back within this of the plan")
     p.add_argument("--sensors", default=None, help="sensor profile (default ideal)")
     p.add_argument("--robot", "-r", default="talos")
-    p.add_argument("--quick", action="store_true", help="3 bisection steps (7.5 N s resolution at 60 N s)")
+    p.add_argument("--quick", action="store_true",
+                   help="3 bisection steps from half the top (7.5 N s resolution at 60 N s), the scenario's "
+                        "-quick variant when there is one")
     p.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
     p.add_argument("--out", "-o", required=True, help="output directory (report, polar plot, raw runs)")
     p.add_argument("--quiet", "-q", action="store_true")
@@ -55,7 +57,12 @@ def run_command(args: argparse.Namespace) -> int:
         if not val > 0:
             raise ConfigError(f"must be > 0, got {val}", key=key)
     noisy = args.sensors is not None and not load_sensor_profile(args.sensors).ideal
-    times = phase_times(args.scenario, args.robot)
+    from ..scenarios import available_scenarios
+
+    scenario = args.scenario
+    if args.quick and scenario + "-quick" in available_scenarios():
+        scenario += "-quick"
+    times = phase_times(scenario, args.robot)
     if args.phases:
         phases = tuple(p.strip() for p in args.phases.split(","))
         bad = [p for p in phases if p not in PHASES]
@@ -63,10 +70,10 @@ def run_command(args: argparse.Namespace) -> int:
             raise ConfigError(f"unknown phase(s) {', '.join(bad)}; allowed: {', '.join(PHASES)}", key="--phases")
     else:
         phases = tuple(times)
-    study = PushStudy(args.scenario, controllers, directions=args.directions, phases=phases,
+    study = PushStudy(scenario, controllers, directions=args.directions, phases=phases,
                       seeds=args.seeds or (3 if noisy else 1), push_duration=args.push_duration,
                       max_impulse=args.max_impulse, iterations=args.iterations or (3 if args.quick else 5),
-                      tolerance=args.tolerance, robot=args.robot, sensors=args.sensors)
+                      tolerance=args.tolerance, robot=args.robot, sensors=args.sensors, probe_max=not args.quick)
     console = Console()
     jobs = args.jobs or os.cpu_count() or 1
     if args.quiet:

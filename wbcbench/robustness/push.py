@@ -48,6 +48,8 @@ class PushStudy:
     after: float = 2.0
     robot: str = "talos"
     sensors: str | None = None
+    probe_max: bool = True
+    """First try `max_impulse` itself (to report '>= max'); off, the bisection starts at half of it."""
 
 
 @dataclass(frozen=True)
@@ -138,7 +140,7 @@ def _bisect(study: PushStudy, cell: PushCell, out_dir: Path) -> PushResult:
         trials.append((round(impulse, 4), ok, why))
         return ok
 
-    if attempt(study.max_impulse):
+    if study.probe_max and attempt(study.max_impulse):
         return PushResult(cell, study.max_impulse, None, tuple(trials))
     lo, hi = 0.0, study.max_impulse
     for _ in range(study.iterations):
@@ -147,6 +149,8 @@ def _bisect(study: PushStudy, cell: PushCell, out_dir: Path) -> PushResult:
             lo = mid
         else:
             hi = mid
+    if not study.probe_max and hi == study.max_impulse:
+        return PushResult(cell, lo, None, tuple(trials))  # never failed below the top: at least `lo`
     return PushResult(cell, lo, hi, tuple(trials))
 
 
