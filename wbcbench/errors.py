@@ -27,18 +27,31 @@ class ConfigError(WbcError):
         self.key = key
 
 
-class UnknownNameError(ConfigError):
-    """A name (robot, scenario, controller, frame, joint...) that does not exist."""
+class UnknownNameError(ConfigError, ValueError):
+    """A name (robot, scenario, controller, frame, joint...) that does not exist; the one such error of wbcbench
+    (the task library raises it too, with the task as `owner`). `suggestions`: the closest valid names."""
 
     def __init__(self, kind: str, name: str, valid: Iterable[str], *, file: str | None = None,
-                 key: str | None = None):
-        valid = sorted(valid)
+                 key: str | None = None, owner: str | None = None, sort: bool = True):
+        valid = sorted(valid) if sort else list(valid)
         close = difflib.get_close_matches(name, valid, n=3)
         hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
-        listing = ", ".join(valid) if len(valid) <= 20 else ", ".join(valid[:20]) + ", ..."
-        super().__init__(f"unknown {kind} '{name}'{hint}; known: {listing}", file=file, key=key)
+        listing = ", ".join(valid) if len(valid) <= 20 else ", ".join(valid[:20]) + f", ... ({len(valid)} in all)"
+        prefix = f"{owner}: " if owner else ""
+        super().__init__(f"{prefix}unknown {kind} '{name}'{hint}; known: {listing}", file=file, key=key)
+        self.kind = kind
         self.name = name
         self.valid = valid
+        self.suggestions = tuple(close)
+
+
+class PlanningError(WbcError, ValueError):
+    """A plan that cannot be made (footsteps out of reach, an infeasible centroidal QP, ...): raised by
+    `wbcbench.planning`; the scenario that asked for the plan adds its file and key (the one conversion point)."""
+
+
+class QPError(WbcError, ValueError):
+    """An invalid QP (shapes, non-finite data, bounds in the wrong order): raised by `wbcbench.qp`."""
 
 
 def one_line(text: str) -> str:

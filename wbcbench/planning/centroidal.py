@@ -71,6 +71,7 @@ from types import MappingProxyType
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import PlanningError
 from .footsteps import Footstep, FootstepPlan
 from .geometry import SoleRectangle, rotation_from_yaw, yaw_of
 from .swing import quintic_blend
@@ -88,7 +89,7 @@ def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> Non
     ok = isinstance(value, (int, float, np.integer, np.floating)) and np.isfinite(value)
     ok = ok and (value >= 0.0 if allow_zero else value > 0.0)
     if not ok:
-        raise ValueError(f"CentroidalConfig.{name} must be {'>= 0' if allow_zero else 'positive'}, got {value!r}")
+        raise PlanningError(f"CentroidalConfig.{name} must be {'>= 0' if allow_zero else 'positive'}, got {value!r}")
 
 
 SOLVERS = ("proxsuite", "daqp")
@@ -123,12 +124,12 @@ class LegReach:
         for name in ("hip_offset", "ankle_offset"):
             val = getattr(self, name)
             if set(val) != set(Side):
-                raise ValueError(f"LegReach.{name} needs both sides, got {sorted(map(str, val))}")
+                raise PlanningError(f"LegReach.{name} needs both sides, got {sorted(map(str, val))}")
             fixed = {}
             for side, v in val.items():
                 arr = np.asarray(v, dtype=float).ravel()
                 if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-                    raise ValueError(f"LegReach.{name}[{side.value}] must be 3 finite numbers [m], got {v!r}")
+                    raise PlanningError(f"LegReach.{name}[{side.value}] must be 3 finite numbers [m], got {v!r}")
                 fixed[side] = arr
             object.__setattr__(self, name, MappingProxyType(fixed))
         _check_positive("leg_reach.max_length", self.max_length)
@@ -196,16 +197,16 @@ class CentroidalConfig:
             object.__setattr__(self, "max_com_height", self.com_height + 0.08)
         elif not (isinstance(self.max_com_height, (int, float, np.integer, np.floating))
                   and self.max_com_height > 0.0 and not np.isnan(self.max_com_height)):
-            raise ValueError(f"CentroidalConfig.max_com_height must be positive (inf: no bound), got "
+            raise PlanningError(f"CentroidalConfig.max_com_height must be positive (inf: no bound), got "
                              f"{self.max_com_height!r}")
         if self.leg_reach is not None and not isinstance(self.leg_reach, LegReach):
-            raise ValueError(f"CentroidalConfig.leg_reach must be a LegReach or None, got {type(self.leg_reach).__name__}")
+            raise PlanningError(f"CentroidalConfig.leg_reach must be a LegReach or None, got {type(self.leg_reach).__name__}")
         if int(self.am_iterations) != self.am_iterations or self.am_iterations < 0:
-            raise ValueError(f"CentroidalConfig.am_iterations must be an integer >= 0, got {self.am_iterations!r}")
+            raise PlanningError(f"CentroidalConfig.am_iterations must be an integer >= 0, got {self.am_iterations!r}")
         if self.solver not in SOLVERS:
-            raise ValueError(f"CentroidalConfig.solver: unknown {self.solver!r}; allowed: {', '.join(SOLVERS)}")
+            raise PlanningError(f"CentroidalConfig.solver: unknown {self.solver!r}; allowed: {', '.join(SOLVERS)}")
         if self.knot_dt < self.dt:
-            raise ValueError("CentroidalConfig.knot_dt must be at least one tick (dt)")
+            raise PlanningError("CentroidalConfig.knot_dt must be at least one tick (dt)")
 
     @property
     def omega(self) -> float:
@@ -372,7 +373,7 @@ def _schedule(plan: FootstepPlan, dt: float) -> tuple[int, dict[Side, np.ndarray
     for i, step in enumerate(plan.steps):
         lo, td = _tick(plan.lift_off_time(i), dt), _tick(plan.touch_down_time(i), dt)
         if not 0 < lo < td < n - 1:
-            raise ValueError(f"step {i}: lift-off tick {lo} and touch-down tick {td} must satisfy 0 < lo < td < "
+            raise PlanningError(f"step {i}: lift-off tick {lo} and touch-down tick {td} must satisfy 0 < lo < td < "
                              f"{n - 1} (durations shorter than a tick?)")
         contact[step.side][lo:td] = False
         spans.append((step.side, start[step.side], lo, pose[step.side]))
@@ -636,11 +637,11 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
         CentroidalPlanError: the QP is infeasible or its solution inaccurate.
     """
     if not isinstance(plan, FootstepPlan):
-        raise ValueError(f"plan must be a FootstepPlan, got {type(plan).__name__}")
+        raise PlanningError(f"plan must be a FootstepPlan, got {type(plan).__name__}")
     cfg = config
     sole = plan.sole
     if min(sole.length, sole.width) <= 2.0 * cfg.cop_margin:
-        raise ValueError(f"CentroidalConfig.cop_margin {cfg.cop_margin} m leaves nothing of the "
+        raise PlanningError(f"CentroidalConfig.cop_margin {cfg.cop_margin} m leaves nothing of the "
                          f"{sole.length} x {sole.width} m sole")
     dt = cfg.dt
     n, in_contact, spans = _schedule(plan, dt)
@@ -660,7 +661,7 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
     else:
         c_init = np.asarray(p_world_com_init, float).ravel()
         if c_init.shape != (3,) or not np.all(np.isfinite(c_init)):
-            raise ValueError(f"p_world_com_init must be 3 finite numbers [m], got {p_world_com_init!r}")
+            raise PlanningError(f"p_world_com_init must be 3 finite numbers [m], got {p_world_com_init!r}")
     c_final_xy = np.mean(centers1, axis=0)[:2]
 
     # soles loaded around each knot (for the height bound) and the reference CoM path for the L_dot term

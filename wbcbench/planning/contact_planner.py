@@ -47,6 +47,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from ..errors import PlanningError
 from .footsteps import Footstep, FootstepPlan, ReachLimits, StepTiming
 from .geometry import SoleRectangle, polygons_penetration, yaw_of
 from .terrain import ContactSurface, ContactTerrain, sole_box
@@ -58,7 +59,7 @@ __all__ = ["ContactPlannerConfig", "Foothold", "ContactPlan", "find_foothold", "
 
 def _positive(name: str, value: float) -> None:
     if not isinstance(value, (int, float, np.integer, np.floating)) or not np.isfinite(value) or value <= 0.0:
-        raise ValueError(f"ContactPlannerConfig.{name} must be positive, got {value!r}")
+        raise PlanningError(f"ContactPlannerConfig.{name} must be positive, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -114,18 +115,18 @@ class ContactPlannerConfig:
         for name in ("max_backward", "margin", "sole_thickness", "clearance", "margin_bonus", "margin_cap"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0.0:
-                raise ValueError(f"ContactPlannerConfig.{name} must be >= 0, got {v!r}")
+                raise PlanningError(f"ContactPlannerConfig.{name} must be >= 0, got {v!r}")
         if not 0.0 < self.max_goal_bearing <= np.pi:
-            raise ValueError(f"ContactPlannerConfig.max_goal_bearing must be in (0, pi] rad, got "
+            raise PlanningError(f"ContactPlannerConfig.max_goal_bearing must be in (0, pi] rad, got "
                              f"{self.max_goal_bearing!r}")
         if self.max_backward > self.max_step_length:
-            raise ValueError("ContactPlannerConfig.max_backward must not exceed max_step_length")
+            raise PlanningError("ContactPlannerConfig.max_backward must not exceed max_step_length")
         if not self.min_width <= self.foot_separation <= self.max_width:
-            raise ValueError(f"ContactPlannerConfig: need min_width <= foot_separation <= max_width, got "
+            raise PlanningError(f"ContactPlannerConfig: need min_width <= foot_separation <= max_width, got "
                              f"{self.min_width}, {self.foot_separation}, {self.max_width}")
         object.__setattr__(self, "first_side", Side.parse(self.first_side))
         if int(self.max_checks) != self.max_checks or self.max_checks < 1:
-            raise ValueError(f"ContactPlannerConfig.max_checks must be a positive integer, got {self.max_checks!r}")
+            raise PlanningError(f"ContactPlannerConfig.max_checks must be a positive integer, got {self.max_checks!r}")
 
     def reach_limits(self) -> ReachLimits:
         """Limits for `FootstepPlan`'s own validation, which measures offsets in the (possibly tilted) stance
@@ -283,7 +284,7 @@ def locate_foot(terrain: ContactTerrain, foot: Footstep, sole: SoleRectangle, *,
         s, dist, angle, m = best
         msg += (f" (closest: {s.name!r}, {dist:.4f} m from its plane, normal {np.rad2deg(angle):.1f} deg off, "
                 f"sole {'inside' if m >= 0 else 'outside'} by {abs(m):.3f} m)")
-    raise ValueError(msg)
+    raise PlanningError(msg)
 
 
 # ---- reachability between surfaces ------------------------------------------------------------------------
@@ -349,7 +350,7 @@ def _check_reachable(terrain: ContactTerrain, yaw: float, sole: SoleRectangle, c
         dz = float(np.min(np.abs(P[near, 2] - P[nxt, 2])))
         msg += (f"; the next surface ahead, {terrain.surfaces[owner[nxt]].name!r}, is out of reach (at least "
                 f"{u[nxt] - u[last]:.2f} m further and {dz:.2f} m higher or lower; {gap:.2f} x the step limits)")
-    raise ValueError(msg + f" (limits: max_step_length {cfg.max_step_length} m, max_width {cfg.max_width} m, "
+    raise PlanningError(msg + f" (limits: max_step_length {cfg.max_step_length} m, max_width {cfg.max_width} m, "
                      f"max_step_height {cfg.max_step_height} m, margin {cfg.margin} m; searched within "
                      f"{cfg.graph_corridor} m of the straight line: the planner does not detour)")
 
@@ -366,7 +367,7 @@ def _goal_footholds(terrain: ContactTerrain, goal: np.ndarray, yaw: float, sole:
                           clearance=cfg.clearance)
         if f is None:
             under = [s.name for s in terrain.surfaces if s.contains_xy(xy)]
-            raise ValueError(
+            raise PlanningError(
                 f"goal ({goal[0]:.3f}, {goal[1]:.3f}) m is off the terrain: no contact surface holds the {side} "
                 f"foot at ({xy[0]:.3f}, {xy[1]:.3f}) with its sole {cfg.margin} m inside and free of the boxes"
                 f" (surfaces above that point: {under or 'none'})")
@@ -464,7 +465,7 @@ def _search(terrain: ContactTerrain, start: dict[Side, Foothold], targets: dict[
                       f"{feet[s].footstep.p_world_sole[1]:.3f}, {feet[s].footstep.p_world_sole[2]:.3f})"
                       for s in (Side.LEFT, Side.RIGHT))
     why = "the candidate budget max_checks ran out" if checks > cfg.max_checks else "every branch dead-ends"
-    raise ValueError(f"no reachable next surface: the search got no further than {len(steps)} step(s) ({where});"
+    raise PlanningError(f"no reachable next surface: the search got no further than {len(steps)} step(s) ({where});"
                      f" {why} (max_step_length {cfg.max_step_length} m, max_step_height {cfg.max_step_height} m, "
                      f"margin {cfg.margin} m)")
 
@@ -478,11 +479,11 @@ def _start(terrain: ContactTerrain, start_feet: Mapping[Side, Footstep], sole: S
            ) -> dict[Side, Foothold]:
     feet = {Side.parse(s): f for s, f in dict(start_feet).items()}
     if set(feet) != {Side.LEFT, Side.RIGHT}:
-        raise ValueError("start_feet needs a Footstep for each of left and right")
+        raise PlanningError("start_feet needs a Footstep for each of left and right")
     out = {}
     for side, f in feet.items():
         if not isinstance(f, Footstep) or f.side is not side:
-            raise ValueError(f"start_feet[{side}] must be a Footstep of side {side}")
+            raise PlanningError(f"start_feet[{side}] must be a Footstep of side {side}")
         s = locate_foot(terrain, f, sole)
         out[side] = Foothold(f, s, s.footprint_margin(f.p_world_sole, f.R_world_sole, sole))
     return out
@@ -519,7 +520,7 @@ def plan_contacts(terrain: ContactTerrain, start_feet: Mapping[Side, Footstep], 
     cfg = config if config is not None else ContactPlannerConfig()
     g = np.asarray(goal, float).ravel()
     if g.shape != (2,) or not np.all(np.isfinite(g)):
-        raise ValueError(f"goal must be 2 finite numbers (x, y) [m], got {goal!r}")
+        raise PlanningError(f"goal must be 2 finite numbers (x, y) [m], got {goal!r}")
     start = _start(terrain, start_feet, sole)
     yaw = _heading({s: f.footstep for s, f in start.items()})
     s_mid = 0.5 * (start[Side.LEFT].footstep.p_world_sole[:2] + start[Side.RIGHT].footstep.p_world_sole[:2])
@@ -528,7 +529,7 @@ def plan_contacts(terrain: ContactTerrain, start_feet: Mapping[Side, Footstep], 
         bearing = abs(float(np.arctan2(to_goal[1], to_goal[0])) - yaw)
         bearing = min(bearing, 2.0 * np.pi - bearing)
         if bearing > cfg.max_goal_bearing:
-            raise ValueError(f"goal ({g[0]:.3f}, {g[1]:.3f}) is {np.rad2deg(bearing):.0f} deg off the start heading "
+            raise PlanningError(f"goal ({g[0]:.3f}, {g[1]:.3f}) is {np.rad2deg(bearing):.0f} deg off the start heading "
                              f"({np.rad2deg(yaw):.0f} deg); this planner keeps the heading and does not turn "
                              f"(max_goal_bearing {np.rad2deg(cfg.max_goal_bearing):.0f} deg): turn first or give "
                              "explicit placements")
@@ -568,14 +569,14 @@ def contacts_from_placements(terrain: ContactTerrain, start_feet: Mapping[Side, 
             try:
                 s = locate_foot(terrain, pl, sole, tolerance=1e-3, angle_tolerance=np.deg2rad(1.0))
             except ValueError as exc:
-                raise ValueError(f"placement {i}: {exc}") from None
+                raise PlanningError(f"placement {i}: {exc}") from None
             m = s.footprint_margin(pl.p_world_sole, pl.R_world_sole, sole)
             if m < cfg.margin - 1e-9:
-                raise ValueError(f"placement {i} ({side} foot): the sole is only {m:.4f} m inside {s.name!r}, "
+                raise PlanningError(f"placement {i} ({side} foot): the sole is only {m:.4f} m inside {s.name!r}, "
                                  f"less than the margin {cfg.margin} m")
             if not _sole_free(terrain, pl.p_world_sole[None], pl.R_world_sole[None], s.normal, sole,
                               cfg.sole_thickness, cfg.clearance)[0]:
-                raise ValueError(f"placement {i} ({side} foot): the sole box comes closer than {cfg.clearance} m to "
+                raise PlanningError(f"placement {i} ({side} foot): the sole box comes closer than {cfg.clearance} m to "
                                  "a terrain box (or penetrates it)")
             f = Foothold(pl, s, m)
         else:
@@ -584,22 +585,22 @@ def contacts_from_placements(terrain: ContactTerrain, start_feet: Mapping[Side, 
                 side = Side.parse(side)
                 yaw = float(rest[0]) if rest else heading
             except (TypeError, ValueError):
-                raise ValueError(f"placement {i} must be a Footstep or (side, x, y[, yaw]), got {pl!r}") from None
+                raise PlanningError(f"placement {i} must be a Footstep or (side, x, y[, yaw]), got {pl!r}") from None
             f = find_foothold(terrain, side, (float(x), float(y)), yaw, sole, margin=cfg.margin,
                               sole_thickness=cfg.sole_thickness, clearance=cfg.clearance)
             if f is None:
                 under = [s.name for s in terrain.surfaces if s.contains_xy(np.array([x, y], float))]
-                raise ValueError(f"placement {i} ({side} foot at ({float(x):.3f}, {float(y):.3f})): no contact "
+                raise PlanningError(f"placement {i} ({side} foot at ({float(x):.3f}, {float(y):.3f})): no contact "
                                  f"surface holds the sole {cfg.margin} m inside and free of the boxes (surfaces "
                                  f"above that point: {under or 'none'})")
         stance = feet[side.other].footstep
         h, l = _heading_axes(heading)
         d = f.footstep.p_world_sole - stance.p_world_sole
         if abs(d[:2] @ h) > cfg.max_step_length + 1e-9:
-            raise ValueError(f"placement {i} ({side} foot): {d[:2] @ h:+.3f} m forward of the stance foot, beyond "
+            raise PlanningError(f"placement {i} ({side} foot): {d[:2] @ h:+.3f} m forward of the stance foot, beyond "
                              f"max_step_length {cfg.max_step_length} m")
         if abs(d[2]) > cfg.max_step_height + 1e-9:
-            raise ValueError(f"placement {i} ({side} foot): {d[2]:+.3f} m above the stance foot, beyond "
+            raise PlanningError(f"placement {i} ({side} foot): {d[2]:+.3f} m above the stance foot, beyond "
                              f"max_step_height {cfg.max_step_height} m")
         feet[side] = f
         steps.append(f)

@@ -29,6 +29,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from ..errors import PlanningError
 from .geometry import SoleRectangle, polygons_penetration, rotation_from_yaw, so3_log, yaw_of
 from ..side import Side
 
@@ -71,13 +72,13 @@ class Footstep:
         p = np.asarray(self.p_world_sole, dtype=float)
         R = np.asarray(self.R_world_sole, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"Footstep ({self.side}): p_world_sole must be 3 finite numbers [m], got {p!r}")
+            raise PlanningError(f"Footstep ({self.side}): p_world_sole must be 3 finite numbers [m], got {p!r}")
         if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-            raise ValueError(f"Footstep ({self.side}): R_world_sole must be a finite 3x3 matrix, got {R!r}")
+            raise PlanningError(f"Footstep ({self.side}): R_world_sole must be a finite 3x3 matrix, got {R!r}")
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0.0:
-            raise ValueError(f"Footstep ({self.side}): R_world_sole is not a rotation matrix")
+            raise PlanningError(f"Footstep ({self.side}): R_world_sole is not a rotation matrix")
         if R[2, 2] <= 0.0:
-            raise ValueError(f"Footstep ({self.side}): the sole normal (z axis of R_world_sole) must point up")
+            raise PlanningError(f"Footstep ({self.side}): the sole normal (z axis of R_world_sole) must point up")
         object.__setattr__(self, "p_world_sole", _readonly(p))
         object.__setattr__(self, "R_world_sole", _readonly(R))
 
@@ -112,7 +113,7 @@ class Footstep:
 
 def _positive_duration(owner: str, name: str, value: float) -> None:
     if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{owner}.{name} must be a positive duration in seconds, got {value!r}")
+        raise PlanningError(f"{owner}.{name} must be a positive duration in seconds, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -165,7 +166,7 @@ class ReachLimits:
         for name in ("max_length", "max_width", "max_height", "max_yaw"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0.0:
-                raise ValueError(f"ReachLimits.{name} must be positive, got {value!r}")
+                raise PlanningError(f"ReachLimits.{name} must be positive, got {value!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,23 +194,23 @@ class FootstepPlan:
         try:
             feet = {Side.parse(k): v for k, v in dict(self.initial_feet).items()}
         except ValueError as exc:
-            raise ValueError(f"FootstepPlan.initial_feet: {exc}") from None
+            raise PlanningError(f"FootstepPlan.initial_feet: {exc}") from None
         if set(feet) != {Side.LEFT, Side.RIGHT} or len(self.initial_feet) != 2:
-            raise ValueError(f"FootstepPlan.initial_feet needs exactly the sides left and right, got "
+            raise PlanningError(f"FootstepPlan.initial_feet needs exactly the sides left and right, got "
                              f"{sorted(str(s) for s in feet)}")
         for side, foot in feet.items():
             if not isinstance(foot, Footstep) or foot.side is not side:
-                raise ValueError(f"FootstepPlan.initial_feet[{side}] must be a Footstep of side {side}")
+                raise PlanningError(f"FootstepPlan.initial_feet[{side}] must be a Footstep of side {side}")
         object.__setattr__(self, "initial_feet", MappingProxyType(feet))
         steps = tuple(self.steps)
         for i, step in enumerate(steps):
             if not isinstance(step, Footstep):
-                raise ValueError(f"FootstepPlan.steps[{i}] must be a Footstep, got {type(step).__name__}")
+                raise PlanningError(f"FootstepPlan.steps[{i}] must be a Footstep, got {type(step).__name__}")
         object.__setattr__(self, "steps", steps)
         if not isinstance(self.timing, StepTiming):
-            raise ValueError("FootstepPlan.timing must be a StepTiming")
+            raise PlanningError("FootstepPlan.timing must be a StepTiming")
         if not isinstance(self.sole, SoleRectangle):
-            raise ValueError("FootstepPlan.sole must be a SoleRectangle")
+            raise PlanningError("FootstepPlan.sole must be a SoleRectangle")
         self._validate()
 
     # ---- validation -------------------------------------------------------------------------------
@@ -217,26 +218,26 @@ class FootstepPlan:
         depth = polygons_penetration(self.sole.footprint(moving.p_world_sole, moving.R_world_sole),
                                      self.sole.footprint(stance.p_world_sole, stance.R_world_sole))
         if depth > 1e-9:
-            raise ValueError(f"{what}: the {moving.side} footprint overlaps the {stance.side} foot by "
+            raise PlanningError(f"{what}: the {moving.side} footprint overlaps the {stance.side} foot by "
                              f"{depth:.4f} m (sole {self.sole.length} x {self.sole.width} m); "
                              "increase the foot separation or reduce the yaw")
         p, angle = moving.in_frame_of(stance)
         lim = self.limits
         if abs(p[0]) > lim.max_length + 1e-12:
-            raise ValueError(f"{what}: the {moving.side} foot lands {p[0]:+.3f} m forward of the {stance.side} "
+            raise PlanningError(f"{what}: the {moving.side} foot lands {p[0]:+.3f} m forward of the {stance.side} "
                              f"(stance) foot, beyond max_length {lim.max_length} m")
         if abs(p[1]) > lim.max_width + 1e-12:
-            raise ValueError(f"{what}: the {moving.side} foot lands {abs(p[1]):.3f} m sideways from the "
+            raise PlanningError(f"{what}: the {moving.side} foot lands {abs(p[1]):.3f} m sideways from the "
                              f"{stance.side} (stance) foot, beyond max_width {lim.max_width} m")
         if moving.side.sign * p[1] <= 0.0:
-            raise ValueError(f"{what}: the {moving.side} foot crosses over the {stance.side} (stance) foot "
+            raise PlanningError(f"{what}: the {moving.side} foot crosses over the {stance.side} (stance) foot "
                              f"(lateral offset {p[1]:+.3f} m in the stance sole frame; a {moving.side} foot "
                              f"must be on its {moving.side} side)")
         if abs(p[2]) > lim.max_height + 1e-12:
-            raise ValueError(f"{what}: the {moving.side} foot lands {p[2]:+.3f} m above the {stance.side} "
+            raise PlanningError(f"{what}: the {moving.side} foot lands {p[2]:+.3f} m above the {stance.side} "
                              f"(stance) foot, beyond max_height {lim.max_height} m")
         if angle > lim.max_yaw + 1e-12:
-            raise ValueError(f"{what}: the {moving.side} foot is turned {angle:.3f} rad from the {stance.side} "
+            raise PlanningError(f"{what}: the {moving.side} foot is turned {angle:.3f} rad from the {stance.side} "
                              f"(stance) foot, beyond max_yaw {lim.max_yaw} rad")
 
     def _validate(self) -> None:
@@ -310,18 +311,18 @@ class StepIncrement:
     def __post_init__(self) -> None:
         for name in ("dx", "dy", "dz", "dyaw"):
             if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"StepIncrement.{name} must be finite, got {getattr(self, name)!r}")
+                raise PlanningError(f"StepIncrement.{name} must be finite, got {getattr(self, name)!r}")
 
 
 def _count(n_steps: int) -> int:
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
-        raise ValueError(f"n_steps must be a non-negative integer, got {n_steps!r}")
+        raise PlanningError(f"n_steps must be a non-negative integer, got {n_steps!r}")
     return int(n_steps)
 
 
 def _separation(foot_separation: float) -> float:
     if not np.isfinite(foot_separation) or foot_separation <= 0.0:
-        raise ValueError(f"foot_separation must be a positive distance in metres, got {foot_separation!r}")
+        raise PlanningError(f"foot_separation must be a positive distance in metres, got {foot_separation!r}")
     return float(foot_separation)
 
 
@@ -354,7 +355,7 @@ def footsteps_from_increments(
     sep = _separation(foot_separation)
     first_side = Side.parse(first_side)
     if len(start) != 4 or not np.all(np.isfinite(start)):
-        raise ValueError(f"start must be 4 finite numbers (x, y, z [m], yaw [rad]), got {start!r}")
+        raise PlanningError(f"start must be 4 finite numbers (x, y, z [m], yaw [rad]), got {start!r}")
     x, y, z, yaw = (float(v) for v in start)
 
     def foot(side: Side) -> Footstep:
@@ -366,7 +367,7 @@ def footsteps_from_increments(
     side = first_side
     for inc in increments:
         if not isinstance(inc, StepIncrement):
-            raise ValueError(f"increments must be StepIncrement, got {type(inc).__name__}")
+            raise PlanningError(f"increments must be StepIncrement, got {type(inc).__name__}")
         c, s = np.cos(yaw), np.sin(yaw)
         x, y, z, yaw = x + c * inc.dx - s * inc.dy, y + s * inc.dx + c * inc.dy, z + inc.dz, yaw + inc.dyaw
         steps.append(foot(side))
@@ -403,7 +404,7 @@ def straight_walk(
     """
     n = _count(n_steps)
     if not np.isfinite(step_length) or not np.isfinite(step_height):
-        raise ValueError("step_length and step_height must be finite")
+        raise PlanningError("step_length and step_height must be finite")
     incs = [StepIncrement(dx=step_length, dz=step_height)] * n
     if final_step and n > 0:
         incs.append(StepIncrement())
@@ -428,7 +429,7 @@ def lateral_walk(
     """
     n = _count(n_steps)
     if not np.isfinite(lateral_step) or lateral_step == 0.0:
-        raise ValueError(f"lateral_step must be a non-zero distance in metres, got {lateral_step!r}")
+        raise PlanningError(f"lateral_step must be a non-zero distance in metres, got {lateral_step!r}")
     leading = Side.LEFT if lateral_step > 0.0 else Side.RIGHT
     incs = [StepIncrement(dy=lateral_step), StepIncrement()] * n
     return footsteps_from_increments(incs, first_side=leading, foot_separation=foot_separation,
@@ -460,7 +461,7 @@ def turning_walk(
     """
     n = _count(n_steps)
     if not np.isfinite(yaw_per_step) or not np.isfinite(step_length):
-        raise ValueError("yaw_per_step and step_length must be finite")
+        raise PlanningError("yaw_per_step and step_length must be finite")
     if first_side is None:
         first_side = Side.LEFT if yaw_per_step >= 0.0 else Side.RIGHT
     incs = [StepIncrement(dx=step_length, dyaw=yaw_per_step)] * n

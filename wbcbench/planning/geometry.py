@@ -10,6 +10,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+from ..errors import PlanningError
 
 __all__ = [
     "SoleRectangle",
@@ -43,10 +44,10 @@ class SoleRectangle:
         for name in ("length", "width"):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0.0:
-                raise ValueError(f"SoleRectangle.{name} must be a positive length in metres, got {value!r}")
+                raise PlanningError(f"SoleRectangle.{name} must be a positive length in metres, got {value!r}")
         for name in ("center_x", "center_y"):
             if not np.isfinite(getattr(self, name)):
-                raise ValueError(f"SoleRectangle.{name} must be finite, got {getattr(self, name)!r}")
+                raise PlanningError(f"SoleRectangle.{name} must be finite, got {getattr(self, name)!r}")
 
     @property
     def p_sole_center(self) -> np.ndarray:

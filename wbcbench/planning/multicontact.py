@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import PlanningError
 from .centroidal import CentroidalConfig, CentroidalTrajectory, plan_centroidal
 from .contact_planner import ContactPlan, ContactPlannerConfig, plan_contacts
 from .footsteps import Footstep, FootstepPlan, StepTiming
@@ -133,7 +134,7 @@ def plan_swing(start: Footstep, end: Footstep, t_start: float, duration: float, 
         ValueError: no swing of the tried shapes clears the terrain.
     """
     if not np.isfinite(swing_clearance) or swing_clearance < 0.0:
-        raise ValueError(f"swing_clearance must be >= 0 [m], got {swing_clearance!r}")
+        raise PlanningError(f"swing_clearance must be >= 0 [m], got {swing_clearance!r}")
     prints = np.vstack([sole.footprint(f.p_world_sole, f.R_world_sole) for f in (start, end)])
     region = convex_hull(prints)
     z_terrain = _terrain_height_under(terrain, region) + max(_corner_drop(start, sole), _corner_drop(end, sole))
@@ -151,7 +152,7 @@ def plan_swing(start: Footstep, end: Footstep, t_start: float, duration: float, 
         if depth.max() < worst[0]:
             worst = (float(depth.max()), float(times[int(np.argmax(depth))]))
     what = f"step {step} ({start.side} foot)" if step is not None else f"the {start.side} swing"
-    raise ValueError(f"{what}: no swing clears the terrain: the sole box (grown by edge_margin {edge_margin} m) "
+    raise PlanningError(f"{what}: no swing clears the terrain: the sole box (grown by edge_margin {edge_margin} m) "
                      f"still penetrates it by at least {worst[0]:.4f} m (at t = {worst[1]:.3f} s), with the apex "
                      f"raised by up to {_APEX_RAISES[-1]} m and the horizontal motion confined to as little as "
                      f"{_WINDOWS[-1]} of the swing")
@@ -240,11 +241,11 @@ def generate_multicontact_walk(contacts: ContactPlan | FootstepPlan, config: Cen
         contact_plan: ContactPlan | None = contacts
     elif isinstance(contacts, FootstepPlan):
         if terrain is None:
-            raise ValueError("a bare FootstepPlan needs the terrain (terrain=...) for the swing check")
+            raise PlanningError("a bare FootstepPlan needs the terrain (terrain=...) for the swing check")
         plan, contact_plan = contacts, None
         thickness = sole_thickness if sole_thickness is not None else 0.02
     else:
-        raise ValueError(f"contacts must be a ContactPlan or a FootstepPlan, got {type(contacts).__name__}")
+        raise PlanningError(f"contacts must be a ContactPlan or a FootstepPlan, got {type(contacts).__name__}")
     centroidal = plan_centroidal(plan, config, p_world_com_init)
     dt = config.dt
     swings = []

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import PlanningError
 from .footsteps import Footstep, FootstepPlan
 from .preview_control import PreviewGains, preview_gains, simulate_preview
 from ..side import Side
@@ -48,7 +49,7 @@ class ZmpTransfer(enum.Enum):
 
 def _positive(owner: str, name: str, value: float) -> None:
     if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{owner}.{name} must be positive and finite, got {value!r}")
+        raise PlanningError(f"{owner}.{name} must be positive and finite, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -96,27 +97,27 @@ class PatternGeneratorConfig:
             _positive("PatternGeneratorConfig", "preview_dt", self.preview_dt)
             ratio = self.preview_dt / self.dt
             if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-                raise ValueError(f"PatternGeneratorConfig.preview_dt ({self.preview_dt} s) must be an integer "
+                raise PlanningError(f"PatternGeneratorConfig.preview_dt ({self.preview_dt} s) must be an integer "
                                  f"multiple of dt ({self.dt} s)")
         if not isinstance(self.zmp_transfer, ZmpTransfer):
             try:
                 object.__setattr__(self, "zmp_transfer", ZmpTransfer(self.zmp_transfer))
             except ValueError:
-                raise ValueError(f"PatternGeneratorConfig.zmp_transfer: unknown {self.zmp_transfer!r}; allowed: "
+                raise PlanningError(f"PatternGeneratorConfig.zmp_transfer: unknown {self.zmp_transfer!r}; allowed: "
                                  f"{', '.join(z.value for z in ZmpTransfer)}") from None
         if not np.isfinite(self.swing_apex_height) or self.swing_apex_height < 0.0:
-            raise ValueError(f"PatternGeneratorConfig.swing_apex_height must be >= 0 [m], got "
+            raise PlanningError(f"PatternGeneratorConfig.swing_apex_height must be >= 0 [m], got "
                              f"{self.swing_apex_height!r}")
         if not 0.0 < self.swing_apex_phase < 1.0:
-            raise ValueError(f"PatternGeneratorConfig.swing_apex_phase must be in (0, 1), got "
+            raise PlanningError(f"PatternGeneratorConfig.swing_apex_phase must be in (0, 1), got "
                              f"{self.swing_apex_phase!r}")
         try:
             w0, w1 = (float(w) for w in self.swing_horizontal_window)
         except (TypeError, ValueError):
-            raise ValueError("PatternGeneratorConfig.swing_horizontal_window must be two numbers (w0, w1)") from None
+            raise PlanningError("PatternGeneratorConfig.swing_horizontal_window must be two numbers (w0, w1)") from None
         object.__setattr__(self, "swing_horizontal_window", (w0, w1))
         if not 0.0 <= w0 < w1 <= 1.0:
-            raise ValueError("PatternGeneratorConfig.swing_horizontal_window must satisfy 0 <= w0 < w1 <= 1")
+            raise PlanningError("PatternGeneratorConfig.swing_horizontal_window must satisfy 0 <= w0 < w1 <= 1")
 
     @property
     def omega(self) -> float:
@@ -152,15 +153,15 @@ def _moves(plan: FootstepPlan, config: PatternGeneratorConfig, p_init: np.ndarra
     dt, timing = config.dt, plan.timing
     for name in ("single_support", "double_support", "initial_double_support", "final_double_support"):
         if getattr(timing, name) < dt - 1e-12:
-            raise ValueError(f"StepTiming.{name} ({getattr(timing, name)} s) is shorter than one tick ({dt} s)")
+            raise PlanningError(f"StepTiming.{name} ({getattr(timing, name)} s) is shorter than one tick ({dt} s)")
     if timing.initial_double_support < config.preview_horizon + config.initial_shift - 1e-9:
-        raise ValueError(
+        raise PlanningError(
             f"StepTiming.initial_double_support ({timing.initial_double_support} s) must be at least "
             f"preview_horizon + initial_shift = {config.preview_horizon + config.initial_shift:g} s: the ZMP "
             "reference is held at the initial CoM for longer than the preview horizon so that the walk starts "
             "at rest without a start-up spike")
     if config.final_shift > timing.final_double_support + 1e-9:
-        raise ValueError(f"PatternGeneratorConfig.final_shift ({config.final_shift} s) must not exceed "
+        raise PlanningError(f"PatternGeneratorConfig.final_shift ({config.final_shift} s) must not exceed "
                          f"StepTiming.final_double_support ({timing.final_double_support} s)")
     n_ticks = _tick(plan.duration, dt) + 1
     moves: list[_Move] = []
@@ -221,7 +222,7 @@ def _initial_point(plan: FootstepPlan, p_world_com_init: np.ndarray | None) -> n
         return base
     p = np.asarray(p_world_com_init, dtype=float).ravel()
     if p.shape not in ((2,), (3,)) or not np.all(np.isfinite(p)):
-        raise ValueError(f"p_world_com_init must be 2 or 3 finite numbers [m], got {p_world_com_init!r}")
+        raise PlanningError(f"p_world_com_init must be 2 or 3 finite numbers [m], got {p_world_com_init!r}")
     return np.array([p[0], p[1], base[2]])
 
 
@@ -336,7 +337,7 @@ def generate_walk(plan: FootstepPlan, config: PatternGeneratorConfig,
         PreviewControlError: the preview gains fail their accuracy checks.
     """
     if not isinstance(plan, FootstepPlan):
-        raise ValueError(f"plan must be a FootstepPlan, got {type(plan).__name__}")
+        raise PlanningError(f"plan must be a FootstepPlan, got {type(plan).__name__}")
     p_init = _initial_point(plan, p_world_com_init)
     moves, n = _moves(plan, config, p_init)
     zmp_ref = _zmp_from_moves(moves, n, p_init, config.zmp_transfer)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from ..errors import PlanningError
 
 __all__ = ["PreviewControlError", "PreviewGains", "preview_gains", "simulate_preview", "cart_table"]
 
@@ -86,7 +87,7 @@ class PreviewGains:
 
 def _check_positive(name: str, value: float) -> float:
     if not np.isfinite(value) or value <= 0.0:
-        raise ValueError(f"{name} must be positive and finite, got {value!r}")
+        raise PlanningError(f"{name} must be positive and finite, got {value!r}")
     return float(value)
 
 
@@ -109,7 +110,7 @@ def preview_gains(dt: float, com_height: float, gravity: float = 9.81, horizon: 
                                                    ("gravity", gravity), ("horizon", horizon),
                                                    ("zmp_weight", zmp_weight), ("jerk_weight", jerk_weight)))
     if horizon < dt:
-        raise ValueError(f"horizon ({horizon} s) must be at least one tick ({dt} s)")
+        raise PlanningError(f"horizon ({horizon} s) must be at least one tick ({dt} s)")
     return _preview_gains(*args)
 
 
@@ -196,7 +197,7 @@ def simulate_preview(gains: PreviewGains, zmp_ref: np.ndarray, x0: np.ndarray | 
     if vector:
         ref = ref[:, None]
     if ref.ndim != 2 or len(ref) == 0 or not np.all(np.isfinite(ref)):
-        raise ValueError("zmp_ref must be a non-empty finite array of shape (n,) or (n, d)")
+        raise PlanningError("zmp_ref must be a non-empty finite array of shape (n,) or (n, d)")
     n, d = ref.shape
     origin = ref[0].copy()
     if x0 is None:

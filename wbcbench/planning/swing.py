@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import PlanningError
 from .footsteps import Footstep
 from .geometry import so3_log
 
@@ -102,26 +103,26 @@ class SwingTrajectory:
         for name in ("p_world_start", "p_world_end"):
             p = np.array(getattr(self, name), dtype=float)
             if p.shape != (3,) or not np.all(np.isfinite(p)):
-                raise ValueError(f"SwingTrajectory.{name} must be 3 finite numbers [m], got {p!r}")
+                raise PlanningError(f"SwingTrajectory.{name} must be 3 finite numbers [m], got {p!r}")
             p.flags.writeable = False
             object.__setattr__(self, name, p)
         for name in ("R_world_start", "R_world_end"):
             R = np.array(getattr(self, name), dtype=float)
             if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6:
-                raise ValueError(f"SwingTrajectory.{name} must be a rotation matrix")
+                raise PlanningError(f"SwingTrajectory.{name} must be a rotation matrix")
             R.flags.writeable = False
             object.__setattr__(self, name, R)
         if not np.isfinite(self.t_start):
-            raise ValueError(f"SwingTrajectory.t_start must be finite, got {self.t_start!r}")
+            raise PlanningError(f"SwingTrajectory.t_start must be finite, got {self.t_start!r}")
         if not np.isfinite(self.duration) or self.duration <= 0.0:
-            raise ValueError(f"SwingTrajectory.duration must be a positive duration in seconds, got {self.duration!r}")
+            raise PlanningError(f"SwingTrajectory.duration must be a positive duration in seconds, got {self.duration!r}")
         if not np.isfinite(self.apex_height) or self.apex_height < 0.0:
-            raise ValueError(f"SwingTrajectory.apex_height must be >= 0 [m], got {self.apex_height!r}")
+            raise PlanningError(f"SwingTrajectory.apex_height must be >= 0 [m], got {self.apex_height!r}")
         if not 0.0 < self.apex_phase < 1.0:
-            raise ValueError(f"SwingTrajectory.apex_phase must be in (0, 1), got {self.apex_phase!r}")
+            raise PlanningError(f"SwingTrajectory.apex_phase must be in (0, 1), got {self.apex_phase!r}")
         w0, w1 = (float(w) for w in self.horizontal_window)
         if not 0.0 <= w0 < w1 <= 1.0:
-            raise ValueError(f"SwingTrajectory.horizontal_window must satisfy 0 <= w0 < w1 <= 1, got "
+            raise PlanningError(f"SwingTrajectory.horizontal_window must satisfy 0 <= w0 < w1 <= 1, got "
                              f"{self.horizontal_window!r}")
         object.__setattr__(self, "horizontal_window", (w0, w1))
         log_local = so3_log(self.R_world_start.T @ self.R_world_end)
@@ -134,7 +135,7 @@ class SwingTrajectory:
                 horizontal_window: tuple[float, float] = (0.0, 1.0)) -> "SwingTrajectory":
         """The swing from footstep `start` to footstep `end` (same foot)."""
         if start.side is not end.side:
-            raise ValueError(f"a swing goes from a foot to the same foot, got {start.side} -> {end.side}")
+            raise PlanningError(f"a swing goes from a foot to the same foot, got {start.side} -> {end.side}")
         return cls(start.p_world_sole, start.R_world_sole, end.p_world_sole, end.R_world_sole, t_start,
                    duration, apex_height, apex_phase, horizontal_window)
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import PlanningError
 from ..scene import Box, Terrain, stairs
 from .geometry import SoleRectangle
 
@@ -84,11 +85,11 @@ class OrientedBox:
         R = np.asarray(self.R, float)
         h = np.asarray(self.half, float)
         if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise ValueError(f"OrientedBox {self.name!r}: center must be 3 finite numbers [m], got {c!r}")
+            raise PlanningError(f"OrientedBox {self.name!r}: center must be 3 finite numbers [m], got {c!r}")
         if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0.0:
-            raise ValueError(f"OrientedBox {self.name!r}: R must be a rotation matrix")
+            raise PlanningError(f"OrientedBox {self.name!r}: R must be a rotation matrix")
         if h.shape != (3,) or not np.all(np.isfinite(h)) or np.any(h < 0.0):
-            raise ValueError(f"OrientedBox {self.name!r}: half sizes must be 3 finite numbers >= 0 [m], got {h!r}")
+            raise PlanningError(f"OrientedBox {self.name!r}: half sizes must be 3 finite numbers >= 0 [m], got {h!r}")
         object.__setattr__(self, "center", _frozen(c))
         object.__setattr__(self, "R", _frozen(R))
         object.__setattr__(self, "half", _frozen(h))
@@ -100,12 +101,12 @@ class OrientedBox:
             center, size = np.asarray(box.center, float), np.asarray(box.size, float)
             rpy = np.asarray(getattr(box, "rpy", (0.0, 0.0, 0.0)), float)
         except AttributeError:
-            raise ValueError(f"a terrain box needs center, size and rpy, got {type(box).__name__}") from None
+            raise PlanningError(f"a terrain box needs center, size and rpy, got {type(box).__name__}") from None
         name = str(getattr(box, "name", "") or "")
         if size.shape != (3,) or np.any(~np.isfinite(size)) or np.any(size <= 0.0):
-            raise ValueError(f"terrain box {name!r}: size must be 3 positive lengths [m], got {size.tolist()}")
+            raise PlanningError(f"terrain box {name!r}: size must be 3 positive lengths [m], got {size.tolist()}")
         if rpy.shape != (3,) or not np.all(np.isfinite(rpy)):
-            raise ValueError(f"terrain box {name!r}: rpy must be 3 finite angles [rad], got {rpy.tolist()}")
+            raise PlanningError(f"terrain box {name!r}: rpy must be 3 finite angles [rad], got {rpy.tolist()}")
         return cls(center, rpy_matrix(*rpy), size / 2.0, name)
 
     def vertices(self) -> np.ndarray:
@@ -161,16 +162,16 @@ class ContactSurface:
         v = np.asarray(self.vertices, float)
         n = np.asarray(self.normal, float)
         if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.all(np.isfinite(v)):
-            raise ValueError(f"ContactSurface {self.name!r}: vertices must be (k >= 3, 3) finite [m]")
+            raise PlanningError(f"ContactSurface {self.name!r}: vertices must be (k >= 3, 3) finite [m]")
         norm = np.linalg.norm(n)
         if n.shape != (3,) or not np.isfinite(norm) or norm < 1e-9:
-            raise ValueError(f"ContactSurface {self.name!r}: normal must be a non-zero 3-vector")
+            raise PlanningError(f"ContactSurface {self.name!r}: normal must be a non-zero 3-vector")
         n = n / norm
         if n[2] <= 1e-6:
-            raise ValueError(f"ContactSurface {self.name!r}: the normal must point up, got {n.tolist()}")
+            raise PlanningError(f"ContactSurface {self.name!r}: the normal must point up, got {n.tolist()}")
         off_plane = np.abs((v - v[0]) @ n).max()
         if off_plane > 1e-6:
-            raise ValueError(f"ContactSurface {self.name!r}: vertices are not coplanar ({off_plane:.2e} m off)")
+            raise PlanningError(f"ContactSurface {self.name!r}: vertices are not coplanar ({off_plane:.2e} m off)")
         x = np.array([1.0, 0.0, 0.0]) - n[0] * n
         if np.linalg.norm(x) < 1e-6:
             x = np.array([0.0, 1.0, 0.0]) - n[1] * n
@@ -180,11 +181,11 @@ class ContactSurface:
         edges = np.roll(poly, -1, axis=0) - poly
         lengths = np.linalg.norm(edges, axis=1)
         if np.any(lengths < 1e-9):
-            raise ValueError(f"ContactSurface {self.name!r}: repeated vertices")
+            raise PlanningError(f"ContactSurface {self.name!r}: repeated vertices")
         inward = np.column_stack([-edges[:, 1], edges[:, 0]]) / lengths[:, None]
         cross = edges[:, 0] * np.roll(edges[:, 1], -1) - edges[:, 1] * np.roll(edges[:, 0], -1)
         if np.any(cross <= 1e-12):
-            raise ValueError(f"ContactSurface {self.name!r}: the polygon must be convex and counter-clockwise "
+            raise PlanningError(f"ContactSurface {self.name!r}: the polygon must be convex and counter-clockwise "
                              "seen from the normal")
         object.__setattr__(self, "vertices", _frozen(v))
         object.__setattr__(self, "normal", _frozen(n))
@@ -314,7 +315,7 @@ class ContactTerrain:
         object.__setattr__(self, "boxes", boxes)
         object.__setattr__(self, "surfaces", tuple(self.surfaces))
         if not self.surfaces:
-            raise ValueError("ContactTerrain: no contact surface (no floor and no box with a walkable top)")
+            raise PlanningError("ContactTerrain: no contact surface (no floor and no box with a walkable top)")
         object.__setattr__(self, "_centers", _frozen(np.array([b.center for b in boxes]).reshape(-1, 3)))
         object.__setattr__(self, "_Rs", _frozen(np.array([b.R for b in boxes]).reshape(-1, 3, 3)))
         object.__setattr__(self, "_halves", _frozen(np.array([b.half for b in boxes]).reshape(-1, 3)))
@@ -340,11 +341,11 @@ class ContactTerrain:
         names = [b.name for b in obbs]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise ValueError(f"terrain box names must be unique, repeated: {dup}")
+            raise PlanningError(f"terrain box names must be unique, repeated: {dup}")
         if "floor" in names:
-            raise ValueError("'floor' is reserved for the floor surface; rename the box")
+            raise PlanningError("'floor' is reserved for the floor surface; rename the box")
         if not 0.0 < max_slope < 0.5 * np.pi:
-            raise ValueError(f"max_slope must be in (0, pi/2) rad, got {max_slope!r}")
+            raise PlanningError(f"max_slope must be in (0, pi/2) rad, got {max_slope!r}")
         surfaces = []
         if floor:
             e = float(floor_extent)
@@ -366,7 +367,7 @@ class ContactTerrain:
         for s in self.surfaces:
             if s.name == name:
                 return s
-        raise ValueError(f"no contact surface {name!r}; surfaces: {', '.join(s.name for s in self.surfaces)}")
+        raise PlanningError(f"no contact surface {name!r}; surfaces: {', '.join(s.name for s in self.surfaces)}")
 
     def height_at(self, xy: np.ndarray) -> float:
         """Height of the highest surface whose polygon covers the point xy [m]; -inf if none."""
@@ -405,7 +406,7 @@ class ContactTerrain:
         """Penetration depth of the sole box (the sole rectangle extruded by `thickness` [m] upwards along
         the sole normal) into the terrain [m]; shapes (3,)/(3, 3) -> scalar, (n, 3)/(n, 3, 3) -> (n,)."""
         if not np.isfinite(thickness) or thickness < 0.0:
-            raise ValueError(f"sole thickness must be >= 0 [m], got {thickness!r}")
+            raise PlanningError(f"sole thickness must be >= 0 [m], got {thickness!r}")
         centers, half = sole_box(p_world_sole, R_world_sole, sole, thickness)
         return self.penetration(centers, R_world_sole, half)
 
@@ -421,10 +422,10 @@ def stairs_boxes(count: int = 6, height: float = 0.10, depth: float = 0.30, widt
     covering x in [start_x + (i - 1) depth, start_x + i depth], y in [-width / 2, width / 2].
     """
     if int(count) != count or count < 1:
-        raise ValueError(f"stairs count must be a positive integer, got {count!r}")
+        raise PlanningError(f"stairs count must be a positive integer, got {count!r}")
     for name, value in (("height", height), ("depth", depth), ("width", width)):
         if not np.isfinite(value) or value <= 0.0:
-            raise ValueError(f"stairs {name} must be a positive length [m], got {value!r}")
+            raise PlanningError(f"stairs {name} must be a positive length [m], got {value!r}")
     return stairs(int(count), float(height), float(depth), float(width), float(start_x))
 
 
@@ -452,13 +453,13 @@ def platform_boxes(slope_deg: float = 15.0, count: int = 6, depth: float = 0.30,
     """
     a = np.deg2rad(float(slope_deg))
     if not 0.0 < a < np.deg2rad(45.0):
-        raise ValueError(f"platform slope must be in (0, 45) degrees, got {slope_deg!r}")
+        raise PlanningError(f"platform slope must be in (0, 45) degrees, got {slope_deg!r}")
     if int(count) != count or count < 2 or count % 2:
-        raise ValueError(f"platform count must be a positive even integer (the walk ends on the floor), got "
+        raise PlanningError(f"platform count must be a positive even integer (the walk ends on the floor), got "
                          f"{count!r}")
     for name, value in (("depth", depth), ("width", width), ("thickness", thickness)):
         if not np.isfinite(value) or value <= 0.0:
-            raise ValueError(f"platform {name} must be a positive length [m], got {value!r}")
+            raise PlanningError(f"platform {name} must be a positive length [m], got {value!r}")
     boxes = []
     h_top = 0.5 * depth * np.tan(a)  # height of the top face's centre
     for i in range(int(count)):

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import PlanningError
 from .geometry import SoleRectangle, support_polygon
 from ..side import Side
 
@@ -254,7 +255,7 @@ class WalkTrajectory:
     def tick_at(self, t: float) -> int:
         """Nearest tick to time t [s], clamped to the last tick. Raises ValueError for t < 0."""
         if not np.isfinite(t) or t < -0.5 * self.dt:
-            raise ValueError(f"time must be >= 0, got {t!r}")
+            raise PlanningError(f"time must be >= 0, got {t!r}")
         return min(int(round(t / self.dt)), self.n_ticks - 1)
 
     def sample(self, tick: int) -> WalkSample:

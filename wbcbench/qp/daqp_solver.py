@@ -8,6 +8,7 @@ import daqp
 import numpy as np
 import numpy.typing as npt
 
+from wbcbench.errors import QPError
 from wbcbench.qp.problem import QPProblem
 from wbcbench.qp.result import QPResult, QPStatus
 from wbcbench.qp.solver import QPSolver
@@ -87,7 +88,7 @@ class DaqpSolver(QPSolver):
         valid = daqp.Model().settings
         unknown = sorted(set(settings) - set(valid))
         if unknown:
-            raise ValueError(f"DaqpSolver: unknown setting(s) {unknown}; valid: {', '.join(sorted(valid))}")
+            raise QPError(f"DaqpSolver: unknown setting(s) {unknown}; valid: {', '.join(sorted(valid))}")
         self.settings: dict[str, float] = {**_DEFAULTS, **settings}
         self.fresh_setup = bool(fresh_setup)
         self.reset()

@@ -54,6 +54,7 @@ import numpy.typing as npt
 from scipy.linalg import lapack
 from scipy.optimize import nnls
 
+from wbcbench.errors import QPError
 from wbcbench.qp import _jit
 from wbcbench.qp._nullspace import least_squares_step, project
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level, Task
@@ -277,13 +278,13 @@ class HierarchicalSolver:
         fast_path: bool = True,
     ):
         if int(n) != n or n < 1:
-            raise ValueError(f"HierarchicalSolver: n must be a positive integer, got {n!r}")
+            raise QPError(f"HierarchicalSolver: n must be a positive integer, got {n!r}")
         if solver not in solver_names():
-            raise ValueError(f"HierarchicalSolver: unknown QP solver {solver!r}; valid: {', '.join(solver_names())}")
+            raise QPError(f"HierarchicalSolver: unknown QP solver {solver!r}; valid: {', '.join(solver_names())}")
         for key, value in (("damping", damping), ("rank_tol", rank_tol), ("feasibility_tol", feasibility_tol),
                            ("met_tol", met_tol)):
             if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f"HierarchicalSolver: {key} must be finite and >= 0, got {value!r}")
+                raise QPError(f"HierarchicalSolver: {key} must be finite and >= 0, got {value!r}")
         self.n = int(n)
         self.solver_name = solver
         self.solver_options = dict(solver_options or {})
@@ -320,17 +321,17 @@ class HierarchicalSolver:
                 try:
                     out.append(Level(tuple(level), name=f"level{k}"))
                 except ValueError as exc:
-                    raise ValueError(f"HierarchicalSolver: level {k}: {exc}") from None
+                    raise QPError(f"HierarchicalSolver: level {k}: {exc}") from None
         seen: dict[str, int] = {}
         for k, level in enumerate(out):
             for task in level.tasks:
                 if task.name in seen:
-                    raise ValueError(
+                    raise QPError(
                         f"HierarchicalSolver: task name '{task.name}' appears twice (levels {seen[task.name]} and {k})"
                     )
                 seen[task.name] = k
                 if task.n_cols != self.n:
-                    raise ValueError(
+                    raise QPError(
                         f"HierarchicalSolver: level {k} ('{level.name}'), task '{task.name}': "
                         f"{task.n_cols} columns, expected n = {self.n}"
                     )
@@ -357,18 +358,18 @@ class HierarchicalSolver:
                 continue
             array = np.asarray(value, dtype=np.float64)
             if array.shape != (self.n,):
-                raise ValueError(f"HierarchicalSolver: {side} bounds must have shape ({self.n},), got {array.shape}")
+                raise QPError(f"HierarchicalSolver: {side} bounds must have shape ({self.n},), got {array.shape}")
             bounds.append(array)
         lb, ub = bounds
         if (lb <= ub).all():  # no NaN, ordered: the usual case in one comparison
             return lb, ub
         for array, side in ((lb, "lower"), (ub, "upper")):
             if np.isnan(array).any():
-                raise ValueError(f"HierarchicalSolver: {side} bounds contain NaN")
+                raise QPError(f"HierarchicalSolver: {side} bounds contain NaN")
         bad = np.flatnonzero(lb > ub)
         if bad.size:
             i = int(bad[0])
-            raise ValueError(f"HierarchicalSolver: lower bound above upper bound for variable {i} ({lb[i]} > {ub[i]})")
+            raise QPError(f"HierarchicalSolver: lower bound above upper bound for variable {i} ({lb[i]} > {ub[i]})")
         return lb, ub
 
     def _solver(self, key: int | str, attempt: int) -> QPSolver:

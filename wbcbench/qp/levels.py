@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from wbcbench.errors import QPError
 
 __all__ = ["EqualityTask", "InequalityTask", "Level", "Task"]
 
@@ -17,7 +18,7 @@ FloatArray = npt.NDArray[np.float64]
 
 def _name(name: Any, kind: str) -> str:
     if not isinstance(name, str) or not name:
-        raise ValueError(f"{kind}: name must be a non-empty string, got {name!r}")
+        raise QPError(f"{kind}: name must be a non-empty string, got {name!r}")
     return name
 
 
@@ -25,18 +26,18 @@ def _weight(weight: Any, owner: str) -> float:
     try:
         w = float(weight)
     except (TypeError, ValueError):
-        raise ValueError(f"{owner}: weight must be a number, got {weight!r}") from None
+        raise QPError(f"{owner}: weight must be a number, got {weight!r}") from None
     if not (math.isfinite(w) and w >= 0.0):
-        raise ValueError(f"{owner}: weight must be finite and >= 0, got {weight!r}")
+        raise QPError(f"{owner}: weight must be finite and >= 0, got {weight!r}")
     return w
 
 
 def _matrix(value: Any, owner: str, key: str) -> FloatArray:
     array = np.asarray(value, dtype=np.float64)
     if array.ndim != 2 or array.shape[0] == 0 or array.shape[1] == 0:
-        raise ValueError(f"{owner}: {key} must be a non-empty 2-D array, got shape {array.shape}")
+        raise QPError(f"{owner}: {key} must be a non-empty 2-D array, got shape {array.shape}")
     if not np.isfinite(array).all():
-        raise ValueError(f"{owner}: {key} has non-finite entries")
+        raise QPError(f"{owner}: {key} has non-finite entries")
     return array
 
 
@@ -45,9 +46,9 @@ def _vector(value: Any, owner: str, key: str, m: int, *, allow_inf: bool = False
     if array.shape == ():
         array = np.full(m, float(array))
     if array.shape != (m,):
-        raise ValueError(f"{owner}: {key} must have shape ({m},), got {array.shape}")
+        raise QPError(f"{owner}: {key} must have shape ({m},), got {array.shape}")
     if np.isnan(array).any() or (not allow_inf and not np.isfinite(array).all()):
-        raise ValueError(f"{owner}: {key} has {'NaN' if allow_inf else 'non-finite'} entries")
+        raise QPError(f"{owner}: {key} has {'NaN' if allow_inf else 'non-finite'} entries")
     return array
 
 
@@ -137,7 +138,7 @@ class InequalityTask:
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             i = int(bad[0])
-            raise ValueError(f"{owner}: lower above upper at row {i} ({lower[i]} > {upper[i]})")
+            raise QPError(f"{owner}: lower above upper at row {i} ({lower[i]} > {upper[i]})")
         object.__setattr__(self, "C", C)
         object.__setattr__(self, "lower", lower)
         object.__setattr__(self, "upper", upper)
@@ -175,21 +176,21 @@ class Level:
     def __post_init__(self) -> None:
         tasks = tuple(self.tasks) if isinstance(self.tasks, Iterable) else (self.tasks,)
         if not tasks:
-            raise ValueError(f"Level '{self.name}': empty level (give at least one task)")
+            raise QPError(f"Level '{self.name}': empty level (give at least one task)")
         for task in tasks:
             if not isinstance(task, (EqualityTask, InequalityTask)):
-                raise ValueError(
+                raise QPError(
                     f"Level '{self.name}': expected EqualityTask or InequalityTask, got {type(task).__name__}"
                 )
         seen: set[str] = set()
         for task in tasks:
             if task.name in seen:
-                raise ValueError(f"Level '{self.name}': task name '{task.name}' appears twice")
+                raise QPError(f"Level '{self.name}': task name '{task.name}' appears twice")
             seen.add(task.name)
         n_cols = {task.n_cols for task in tasks}
         if len(n_cols) > 1:
             sizes = ", ".join(f"{t.name}: {t.n_cols}" for t in tasks)
-            raise ValueError(f"Level '{self.name}': tasks have different numbers of columns ({sizes})")
+            raise QPError(f"Level '{self.name}': tasks have different numbers of columns ({sizes})")
         object.__setattr__(self, "tasks", tasks)
         if not self.name:
             object.__setattr__(self, "name", "+".join(t.name for t in tasks))

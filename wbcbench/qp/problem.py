@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from wbcbench.errors import QPError
 
 __all__ = ["QPProblem"]
 
@@ -17,22 +18,22 @@ def _matrix(value: Any, name: str, rows: int | None, cols: int) -> FloatArray:
     array = np.asarray(value, dtype=np.float64)
     if array.ndim != 2 or array.shape[1] != cols or (rows is not None and array.shape[0] != rows):
         want = f"({'m' if rows is None else rows}, {cols})"
-        raise ValueError(f"QPProblem: {name} must have shape {want}, got {array.shape}")
+        raise QPError(f"QPProblem: {name} must have shape {want}, got {array.shape}")
     if not np.isfinite(array).all():
-        raise ValueError(f"QPProblem: {name} has non-finite entries")
+        raise QPError(f"QPProblem: {name} has non-finite entries")
     return array
 
 
 def _vector(value: Any, name: str, size: int, *, fill: float | None = None, finite: bool = True) -> FloatArray:
     if value is None:
         if fill is None:
-            raise ValueError(f"QPProblem: {name} is required")
+            raise QPError(f"QPProblem: {name} is required")
         return np.full(size, fill)
     array = np.asarray(value, dtype=np.float64)
     if array.shape != (size,):
-        raise ValueError(f"QPProblem: {name} must have shape ({size},), got {array.shape}")
+        raise QPError(f"QPProblem: {name} must have shape ({size},), got {array.shape}")
     if np.isnan(array).any() or (finite and not np.isfinite(array).all()):
-        raise ValueError(f"QPProblem: {name} has {'non-finite' if finite else 'NaN'} entries")
+        raise QPError(f"QPProblem: {name} has {'non-finite' if finite else 'NaN'} entries")
     return array
 
 
@@ -40,7 +41,7 @@ def _check_order(lower: FloatArray, upper: FloatArray, what: str) -> None:
     bad = np.flatnonzero(lower > upper)
     if bad.size:
         i = int(bad[0])
-        raise ValueError(
+        raise QPError(
             f"QPProblem: {what} lower bound above upper bound at row {i} ({lower[i]} > {upper[i]}); "
             f"{bad.size} such row(s)"
         )
@@ -84,19 +85,19 @@ class QPProblem:
     def __post_init__(self) -> None:
         H = np.asarray(self.H, dtype=np.float64)
         if H.ndim != 2 or H.shape[0] != H.shape[1] or H.shape[0] == 0:
-            raise ValueError(f"QPProblem: H must be a non-empty square matrix, got shape {H.shape}")
+            raise QPError(f"QPProblem: H must be a non-empty square matrix, got shape {H.shape}")
         n = H.shape[0]
         H = _matrix(H, "H", n, n)
         values: dict[str, Any] = {"H": H, "g": _vector(self.g, "g", n)}
         if (self.A_eq is None) != (self.b_eq is None):
-            raise ValueError("QPProblem: A_eq and b_eq must be given together")
+            raise QPError("QPProblem: A_eq and b_eq must be given together")
         if self.A_eq is not None:
             A_eq = _matrix(self.A_eq, "A_eq", None, n)
             values["A_eq"] = A_eq
             values["b_eq"] = _vector(self.b_eq, "b_eq", A_eq.shape[0])
         if self.C is None:
             if self.l is not None or self.u is not None:
-                raise ValueError("QPProblem: l or u given without C")
+                raise QPError("QPProblem: l or u given without C")
         else:
             C = _matrix(self.C, "C", None, n)
             m = C.shape[0]

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 from proxsuite import proxqp
 
+from wbcbench.errors import QPError
 from wbcbench.qp.problem import QPProblem
 from wbcbench.qp.result import QPResult, QPStatus
 from wbcbench.qp.solver import QPSolver
@@ -74,11 +75,11 @@ class ProxsuiteSolver(QPSolver):
         **settings: Any,
     ):
         if not eps_abs > 0.0:
-            raise ValueError(f"ProxsuiteSolver: eps_abs must be > 0, got {eps_abs}")
+            raise QPError(f"ProxsuiteSolver: eps_abs must be > 0, got {eps_abs}")
         if not eps_rel >= 0.0:
-            raise ValueError(f"ProxsuiteSolver: eps_rel must be >= 0, got {eps_rel}")
+            raise QPError(f"ProxsuiteSolver: eps_rel must be >= 0, got {eps_rel}")
         if max_iter < 1:
-            raise ValueError(f"ProxsuiteSolver: max_iter must be >= 1, got {max_iter}")
+            raise QPError(f"ProxsuiteSolver: max_iter must be >= 1, got {max_iter}")
         self.eps_abs = float(eps_abs)
         self.eps_rel = float(eps_rel)
         self.max_iter = int(max_iter)
@@ -87,7 +88,7 @@ class ProxsuiteSolver(QPSolver):
         valid = sorted(a for a in dir(proxqp.Settings()) if not a.startswith("_"))
         unknown = sorted(set(settings) - set(valid))
         if unknown:
-            raise ValueError(f"ProxsuiteSolver: unknown setting(s) {unknown}; valid: {', '.join(valid)}")
+            raise QPError(f"ProxsuiteSolver: unknown setting(s) {unknown}; valid: {', '.join(valid)}")
         self.settings: dict[str, Any] = dict(settings)
         self.reset()
 

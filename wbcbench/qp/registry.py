@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from wbcbench.errors import QPError
 from wbcbench.qp.daqp_solver import DaqpSolver
 from wbcbench.qp.proxsuite_solver import ProxsuiteSolver
 from wbcbench.qp.solver import QPSolver
@@ -36,8 +37,8 @@ def make_solver(name: str = DEFAULT_SOLVER, **options: object) -> QPSolver:
     try:
         cls = SOLVERS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown QP solver {name!r}; valid: {', '.join(solver_names())}") from None
+        raise QPError(f"unknown QP solver {name!r}; valid: {', '.join(solver_names())}") from None
     try:
         return cls(**options)  # type: ignore[arg-type]
     except TypeError as exc:
-        raise ValueError(f"QP solver {name!r}: {exc}") from None
+        raise QPError(f"QP solver {name!r}: {exc}") from None

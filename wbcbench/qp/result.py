@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from wbcbench.errors import QPError
 
 __all__ = ["QPStatus", "QPResult", "QPSolveError"]
 
@@ -32,7 +33,7 @@ class QPStatus(enum.Enum):
     dependent equality rows that contradict each other, a non-finite iterate, a failed set-up."""
 
 
-class QPSolveError(RuntimeError):
+class QPSolveError(QPError, RuntimeError):
     """Raised by :meth:`QPResult.unwrap` when a solve did not reach :attr:`QPStatus.OPTIMAL`.
 
     Attributes:
@@ -72,7 +73,7 @@ class QPResult:
 
     def __post_init__(self) -> None:
         if (self.x is None) == (self.status is QPStatus.OPTIMAL):
-            raise ValueError(
+            raise QPError(
                 f"QPResult: x must be given exactly when status is OPTIMAL (status {self.status.value}, "
                 f"x {'None' if self.x is None else 'given'})"
             )
@@ -92,5 +93,5 @@ class QPResult:
     def failure(cls, status: QPStatus, *, solver: str, raw_status: int | str, iterations: int = 0) -> QPResult:
         """A failed result (``x = None``, ``objective = nan``)."""
         if status is QPStatus.OPTIMAL:
-            raise ValueError("QPResult.failure: status must not be OPTIMAL")
+            raise QPError("QPResult.failure: status must not be OPTIMAL")
         return cls(None, status, int(iterations), float("nan"), solver, raw_status)

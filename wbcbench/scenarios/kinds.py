@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import PlanningError
 from ..recorder import channel
 from ..robots import Side
 from ..types import PointReference, PoseReference, References
@@ -157,7 +158,7 @@ class WalkScenario(Scenario):
             self.walk = generate_walk(plan, PatternGeneratorConfig(
                 com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
                 preview_horizon=self.preview_horizon), p_world_com_init=com0)
-        except ValueError as exc:
+        except PlanningError as exc:  # the one point where a plan's error gets the scenario's file and key
             raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
         self.plan = plan
         self.base_offset = q0[:3] - com0
@@ -299,7 +300,7 @@ class TerrainWalkScenario(WalkScenario):
                                        friction=self.friction, dt=self.spec.control_dt,
                                        leg_reach=self._leg_reach(q0, com0)),
                 swing_clearance=self.clearance, p_world_com_init=com0)
-        except ValueError as exc:
+        except PlanningError as exc:
             raise ConfigError(f"invalid terrain walk: {exc}", file=self.spec.file, key="params") from None
         self.contact_plan = plan
         self.walk = walk.walk

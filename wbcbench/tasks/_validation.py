@@ -134,7 +134,7 @@ def find_frame(model: pin.Model, frame: Any, owner: str, key: str = "frame") -> 
     if model.existFrame(frame):
         return int(model.getFrameId(frame))
     names = [f.name for f in model.frames]
-    raise UnknownNameError(owner, key, "frame", frame, close_matches(frame, names), names)
+    raise UnknownNameError("frame", frame, names, key=key, owner=owner, sort=False)
 
 
 def find_joint(model: pin.Model, joint: Any, owner: str, key: str = "joints") -> int:
@@ -144,7 +144,7 @@ def find_joint(model: pin.Model, joint: Any, owner: str, key: str = "joints") ->
     names = list(model.names)[1:]
     if joint in names:
         return names.index(joint) + 1
-    raise UnknownNameError(owner, key, "joint", joint, close_matches(joint, names), names)
+    raise UnknownNameError("joint", joint, names, key=key, owner=owner, sort=False)
 
 
 def is_floating_root(model: pin.Model, joint_id: int) -> bool:

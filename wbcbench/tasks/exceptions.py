@@ -6,12 +6,12 @@ so that a YAML loader can re-raise it with the file name prepended and nothing e
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from wbcbench.errors import UnknownNameError, WbcError  # noqa: F401  (UnknownNameError: the one of wbcbench)
 
 __all__ = ["TaskConfigError", "UnknownNameError", "ReferenceNotSetError"]
 
 
-class TaskConfigError(ValueError):
+class TaskConfigError(WbcError, ValueError):
     """A task was given an invalid definition or input (wrong shape, negative gain, bad mask, ...).
 
     Attributes:
@@ -25,31 +25,5 @@ class TaskConfigError(ValueError):
         super().__init__(f"{owner}: {key}: {message}")
 
 
-class UnknownNameError(TaskConfigError):
-    """A frame or joint name that the model does not have.
-
-    Attributes:
-        kind: ``"frame"`` or ``"joint"``.
-        name: the name that was asked for.
-        suggestions: the closest valid names (difflib), best first; may be empty.
-        valid: every valid name of that kind, in model order.
-    """
-
-    def __init__(
-        self, owner: str, key: str, kind: str, name: str, suggestions: Sequence[str], valid: Sequence[str]
-    ) -> None:
-        self.kind = kind
-        self.name = name
-        self.suggestions = tuple(suggestions)
-        self.valid = tuple(valid)
-        if self.suggestions:
-            hint = "did you mean " + ", ".join(repr(s) for s in self.suggestions) + "?"
-        else:
-            shown = ", ".join(repr(s) for s in self.valid[:12])
-            more = f", ... ({len(self.valid)} in all)" if len(self.valid) > 12 else ""
-            hint = f"valid {kind} names: {shown}{more}"
-        super().__init__(owner, key, f"unknown {kind} {name!r} in the model; {hint}")
-
-
-class ReferenceNotSetError(RuntimeError):
+class ReferenceNotSetError(WbcError, RuntimeError):
     """A task was evaluated before its reference was set (call ``set_reference`` first)."""
