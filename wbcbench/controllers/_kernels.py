@@ -1,4 +1,4 @@
-"""Compiled kernels of the formulations' ticks (see :mod:`wbcbench.qp._jit`): the inverse-dynamics QP assembly and
+"""Compiled kernels of the formulations' ticks (see :mod:`wbcbench.jit`): the inverse-dynamics QP assembly and
 torques (id_formulation.py), the IK's velocity bounds (ik_formulation.py).
 
 One implementation each: with ``WBCBENCH_JIT=0`` the same functions run as plain Python. The tests check them
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp._jit import njit
+from ..jit import njit
 
 __all__ = ["assemble", "ik_bounds", "torques"]
 

@@ -55,7 +55,7 @@ from scipy.linalg import lapack
 from scipy.optimize import nnls
 
 from wbcbench.errors import QPError
-from wbcbench.qp import _jit
+from wbcbench.qp import kernels
 from wbcbench.qp._nullspace import least_squares_step, project
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level, Task
 from wbcbench.qp.problem import QPProblem
@@ -294,9 +294,6 @@ class HierarchicalSolver:
         self.feasibility_tol = float(feasibility_tol)
         self.met_tol = float(met_tol)
         self.fast_path = bool(fast_path)
-        # the closed form of a posture-like last level compiled (wbcbench.qp._jit.selection_lsq); False: LAPACK's
-        # dgglse for every closed form (the same answers)
-        self.jit = _jit.JIT_ENABLED
         self._solvers: dict[tuple[int | str, int], QPSolver] = {}
         self._checked_levels: tuple[Level, ...] | None = None
         self._checked_bounds: tuple[FloatArray | None, FloatArray | None] = (None, None)
@@ -470,9 +467,9 @@ class HierarchicalSolver:
             P, b_P, A_k, c_k = A[:r], b[:r], A[r:k_end], b[r:k_end]
         d = n - r
         status = 0
-        if self.jit and n_prefix < len(levels) and d:
+        if n_prefix < len(levels) and d:
             # a posture-like level (one non-zero per row): the compiled projection, else the general LAPACK path
-            status, x = _jit.selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL)
+            status, x = kernels.selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL)
             final_path = LevelPath.LOCKED
         if status == 1:
             pass
@@ -497,11 +494,9 @@ class HierarchicalSolver:
             final_path = LevelPath.LOCKED
         ftol = self.feasibility_tol
         sums = None
-        if self.jit:  # one call for the bound test and the residuals
-            high, low, sums_, level_sq = _jit.bounds_and_residuals(A, b, x, plan.starts, plan.block_level,
-                                                                   len(levels), lb, ub)
-        else:
-            high, low = (x - ub).max(), (lb - x).max()
+        # one call for the bound test and the residuals
+        high, low, sums_, level_sq = kernels.bounds_and_residuals(A, b, x, plan.starts, plan.block_level,
+                                                                  len(levels), lb, ub)
         if not (high <= ftol and low <= ftol):  # a bound binds (or x is not finite)
             if not np.isfinite(x).all():
                 for level in levels:  # invalid rows handed over unchecked: say which
@@ -512,7 +507,7 @@ class HierarchicalSolver:
         violation = float(max(0.0, low, high))
         if violation > 0.0:
             x = np.clip(x, lb, ub)
-        elif self.jit:
+        else:
             sums = sums_.tolist()
             if plan.unit:  # every task of weight 1: the level sums are the residuals, no loop
                 met_tol = self.met_tol

@@ -44,7 +44,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from wbcbench.qp._jit import JIT_ENABLED, njit
+from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.task import Task
@@ -342,8 +342,7 @@ class SelfCollisionTask(Task):
             mask=mask,
         )
         self._cache = _Cache()
-        # compiled path (wbcbench.qp._jit): supports of the joints carrying the points, work buffers
-        self.jit = JIT_ENABLED
+        # the compiled kernel's inputs: supports of the joints carrying the points, work buffers
 
         def support(joint: int) -> npt.NDArray[np.bool_]:
             mask = np.zeros(model.nv, dtype=bool)
@@ -400,52 +399,12 @@ class SelfCollisionTask(Task):
         if cache.key == key:
             return cache
         R_all, t_all = _joint_placements(data, key, self._joints_needed)
-        if self.jit:
-            return self._evaluate_jit(model, data, key, R_all, t_all)
-        rx = R_all[0] @ self._offset_x
-        x = t_all[0] + rx
-        f = self._slot_of
-        r = np.einsum("nij,nj->ni", R_all[f], self._rep_offsets_joint)  # joint origin -> point, world axes
-        rel = x - t_all[f]
-        rel -= r
-        distances = np.sqrt(np.einsum("ni,ni->n", rel, rel))
-        p = self._exponent
-        C = np.exp(-(distances**p) / self._scales)
-        n, nv = self.dim, model.nv
-        J = np.zeros((n, nv))
-        active = np.flatnonzero(C > self._negligible).tolist()
-        rows = {}
-        if active:
-            Jx6 = pin.getJointJacobian(model, data, self._joint_x, _LWA)
-            Jx = Jx6[:3] - _skew(rx) @ Jx6[3:]
-            six: dict[int, FloatArray] = {}
-            for i in active:
-                rel_i, d, c = rel[i], float(distances[i]), float(C[i])
-                k = p / float(self._scales[i])
-                if d > 0.0:
-                    dp2 = d ** (p - 2.0)
-                    dp4 = d ** (p - 4.0) if p != 2.0 else 0.0
-                else:
-                    dp2, dp4 = (1.0 if p == 2.0 else 0.0), 0.0
-                g = (-k * dp2 * c) * rel_i
-                # H = C (coeff rel rel^T - k d^(p-2) I), see attractor()
-                coeff = k * k * dp2 * dp2 - (k * (p - 2.0) * dp4 if p != 2.0 else 0.0)
-                Ji = g @ Jx
-                j = self._rep_joint[i]
-                if j != 0:  # 0: fixed in the world
-                    J6 = six.get(j)
-                    if J6 is None:
-                        J6 = six[j] = pin.getJointJacobian(model, data, j, _LWA)
-                    Ji -= g @ J6[:3]
-                    Ji -= _cross(r[i], g) @ J6[3:]
-                J[i] = Ji
-                rows[i] = (g, c * coeff, c * k * dp2, rel_i, r[i])
-        self._cache = _Cache(key=key, C=C, distances=distances, J=J, active=active, rows=rows, rx=rx)
-        return self._cache
+        return self._evaluate_jit(model, data, key, R_all, t_all)
 
     def _evaluate_jit(self, model: pin.Model, data: pin.Data, key: tuple, R_all: FloatArray,
                       t_all: FloatArray) -> _Cache:
-        """:meth:`_evaluate` with the compiled kernel (``_position_kernel``): the same quantities."""
+        """The position-level quantities of :meth:`_evaluate` from the compiled kernel (``_position_kernel``); a
+        numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py)."""
         n, nv = self.dim, model.nv
         C, dist, J = np.empty(n), np.empty(n), np.empty((n, nv))
         G, HC, HK, REL, RW, rx = (np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),

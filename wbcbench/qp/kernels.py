@@ -1,50 +1,16 @@
-"""Compiled kernels (numba) for the per-tick hot paths, and the switch that turns them off.
-
-A control tick of a Python whole-body controller is a hundred or so small array operations; on TALOS-sized
-problems (50 variables) each numpy or LAPACK call costs 1-8 us of interpreter and wrapper overhead, more than
-its arithmetic. The kernels here fuse such sequences into one call each. Every kernel has a plain numpy/LAPACK
-twin that stays the reference: the callers keep both paths, the tests check that they agree (to 1e-10
-relative), and ``WBCBENCH_JIT=0`` in the environment (or numba missing) selects the numpy path everywhere, for
-debugging or on a platform without numba wheels.
-
-Kernels are compiled on first use and cached on disk next to this file (``__pycache__``, numba's ``cache=True``):
-the first process pays about 5-10 s, later ones load them in well under a second.
+"""Compiled kernels of the QP layer (see :mod:`wbcbench.jit`): the certified active-set guess of a QP
+(`certify_equality_qp`), the closed-form posture level of a hierarchy (`selection_lsq`) and the hierarchy's bound
+test and residuals in one call (`bounds_and_residuals`). One implementation each; the tests check them against
+LAPACK/numpy references (tests/qp/reference_kernels.py).
 """
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-__all__ = ["JIT_ENABLED", "bounds_and_residuals", "certify_equality_qp", "njit", "selection_lsq"]
+from wbcbench.jit import njit
 
-
-def _enabled() -> bool:
-    if os.environ.get("WBCBENCH_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-        return False
-    try:
-        import numba  # noqa: F401
-    except ImportError:  # pragma: no cover - numba is a dependency; kept for exotic platforms
-        return False
-    return True
-
-
-JIT_ENABLED = _enabled()
-
-if JIT_ENABLED:
-    from numba import njit as _numba_njit
-
-    # Reassociation lets LLVM vectorise the dot-product loops (sums in another order, as BLAS does); no
-    # flag that assumes finite values: NaN must still fail the tests
-    _FASTMATH = {"reassoc", "contract"}
-
-    def njit(fn):
-        """numba.njit with the options every kernel here uses (cached on disk, vectorised sums)."""
-        return _numba_njit(cache=True, nogil=True, fastmath=_FASTMATH, error_model="numpy")(fn)
-else:  # the decorated functions are never called on this path, but stay importable
-    def njit(fn):
-        return fn
+__all__ = ["certify_equality_qp", "selection_lsq", "bounds_and_residuals"]
 
 
 @njit
