@@ -140,6 +140,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
     s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
     s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
+    # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
+    target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
+    s_targets = {name: rec.add_channel(f"target_{name}", target_comps) for name in scen.target_names}
     s_time = rec.add_channel("controller_time_us")
     extra = ctrl.log_channels()
     s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
@@ -209,6 +212,13 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                 row[s_zmp] = refs.zmp
             for s, foot in refs.feet.items():
                 row[s_fref[s]] = foot.position
+            for name, sl in s_targets.items():
+                target = refs.targets.get(name)
+                if target is not None:
+                    cells = row[sl]
+                    cells[:3] = target.position
+                    if target.rotation is not None:
+                        cells[3:] = target.rotation.reshape(-1)
             cws = sim.contact_wrenches()
             true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             meas = sensing.measure(true_meas)

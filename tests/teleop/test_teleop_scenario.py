@@ -175,3 +175,26 @@ def test_live_stream_needs_a_duration(talos):
             sc.planned_duration
     finally:
         sc.source.close()
+
+
+def test_report_recomputes_table_ii_from_the_log(tmp_path):
+    """The hand/head targets handed to the controller are in log.parquet; `wbcbench report` recomputes the
+    Table II statistics from the run directory alone and finds the run's own numbers."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "wbcbench.cli", "teleop", "-i", "reach_forward", "--duration", "1.5",
+                           "--quiet", "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    proc = subprocess.run([sys.executable, "-m", "wbcbench.cli", "report", str(out), "--out", str(tmp_path / "rep")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((tmp_path / "rep" / "results.json").read_text())
+    (row,) = results["teleop"].values()
+    for key in ("hand_position_error_m", "hand_rotation_error", "head_position_error_m", "hand_errors"):
+        assert row[key] == summary["metrics"][key], key
+    assert row["hand_position_error_m"]["max"] > 0.01
+    assert "Table II statistics, recomputed from the logs" in (tmp_path / "rep" / "report.md").read_text()

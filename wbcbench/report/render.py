@@ -207,6 +207,26 @@ def _sensing_table(res: dict) -> RenderTable | None:
     return table
 
 
+def _teleop_table(res: dict) -> RenderTable | None:
+    runs = res.get("teleop")
+    if not runs:
+        return None
+    header = ["Run", "Controller", "Status", "Hand position error mean/std/max [m]",
+              "Hand rotation error mean/std/max", "Reference inside the body", "Head position error mean [m]"]
+    table = RenderTable("Teleoperation: paper 004 Table II statistics, recomputed from the logs", header)
+
+    def msm(s, unit=""):
+        return " / ".join(fmt((s or {}).get(k), unit) for k in ("mean", "std", "max"))
+
+    for name, v in runs.items():
+        table.rows.append([name, v["controller"], v["status"], msm(v["hand_position_error_m"], "m"),
+                           msm(v["hand_rotation_error"]), fmt(v.get("hand_reference_inside_body_fraction")),
+                           fmt((v.get("head_position_error_m") or {}).get("mean"), "m")])
+    table.notes.append("Hand errors over both hands and every tick: the ground-truth gripper pose against the "
+                       "target the controller was handed (log channels target_*); rotation error ||I - R_ref R^T||_F.")
+    return table
+
+
 def _runs_table(res: dict) -> RenderTable:
     table = RenderTable("Runs", ["Section", "Controller", "Scenario", "Run as", "Status", "Reason", "Simulated [s]",
                                  "Wall [s]", "Run directory"])
@@ -234,6 +254,7 @@ def build_tables(res: dict) -> list[RenderTable]:
         _fast_table(res),
         _sanity_table(res),
         *([t] if (t := _sensing_table(res)) is not None else []),
+        *([t] if (t := _teleop_table(res)) is not None else []),
     ]
 
 

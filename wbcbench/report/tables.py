@@ -105,6 +105,10 @@ def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | Non
             results["metrics"].setdefault(o.controller, {})[o.scenario] = o.metrics
     if sensed:
         results["sensing"] = sensing_results(sensed, cells)
+    teleop = {o.scenario_run or o.scenario: {"controller": o.controller, "status": o.status, **o.metrics["teleop"]}
+              for o in outcomes if o.metrics and o.metrics.get("teleop")}
+    if teleop:
+        results["teleop"] = teleop
     return json_ready(results)
 
 

@@ -46,6 +46,8 @@ class Scenario:
     """Base scenario: stand on both feet; subclasses override `references` and `metrics`."""
 
     kind = "stand"
+    #: the names of the frame-task targets its references carry (logged every tick as `target_<name>`)
+    target_names: tuple[str, ...] = ()
 
     def __init__(self, spec: ScenarioSpec, params: Section, robot: Robot):
         self.spec = spec
