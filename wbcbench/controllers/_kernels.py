@@ -9,21 +9,36 @@ from __future__ import annotations
 
 import numpy as np
 
+from collections import namedtuple
+
 from ..jit import njit
 
-__all__ = ["assemble", "ik_bounds", "torques"]
+__all__ = ["AssemblyRows", "JointLimits", "QPBuffers", "assemble", "ik_bounds", "torques"]
+
+#: The rows of one tick (views of the task stack and pinocchio's data, refilled in place): the weighted tasks'
+#: rows and their sqrt(weight)s, the contacts' rows (Jc, also the first rows of A_hard), the equality rows, the
+#: floating base's mass-matrix rows and nonlinear effects.
+AssemblyRows = namedtuple("AssemblyRows", ["A_cost", "b_cost", "sw", "Jc", "A_hard", "b_hard", "M_base", "nle_base"])
+#: The QP's arrays the assembly writes: the acceleration block of H and g, the equalities, the joints' bounds.
+QPBuffers = namedtuple("QPBuffers", ["H", "g", "A_eq", "b_eq", "lb_joints", "ub_joints"])
+#: Joint limits as acceleration bounds: [q_hi; q_lo] and [v_max; -v_max] (2, na), the position horizon [s] and
+#: the control period [s].
+JointLimits = namedtuple("JointLimits", ["QL", "VL", "horizon", "dt"])
 
 
 @njit
-def assemble(A_cost, b_cost, sw, reg_dv, H, g, M_base, nle_base, Jc, A_hard, b_hard, A_eq, b_eq,
-             q_joints, v_joints, QL, VL, horizon, dt, lb_joints, ub_joints):
-    """Fill the QP of one tick in place (the buffers of ``id_formulation._Layout``).
+def assemble(rows, reg_dv, q_joints, v_joints, limits, out):
+    """Fill the QP of one tick in place (``rows``: `AssemblyRows`, ``limits``: `JointLimits`, ``out``:
+    `QPBuffers`, the buffers of ``id_formulation._Layout``).
 
     Cost: ``H[:nv, :nv] = Aw' Aw + reg_dv I``, ``g[:nv] = -Aw' (sw * b)`` with ``Aw = sw * A_cost`` (the wrench
     block of ``H`` and of ``g`` is left as it is: constant). Equalities: ``[M_b  -Jc_b'] x = -h_b`` and the hard
     rows (``A_hard``: the contacts', then priority-0 tasks'). Bounds on the joint accelerations:
     ``a_hi = min(2 (q_hi - q - v h) / h^2, (v_max - v) / dt)``, ``a_lo`` likewise, ``a_lo <= a_hi`` enforced.
     """
+    A_cost, b_cost, sw, Jc, A_hard, b_hard, M_base, nle_base = rows
+    H, g, A_eq, b_eq, lb_joints, ub_joints = out
+    QL, VL, horizon, dt = limits
     m_c, nv = A_cost.shape
     for i in range(nv):
         for j in range(nv):

@@ -89,7 +89,8 @@ class _Layout:
 
     __slots__ = ("slices", "k", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv", "H_diag_w", "g_w", "A_hard",
                  "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks", "u_blocks", "C", "l",
-                 "u", "lb_joints", "ub_joints", "problem", "problem_torque", "problem_relaxed", "targets_set")
+                 "u", "lb_joints", "ub_joints", "problem", "problem_torque", "problem_relaxed", "targets_set",
+                 "rows", "buffers")
 
     def __init__(self, F: InverseDynamicsFormulation, nc: int, stack: TaskStack, n_hard: int, A: np.ndarray,
                  b: np.ndarray):
@@ -124,6 +125,9 @@ class _Layout:
         self.problem = QPProblem._trusted(H, g, A_eq, b_eq, *cones, lb, ub)
         self.problem_torque = QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub)
         self.problem_relaxed = QPProblem._trusted(H, g, A_eq, b_eq, *cones)
+        self.rows = _kernels.AssemblyRows(self.A_cost, self.b_cost, self.sw, self.Jc, self.A_hard, self.b_hard,
+                                          self.M_base, self.nle_base)
+        self.buffers = _kernels.QPBuffers(self.H_dv, self.g_dv, A_eq, b_eq, self.lb_joints, self.ub_joints)
 
 
 class InverseDynamicsFormulation:
@@ -250,11 +254,12 @@ class InverseDynamicsFormulation:
             entry = self._stacks[active] = (TaskStack(hard + soft, self.nv, skip_zero_weight=soft), len(hard))
         return entry
 
-    def _limit_rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """[q_hi; q_lo], [v_max; -v_max] (2, na); rebuilt when a limit attribute is replaced."""
+    def _limit_rows(self) -> _kernels.JointLimits:
+        """[q_hi; q_lo], [v_max; -v_max] (2, na), horizon and period; rebuilt when a limit attribute is replaced."""
         src = self._limits_src
         if src[0] is not self.q_hi or src[1] is not self.q_lo or src[2] is not self.v_max:
-            self._limits = (np.stack([self.q_hi, self.q_lo]), np.stack([self.v_max, -self.v_max]))
+            self._limits = _kernels.JointLimits(np.stack([self.q_hi, self.q_lo]), np.stack([self.v_max, -self.v_max]),
+                                                float(self.joint_limit_horizon), float(self.dt))
             self._limits_src = (self.q_hi, self.q_lo, self.v_max)
         return self._limits
 
@@ -284,12 +289,8 @@ class InverseDynamicsFormulation:
                 L.u_blocks[i][...] = ur
             cones[i] = (Cr, ur)
         self._fill_wrench_targets(L, active)
-        QL, VL = self._limit_rows()
-        P = L.problem
-        _kernels.assemble(L.A_cost, L.b_cost, L.sw, self.regularization_dv, L.H_dv, L.g_dv, L.M_base,
-                          L.nle_base, L.Jc, L.A_hard, L.b_hard, P.A_eq, P.b_eq, self._q[7:], self._v[6:], QL, VL,
-                          self.joint_limit_horizon, self.dt, L.lb_joints, L.ub_joints)
-        return P
+        _kernels.assemble(L.rows, self.regularization_dv, self._q[7:], self._v[6:], self._limit_rows(), L.buffers)
+        return L.problem
 
     def _fill_wrench_targets(self, L: _Layout, active: tuple) -> None:
         """The wrench block of the cost: r_w + w_f on the diagonal and -w_f w* in g on ticks with targets."""
