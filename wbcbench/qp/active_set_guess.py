@@ -115,11 +115,11 @@ class ActiveSetGuessSolver(QPSolver):
         if empty is None:
             empty = self._empty[n] = (np.zeros((0, n)), np.zeros(0))
         E, z = empty
+        qp = kernels.QPArrays(p.H, p.g, E if p.A_eq is None else p.A_eq, z if p.b_eq is None else p.b_eq,
+                              E if p.C is None else p.C, z if p.l is None else p.l, z if p.u is None else p.u,
+                              z if p.lb is None else p.lb, z if p.ub is None else p.ub)
         ok, x, objective = kernels.certify_equality_qp(
-            p.H, p.g, E if p.A_eq is None else p.A_eq, z if p.b_eq is None else p.b_eq,
-            E if p.C is None else p.C, z if p.l is None else p.l, z if p.u is None else p.u,
-            z if p.lb is None else p.lb, z if p.ub is None else p.ub,
-            guess.c_up, guess.c_lo, guess.x_up, guess.x_lo, self.primal_tol, self.dual_tol)
+            qp, kernels.ActiveSet(guess.c_up, guess.c_lo, guess.x_up, guess.x_lo), self.primal_tol, self.dual_tol)
         return (x, objective) if ok else None
 
     def _active_set(self, p: QPProblem, x: FloatArray) -> _Guess:

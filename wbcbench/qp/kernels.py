@@ -6,11 +6,13 @@ LAPACK/numpy references (tests/qp/reference_kernels.py).
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from wbcbench.jit import njit
 
-__all__ = ["certify_equality_qp", "selection_lsq", "bounds_and_residuals"]
+__all__ = ["ActiveSet", "QPArrays", "certify_equality_qp", "selection_lsq", "bounds_and_residuals"]
 
 
 @njit
@@ -36,16 +38,24 @@ def _cholesky_lower(A, L) -> bool:
     return True
 
 
-@njit
-def certify_equality_qp(H, g, A_eq, b_eq, C, l, u, lb, ub, c_up, c_lo, x_up, x_lo, primal_tol, dual_tol):
-    """The compiled twin of ``ActiveSetGuessSolver._certified`` (see its module docstring for the method):
-    solve ``min 1/2 x'Hx + g'x  s.t.  A_eq x = b_eq`` and the guessed rows held with equality, in the range
-    space of ``H``; then the KKT test of the full problem.
+#: A QP's arrays for the kernels: ``min 1/2 x'Hx + g'x  s.t.  A_eq x = b_eq, l <= C x <= u, lb <= x <= ub``;
+#: absent ``A_eq`` / ``C`` are (0, n) arrays, absent bounds arrays of size 0.
+QPArrays = namedtuple("QPArrays", ["H", "g", "A_eq", "b_eq", "C", "l", "u", "lb", "ub"])
+#: A guessed active set: the rows of C at their upper / lower bound, the variables at their upper / lower bound.
+ActiveSet = namedtuple("ActiveSet", ["c_up", "c_lo", "x_up", "x_lo"])
 
-    Absent ``A_eq`` / ``C`` are (0, n) arrays, absent bounds are arrays of size 0. Returns ``(ok, x,
-    objective)``; ``ok`` False when ``H`` or the active rows' Gram matrix is not positive definite or the test
-    fails.
+
+@njit
+def certify_equality_qp(qp, guess, primal_tol, dual_tol):
+    """The certified active-set guess of ``ActiveSetGuessSolver`` (see its module docstring for the method):
+    solve ``min 1/2 x'Hx + g'x  s.t.  A_eq x = b_eq`` and the guessed rows held with equality, in the range
+    space of ``H``; then the KKT test of the full problem. ``qp``: `QPArrays`, ``guess``: `ActiveSet`.
+
+    Returns ``(ok, x, objective)``; ``ok`` False when ``H`` or the active rows' Gram matrix is not positive
+    definite or the test fails.
     """
+    H, g, A_eq, b_eq, C, l, u, lb, ub = qp
+    c_up, c_lo, x_up, x_lo = guess
     n = H.shape[0]
     m_eq = A_eq.shape[0]
     n_up, n_lo, nx_up, nx_lo = c_up.shape[0], c_lo.shape[0], x_up.shape[0], x_lo.shape[0]
