@@ -18,6 +18,7 @@ import pinocchio as pin
 
 from ..side import Side
 from ..types import Measurement
+from .feet import FeetSensing
 
 __all__ = ["FallPredictor", "convex_hull", "signed_distance_to_polygon"]
 
@@ -85,9 +86,7 @@ class FallPredictor:
         self.load_threshold = load_threshold
         m = robot.model
         self.model, self.data = m, m.createData()
-        self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
-        self.sensor_ids = {s: m.getFrameId(robot.profile.feet[s].ft_sensor_frame) for s in Side}
-        self.foot_mass = {s: float(robot.foot_below_sensor(s)[0]) for s in Side}
+        self.feet = FeetSensing(robot)
         self.corners = robot.profile.sole.corners
         self.first_prediction_t: float | None = None
         self.log = np.full(len(self.LOG_LABELS), np.nan)
@@ -98,12 +97,11 @@ class FallPredictor:
         pin.framesForwardKinematics(m, d, meas.q)
         c, cd = d.com[0], d.vcom[0]
         pts, ground = [], math.inf
+        fz = self.feet.vertical_forces(meas, d)
         for s in Side:
-            R = d.oMf[self.sensor_ids[s]].rotation
-            fz = -(R[2] @ meas.ft_force[s]) - self.foot_mass[s] * GRAVITY
-            M = d.oMf[self.sole_ids[s]]
+            M = d.oMf[self.feet.sole_ids[s]]
             ground = min(ground, float(M.translation[2]))
-            if fz >= self.load_threshold:
+            if fz[s] >= self.load_threshold:
                 pts.append((M.rotation @ self.corners.T).T[:, :2] + M.translation[:2])
         height = max(float(c[2]) - ground, 0.1)
         omega = math.sqrt(GRAVITY / height)

@@ -19,11 +19,11 @@ import numpy as np
 import pinocchio as pin
 
 from ..side import Side
+from ..estimation.feet import FeetSensing
 from ..types import Measurement
 
 __all__ = ["BaseEstimator"]
 
-GRAVITY = 9.81
 
 
 class BaseEstimator:
@@ -35,9 +35,7 @@ class BaseEstimator:
         self.load_threshold = load_threshold
         m = robot.model
         self.model, self.data = m, m.createData()
-        self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
-        self.sensor_ids = {s: m.getFrameId(robot.profile.feet[s].ft_sensor_frame) for s in Side}
-        self.foot_mass = {s: float(robot.foot_below_sensor(s)[0]) for s in Side}
+        self.feet = FeetSensing(robot)
         self.imu_id = m.getFrameId(robot.profile.imu_frame)
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * velocity_cutoff_hz * dt)
         self._q = pin.neutral(m)
@@ -50,15 +48,6 @@ class BaseEstimator:
         self.loaded = {s: False for s in Side}
         self._R_base_imu_prev = None
 
-    def _normal_forces(self, meas: Measurement, R_world_base: np.ndarray) -> dict[Side, float]:
-        """Vertical ground force on each foot [N] from its ankle sensor (the foot below the sensor removed)."""
-        d = self.data
-        out = {}
-        for s in Side:
-            R = R_world_base @ d.oMf[self.sensor_ids[s]].rotation
-            out[s] = float(-(R[2] @ meas.ft_force[s]) - self.foot_mass[s] * GRAVITY)
-        return out
-
     def estimate(self, meas: Measurement) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) with the estimated base, the measurement's joints."""
         m, d = self.model, self.data
@@ -68,12 +57,12 @@ class BaseEstimator:
         R_base_imu = d.oMf[self.imu_id].rotation.copy()
         x, y, z, w = meas.imu_quat
         R = pin.Quaternion(w, x, y, z).toRotationMatrix() @ R_base_imu.T
-        rel = {s: R @ d.oMf[self.sole_ids[s]].translation for s in Side}
+        rel = {s: R @ d.oMf[self.feet.sole_ids[s]].translation for s in Side}
         if self.p is None:  # the known starting pose
             self.p = meas.q[:3].copy()
             for s in Side:
                 self.anchor[s] = self.p + rel[s]
-        fz = self._normal_forces(meas, R)
+        fz = self.feet.vertical_forces(meas, d, R)
         p_prev = self.p
         num, den = np.zeros(3), 0.0
         for s in Side:
