@@ -87,3 +87,61 @@ def test_missing_taskset_file(tmp_path: Path):
     proc = run_cli("run", "stand", "-c", "tsid-torque", "--duration", "0.01", "--taskset", str(tmp_path / "no.yaml"),
                    "--out", str(tmp_path / "r"))
     _one_line_error(proc, "--taskset", "no such file")
+
+
+def test_existing_run_directory_is_not_overwritten_silently(tmp_path: Path):
+    out = tmp_path / "r"
+    assert run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--quiet", "--out", str(out)).returncode == 0
+    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--out", str(out)),
+                    "already holds a run", "--overwrite")
+    assert run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--quiet", "--overwrite", "--out",
+                   str(out)).returncode == 0
+
+
+def test_ctrl_c_keeps_the_log_and_says_so(tmp_path: Path):
+    import signal
+    import time
+
+    from wbcbench.recorder import read_log
+
+    out = tmp_path / "r"
+    proc = subprocess.Popen([sys.executable, "-m", "wbcbench.cli", "run", "walk-20cm", "-c", "tsid-torque", "--quiet",
+                             "--out", str(out)], stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not (out / "log.parquet").exists() and time.time() < deadline:  # the first 1000 ticks are flushed
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted at t =" in lines[0] and "Traceback" not in err
+    log = read_log(out / "log.parquet")
+    import json
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and len(log["t"]) >= 1000
+    assert summary["sim_time_s"] == pytest.approx(log["t"][-1], abs=0.002) or summary["sim_time_s"] >= log["t"][-1]
+
+
+def test_full_disk_during_logging_is_one_line_and_keeps_the_log(tmp_path: Path, monkeypatch):
+    """The disk fills after 2000 ticks: one WbcError naming the log and the time, the flushed ticks readable."""
+    import errno
+
+    from wbcbench.errors import WbcError
+    from wbcbench.recorder import Recorder, read_log
+    from wbcbench.runner import run
+
+    real_flush = Recorder.flush
+    calls = {"n": 0}
+
+    def flaky_flush(self):
+        calls["n"] += 1
+        if calls["n"] > 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_flush(self)
+
+    monkeypatch.setattr(Recorder, "flush", flaky_flush)
+    with pytest.raises(WbcError, match="cannot write the log .*No space left on device.*kept") as err:
+        run("stand", "joint-pd", duration=5.0, out=tmp_path / "r")
+    assert "\n" not in str(err.value)
+    log = read_log(tmp_path / "r" / "log.parquet")
+    assert len(log["t"]) == 2000

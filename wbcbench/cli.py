@@ -51,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="inject a fault, e.g. sensor_nan:ft_left@1.0+0.2, qp_failure@2+0.05, "
                         "joint_locked:leg_left_4_joint@1.5 (repeatable; see wbcbench/faults.py)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
+    r.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
     from .report.commands import add_subcommands
@@ -82,7 +83,7 @@ def _cmd_run(args) -> int:
     if args.quiet:
         result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                      taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop)
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
@@ -90,7 +91,7 @@ def _cmd_run(args) -> int:
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                          progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
                          sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop)
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 
@@ -144,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
 
         print(f"wbcbench: error: {one_line(str(exc))}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("wbcbench: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"wbcbench: {exc}" if str(exc) else "wbcbench: interrupted", file=sys.stderr)
         return 130
     return 0
 

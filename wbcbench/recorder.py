@@ -66,10 +66,14 @@ class Recorder:
         self._buf[:] = np.nan
 
     def close(self) -> None:
-        self.flush()
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
+        """Flush the pending rows and finish the file. If the flush fails (a full disk), the file is still
+        finished with the rows flushed before, and the error raised."""
+        try:
+            self.flush()
+        finally:
+            if self._writer is not None:
+                writer, self._writer = self._writer, None
+                writer.close()
 
 
 def read_log(path: str | Path) -> dict[str, np.ndarray]:

@@ -56,7 +56,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
-        model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False) -> RunResult:
+        model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
+        overwrite: bool = False) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -104,6 +105,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"{spec.name}-{controller}-{ctrl.mode.value}-{robot.name}-{stamp}"
     run_dir = Path(out)
+    if not overwrite and ((run_dir / "log.parquet").exists() or (run_dir / "summary.json").exists()):
+        raise ConfigError(f"{run_dir} already holds a run; give another directory or overwrite it (--overwrite)",
+                          key="--out")
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
         (run_dir / ".write-test").touch()
@@ -160,7 +164,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
     duration = spec.duration if spec.duration > 0 else scen.planned_duration
     n_ticks = int(round(duration / spec.control_dt))
-    fell, reason, error = False, "", None
+    fell, reason, error, interrupted = False, "", None, False
     ctrl_us = np.full(n_ticks, np.nan)
     wall0 = time.perf_counter()
     tick = 0
@@ -239,7 +243,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             for slices, p in zip(s_probe, probes):
                 for sl, val in zip(slices, p.values()):
                     row[sl] = val
-            rec.commit()
+            try:
+                rec.commit()
+            except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
+                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[s_t][0]:.3f} s "
+                                    f"({exc.strerror or exc}); the ticks written before are kept") from None
             fs = sim.fall_status()
             if fs.fell:
                 fell, reason = True, fs.reason
@@ -247,17 +255,21 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             if progress is not None and tick % 100 == 0:
                 progress((tick + 1) / n_ticks)
     except WbcError:
+        _close_quietly(rec)
         raise
+    except KeyboardInterrupt:  # Ctrl-C: stop here, keep the log and say so in the summary
+        interrupted = True
     except Exception as exc:  # a crash in a controller: keep the log, say why
         fell, reason = True, f"error: {type(exc).__name__}: {exc}"
         error = traceback.format_exc()
     finally:
-        rec.close()
+        _close_quietly(rec)
     wall = time.perf_counter() - wall0
     sim_time = (tick + 1) * spec.control_dt if n_ticks else 0.0
     summary = {
         "robot": robot.name, "scenario": spec.name, "controller": controller, "mode": ctrl.mode.value,
-        "fell": fell, "fall_reason": reason or None, "sim_time_s": sim_time, "duration_s": duration,
+        "fell": fell, "fall_reason": reason or None, "interrupted": interrupted, "sim_time_s": sim_time,
+        "duration_s": duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
         "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
         "controller_status": ctrl.status(),
@@ -281,10 +293,30 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics, **probe_metrics}
         except Exception as exc:  # metrics must never lose the run
             summary["metrics_error"] = f"{type(exc).__name__}: {exc}"
-    if error:
-        (run_dir / "error.txt").write_text(error)
-    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    try:
+        if error:
+            (run_dir / "error.txt").write_text(error)
+        (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    except OSError as exc:
+        raise LogWriteError(f"cannot write {run_dir / 'summary.json'} ({exc.strerror or exc}); the log is kept") from None
+    if interrupted:
+        raise RunInterrupted(f"interrupted at t = {sim_time:.3f} s; {run_dir} keeps the log and the summary up to there")
     return RunResult(run_dir, summary, log)
+
+
+class LogWriteError(WbcError):
+    """The run directory could not be written (disk full, removed, no permission) during a run."""
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run: the run directory keeps the log and the summary up to the interruption."""
+
+
+def _close_quietly(rec: Recorder) -> None:
+    try:
+        rec.close()
+    except OSError:  # the log cannot be completed (disk full): what was flushed stays readable
+        pass
 
 
 def _common_metrics(log: dict[str, np.ndarray]) -> dict:

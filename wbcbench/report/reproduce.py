@@ -87,7 +87,7 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     _send("start", job.name)
     try:
         result = run(job.scenario_run, job.controller, "talos", None, job.duration_cap_s, run_dir,
-                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors)
+                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
     except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)

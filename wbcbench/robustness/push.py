@@ -117,7 +117,7 @@ def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple
     end = cell.push_time + study.push_duration + study.settle
     scen.spec = replace(scen.spec, pushes=(push,), duration=end)
     res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
-              predict_falls=True)
+              predict_falls=True, overwrite=True)
     s = res.summary
     if s["fell"]:
         ttf = s["fall_prediction"]["time_to_fall_s"]

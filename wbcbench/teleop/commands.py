@@ -53,6 +53,7 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
                         "offset: every position shifted by the calibration offset (relative teleoperation)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
+    p.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
 
@@ -120,7 +121,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         stamp = _time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
     try:
-        result = run(scen, ctrl, robot=robot, out=out, progress=progress,
+        result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=args.overwrite,
                      sim_options=SimOptions(self_collision=self_collision), probes=probes)
     finally:
         close = getattr(scen.source, "close", None)
