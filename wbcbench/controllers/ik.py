@@ -26,6 +26,7 @@ from ..qp.levels import Task as LevelTask
 from ..robots import Robot
 from ..side import Side
 from ..sim.model import ActuationMode
+from ..estimation.base_feedback import BaseFeedback
 from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import Contact6D, FrameTask, TaskStack, update_kinematics_velocity_level
 from ..types import Command, Measurement, References
@@ -74,6 +75,7 @@ class IKController(Controller):
         self.lower = np.full(m.nv, -np.inf)
         self.upper = np.full(m.nv, np.inf)
         self.stabilizer = BalanceStabilizer(robot, self.spec.stabilizer, dt) if self.spec.stabilizer else None
+        self.base_feedback = BaseFeedback(robot, dt, self.spec.base_feedback) if self.spec.base_feedback else None
         self.in_contact = {s: True for s in Side}
         self.n_unmet = 0
         self.n_failed = 0
@@ -118,6 +120,8 @@ class IKController(Controller):
 
     def step(self, meas: Measurement, refs: References) -> Command:
         m, d = self.model, self.data
+        if self.base_feedback is not None:
+            refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:
             refs = self.stabilizer.correct(meas, refs, self.q_int)
         t0 = perf_counter()

@@ -34,6 +34,7 @@ from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
 from ..sim.model import ActuationMode
+from ..estimation.base_feedback import BaseFeedback
 from ..stabilizers.balance import BalanceStabilizer
 from ..tasks import AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, TaskStack, update_kinematics
 from ..types import Command, Measurement, References
@@ -206,6 +207,8 @@ class InverseDynamicsController(Controller):
         self.stabilizer = None
         if self.spec.stabilizer is not None and mode is not ActuationMode.TORQUE:
             self.stabilizer = BalanceStabilizer(robot, self.spec.stabilizer, dt)
+        self.base_feedback = (BaseFeedback(robot, dt, self.spec.base_feedback)
+                              if self.spec.base_feedback is not None and mode is not ActuationMode.TORQUE else None)
 
     # ------------------------------------------------------------------ lifecycle
     def reset(self, meas: Measurement, refs: References) -> None:
@@ -278,6 +281,8 @@ class InverseDynamicsController(Controller):
         t0 = perf_counter()
         update_kinematics(m, d, q, v)
         self._t_pin = perf_counter() - t0
+        if self.base_feedback is not None:
+            refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:
             refs = self.stabilizer.correct(meas, refs, self.q_int)
         self._set_references(refs)

@@ -73,6 +73,7 @@ class TaskSetSpec:
     solver: str = "daqp"
     stabilizer: "DcmGains | None" = None
     teleop: "TeleopSpec | None" = None
+    base_feedback: "BaseFeedbackConfig | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -214,12 +215,20 @@ def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskS
         from ..stabilizers.teleop import parse_teleop_section
 
         teleop = parse_teleop_section(root.section("teleop"))
+    base_feedback = None
+    if root.has("base_feedback"):
+        from ..estimation.base_feedback import BaseFeedbackConfig
+
+        bf = root.section("base_feedback")
+        if bf.bool("enabled", True):
+            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 0.3, positive=True))
+        bf.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       teleop=teleop, file=file)
+                       teleop=teleop, base_feedback=base_feedback, file=file)
     reg.finish()
     root.finish()
     return spec

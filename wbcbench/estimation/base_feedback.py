@@ -1,0 +1,118 @@
+"""Base feedback for controllers that integrate their own model (IK, TSID position): keeps the walk on its plan
+in the world although the integrated model drifts from the real robot.
+
+A position-controlled robot rocks on its soft soles and its joints lag their references, so the real robot's feet
+land a little off where the integrated model put them, and the model never hears of it: over a walk the real
+robot ends up turned and shifted with respect to the model (IK on the platforms: 5 deg of yaw, 10 cm sideways).
+
+The drift is the planar rigid transform D (yaw, x, y) that takes the real robot to the model. It is estimated from
+the feet in contact, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
+D_foot = T_model_foot T_measured_foot^-1, with T_model_foot from the integrated configuration and T_measured_foot
+from the Measurement (base pose from the robot's base estimator, joints from the encoders); the feet's D are
+averaged and low-pass filtered (time constant `time_constant`), so that the estimate is continuous when the load
+passes from one foot to the other.
+
+The correction moves the plan into the model's world: the CoM and swing-foot references and the trunk orientation
+target are mapped through D, so the model walks the plan shifted by the drift and the real robot walks the plan.
+(Moving the integrated configuration to the real robot instead would be undone at once by the contact tasks,
+which hold the model's feet where they touched down.) The ZMP reference stays in the world: the stabilizer
+compares it with the ZMP measured there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+
+from ..robots import Robot
+from ..side import Side
+from ..types import Measurement, References
+
+__all__ = ["BaseFeedbackConfig", "BaseFeedback"]
+
+
+@dataclass(frozen=True)
+class BaseFeedbackConfig:
+    """Attributes:
+        time_constant: first-order filter on the drift estimate [s] (> 0).
+    """
+
+    time_constant: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.time_constant) or self.time_constant <= 0.0:
+            raise ValueError(f"BaseFeedbackConfig.time_constant must be > 0 s, got {self.time_constant!r}")
+
+
+def _planar(T: pin.SE3) -> np.ndarray:
+    """(x, y, yaw) of a transform's horizontal part."""
+    R = T.rotation
+    return np.array([T.translation[0], T.translation[1], np.arctan2(R[1, 0], R[0, 0])])
+
+
+class BaseFeedback:
+    """Drift of the integrated model from the real robot, and the references mapped into the model's world.
+
+    Args:
+        robot: the robot (sole frames from its profile).
+        dt: control period [s].
+        config: filter settings.
+    """
+
+    def __init__(self, robot: Robot, dt: float, config: BaseFeedbackConfig = BaseFeedbackConfig()):
+        self.model = robot.model
+        self.data_meas = robot.model.createData()
+        self.data_model = robot.model.createData()
+        self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
+        self.alpha = 1.0 - np.exp(-dt / config.time_constant)
+        self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
+
+    def reset(self) -> None:
+        self.drift = np.zeros(3)
+
+    def update(self, meas: Measurement, q_model: np.ndarray, contacts) -> np.ndarray:
+        """Update and return the drift estimate (x, y, yaw) from the feet in `contacts` (none: unchanged)."""
+        feet = [s for s in Side if s in contacts]
+        if not feet:
+            return self.drift
+        m = self.model
+        pin.forwardKinematics(m, self.data_meas, meas.q)
+        pin.forwardKinematics(m, self.data_model, q_model)
+        raw = np.zeros(3)
+        for s in feet:
+            T_meas = pin.updateFramePlacement(m, self.data_meas, self.sole_ids[s])
+            T_model = pin.updateFramePlacement(m, self.data_model, self.sole_ids[s])
+            d = _planar(T_model * T_meas.inverse())
+            d[2] = self.drift[2] + np.arctan2(np.sin(d[2] - self.drift[2]), np.cos(d[2] - self.drift[2]))
+            raw += d / len(feet)
+        self.drift = self.drift + self.alpha * (raw - self.drift)
+        return self.drift
+
+    def transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """D as (R (3, 3), p (3,)): a world point x maps to R x + p in the model's world."""
+        x, y, yaw = self.drift
+        c, s = np.cos(yaw), np.sin(yaw)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
+
+    def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
+        """`refs` mapped into the integrated model's world (module docstring), after one `update` with the feet
+        the references put in contact."""
+        self.update(meas, q_model, refs.contacts)
+        R, p = self.transform()
+
+        def point(a):
+            return None if a is None else R @ np.asarray(a) + p
+
+        def vector(a):
+            return None if a is None else R @ np.asarray(a)
+
+        feet = {s: (point(pos), vector(vel), vector(acc)) for s, (pos, vel, acc) in refs.feet.items()}
+        rot = {s: R @ Rs for s, Rs in refs.feet_rotation.items()}
+        targets = dict(refs.targets)
+        waist = targets.get("waist")
+        if isinstance(waist, pin.SE3):
+            targets["waist"] = pin.SE3(R @ waist.rotation, point(waist.translation))
+        return replace(refs, com=point(refs.com), com_vel=vector(refs.com_vel), com_acc=vector(refs.com_acc),
+                       feet=feet, feet_rotation=rot, targets=targets)
