@@ -109,7 +109,7 @@ class SteppingSpec:
 
     max_forward: float = 0.30
     max_backward: float = 0.20
-    max_lateral: float = 0.20
+    max_lateral: float = 0.12
     max_turn: float = 0.35
     min_clearance: float = 0.0
 
