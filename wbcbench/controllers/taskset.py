@@ -221,7 +221,7 @@ def load_taskset(path: str | Path, robot: Robot, max_priority: int = 1) -> TaskS
 
         bf = root.section("base_feedback")
         if bf.bool("enabled", True):
-            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 0.3, positive=True))
+            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True))
         bf.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),

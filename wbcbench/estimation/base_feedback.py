@@ -7,8 +7,8 @@ robot ends up turned and shifted with respect to the model (IK on the platforms:
 
 The drift is the planar rigid transform D (yaw, x, y) that takes the real robot to the model. It is estimated from
 the feet in contact, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
-D_foot = T_model_foot T_measured_foot^-1, with T_model_foot from the integrated configuration and T_measured_foot
-from the Measurement (base pose from the robot's base estimator, joints from the encoders); the feet's D are
+D_foot = P(T_model_foot) P(T_measured_foot)^-1 with P the planar pose of a sole (x, y, heading of its x axis),
+T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the robot's base estimator, joints from the encoders); the feet's D are
 averaged and low-pass filtered (time constant `time_constant`), so that the estimate is continuous when the load
 passes from one foot to the other.
 
@@ -39,7 +39,7 @@ class BaseFeedbackConfig:
         time_constant: first-order filter on the drift estimate [s] (> 0).
     """
 
-    time_constant: float = 0.3
+    time_constant: float = 1.0
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.time_constant) or self.time_constant <= 0.0:
@@ -47,7 +47,7 @@ class BaseFeedbackConfig:
 
 
 def _planar(T: pin.SE3) -> np.ndarray:
-    """(x, y, yaw) of a transform's horizontal part."""
+    """(x, y, heading of the x axis) of a pose."""
     R = T.rotation
     return np.array([T.translation[0], T.translation[1], np.arctan2(R[1, 0], R[0, 0])])
 
@@ -82,11 +82,13 @@ class BaseFeedback:
         pin.forwardKinematics(m, self.data_model, q_model)
         raw = np.zeros(3)
         for s in feet:
-            T_meas = pin.updateFramePlacement(m, self.data_meas, self.sole_ids[s])
-            T_model = pin.updateFramePlacement(m, self.data_model, self.sole_ids[s])
-            d = _planar(T_model * T_meas.inverse())
-            d[2] = self.drift[2] + np.arctan2(np.sin(d[2] - self.drift[2]), np.cos(d[2] - self.drift[2]))
-            raw += d / len(feet)
+            a = _planar(pin.updateFramePlacement(m, self.data_model, self.sole_ids[s]))
+            b = _planar(pin.updateFramePlacement(m, self.data_meas, self.sole_ids[s]))
+            # planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
+            # roll/pitch difference into a translation of D
+            dyaw = self.drift[2] + np.arctan2(np.sin(a[2] - b[2] - self.drift[2]), np.cos(a[2] - b[2] - self.drift[2]))
+            c, si = np.cos(dyaw), np.sin(dyaw)
+            raw += np.array([a[0] - (c * b[0] - si * b[1]), a[1] - (si * b[0] + c * b[1]), dyaw]) / len(feet)
         self.drift = self.drift + self.alpha * (raw - self.drift)
         return self.drift
 
