@@ -129,3 +129,12 @@ def test_cli_lists_report_commands(capsys):
         assert name in out
     assert main(["reproduce", "--jobs", "0", "--out", "x"]) == 2
     assert "--jobs" in capsys.readouterr().err
+
+
+def test_sanity_section_pairs_controllers_with_the_scenarios_they_are_meant_for():
+    jobs = matrix.plan_jobs(quick=True)
+    sanity = {(j.controller, j.scenario) for j in jobs if j.section == "sanity"}
+    for pair in (("joint-pd", "one-foot"), ("joint-pd", "sway"), ("tsid-teleop", "sway")):
+        assert pair not in sanity and matrix.SANITY_NOT_PAIRED[pair]
+    assert {("joint-pd", "stand"), ("joint-pd", "push"), ("tsid-teleop", "stand"), ("tsid-torque", "one-foot"),
+            ("ik", "sway")} <= sanity
