@@ -8,8 +8,8 @@ robot ends up turned and shifted with respect to the model (IK on the platforms:
 The drift is the planar rigid transform D (yaw, x, y) that takes the real robot to the model. It is estimated from
 the feet in contact, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
 D_foot = P(T_model_foot) P(T_measured_foot)^-1 with P the planar pose of a sole (x, y, heading of its x axis),
-T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the robot's base estimator, joints from the encoders); the feet's D are
-averaged and low-pass filtered (time constant `time_constant`), so that the estimate is continuous when the load
+T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the
+robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant `time_constant`), so that the estimate is continuous when the load
 passes from one foot to the other.
 
 The correction moves the plan into the model's world: the CoM and swing-foot references and the trunk orientation
