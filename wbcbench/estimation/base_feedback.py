@@ -6,11 +6,11 @@ land a little off where the integrated model put them, and the model never hears
 robot ends up turned and shifted with respect to the model (IK on the platforms: 5 deg of yaw, 10 cm sideways).
 
 The drift is the planar rigid transform D (yaw, x, y) that takes the real robot to the model. It is estimated from
-the feet in contact, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
+the feet in double support, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
 D_foot = P(T_model_foot) P(T_measured_foot)^-1 with P the planar pose of a sole (x, y, heading of its x axis),
 T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the
-robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant `time_constant`), so that the estimate is continuous when the load
-passes from one foot to the other.
+robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant `time_constant`). The estimate is held in single support, where the
+robot rocks on its stance sole.
 
 The correction moves the plan into the model's world: the CoM and swing-foot references and the trunk orientation
 target are mapped through D, so the model walks the plan shifted by the drift and the real robot walks the plan.
@@ -73,9 +73,11 @@ class BaseFeedback:
         self.drift = np.zeros(3)
 
     def update(self, meas: Measurement, q_model: np.ndarray, contacts) -> np.ndarray:
-        """Update and return the drift estimate (x, y, yaw) from the feet in `contacts` (none: unchanged)."""
+        """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
+        feet are in contact (in single support the robot rocks on its stance sole, and updating there made TSID
+        position fall on the platforms)."""
         feet = [s for s in Side if s in contacts]
-        if not feet:
+        if len(feet) < 2:
             return self.drift
         m = self.model
         pin.forwardKinematics(m, self.data_meas, meas.q)
