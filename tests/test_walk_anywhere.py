@@ -58,3 +58,22 @@ def test_bad_stepping_limit_in_a_profile_is_rejected(tmp_path):
     assert proc.returncode == 2, proc.stderr
     line = proc.stderr.strip()
     assert "\n" not in line and "stepping" in line and "max_turn" in line, line
+
+
+def test_base_feedback_keeps_ik_on_its_plan(talos, tmp_path):
+    """IK with the task-set switch on: the drift it estimates is real (mm) and the side step ends on its plan."""
+    from dataclasses import replace
+
+    from wbcbench.controllers.ik import MAX_LEVELS, IKController
+    from wbcbench.controllers.taskset import load_taskset, taskset_path
+    from wbcbench.estimation.base_feedback import BaseFeedbackConfig
+    from wbcbench.sim.model import ActuationMode
+
+    spec = load_taskset(taskset_path(talos, "ik"), talos, max_priority=MAX_LEVELS)
+    ctrl = IKController(talos, ActuationMode.POSITION, 1e-3,
+                        taskset=replace(spec, base_feedback=BaseFeedbackConfig(time_constant=1.0)))
+    res = run("side-step-1m-quick", ctrl, talos, out=tmp_path)
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert 1e-3 < np.hypot(*ctrl.base_feedback.drift[:2]) < 0.1
+    assert s["metrics"]["final_position_error_m"] < 0.01
