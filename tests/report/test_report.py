@@ -150,3 +150,12 @@ def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
         "zmp_error_m"]["x"]["mean"]
     assert "Under 'talos-like' sensing" in (tmp_path / "report.md").read_text()
     assert res.results["command"] == "reproduce --quick --sensors talos-like"
+
+
+def test_sanity_section_pairs_controllers_with_the_scenarios_they_are_meant_for():
+    jobs = matrix.plan_jobs(quick=True)
+    sanity = {(j.controller, j.scenario) for j in jobs if j.section == "sanity"}
+    for pair in (("joint-pd", "one-foot"), ("joint-pd", "sway"), ("tsid-teleop", "sway")):
+        assert pair not in sanity and matrix.SANITY_NOT_PAIRED[pair]
+    assert {("joint-pd", "stand"), ("joint-pd", "push"), ("tsid-teleop", "stand"), ("tsid-torque", "one-foot"),
+            ("ik", "sway")} <= sanity

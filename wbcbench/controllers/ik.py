@@ -21,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
+from ..estimation.base_feedback import BaseFeedback
 from ..qp import HierarchicalSolver
 from ..robots import Robot
 from ..side import Side
@@ -75,6 +76,8 @@ class IKController(Controller):
         if stabilizer is None and spec.stabilizer is not None:
             stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
         self.stabilizer = stabilizer
+        # the plan mapped into the integrated model's world (estimation/base_feedback.py), when the task set asks
+        self.base_feedback = BaseFeedback(robot, dt, spec.base_feedback) if spec.base_feedback is not None else None
         self.n_unmet = 0
         self.n_failed = 0
         self.unmet_levels = -1
@@ -87,6 +90,8 @@ class IKController(Controller):
         self.v = np.zeros(self.model.nv)
         K.update(self.q_int)
         K.reset_references(self.robot.q0, refs.contacts)
+        if self.base_feedback is not None:
+            self.base_feedback.reset()
         if self.stabilizer is not None:
             self.stabilizer.check(refs)
             self.stabilizer.reset(meas, refs, ModelFeedback(self.q_int, frozenset(refs.contacts)))
@@ -100,6 +105,8 @@ class IKController(Controller):
 
     def step(self, meas: Measurement, refs: References) -> Command:
         K = self.formulation
+        if self.base_feedback is not None:
+            refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:
             refs = self.stabilizer.correct(meas, refs, ModelFeedback(self.q_int, refs.contacts))
         t0 = perf_counter()

@@ -25,6 +25,7 @@ import pinocchio as pin
 
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
+from ..estimation.base_feedback import BaseFeedback
 from ..robots import Robot, Side
 from ..stabilizers.base import Stabilizer, make_stabilizer
 from ..tasks import Contact6D, FrameTask
@@ -102,6 +103,9 @@ class InverseDynamicsController(Controller):
         if stabilizer is None and spec.stabilizer is not None:
             stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
         self.stabilizer = stabilizer
+        # the plan mapped into the integrated model's world (position mode only: torque mode feeds back the state)
+        self.base_feedback = (BaseFeedback(robot, dt, spec.base_feedback)
+                              if spec.base_feedback is not None and mode is not ActuationMode.TORQUE else None)
 
     # ------------------------------------------------------------------ limits (the formulation's, replaceable)
     @property
@@ -123,6 +127,8 @@ class InverseDynamicsController(Controller):
         F.reset_references(self.robot.q0, refs.contacts)
         from .joint_pd import JointPD
         self.fallback_pd = JointPD(self.robot, ActuationMode.TORQUE, self.dt)
+        if self.base_feedback is not None:
+            self.base_feedback.reset()
         self._warm_up(meas)
         if self.stabilizer is not None:
             self.stabilizer.check(refs)
@@ -162,6 +168,8 @@ class InverseDynamicsController(Controller):
     def step(self, meas: Measurement, refs: References) -> Command:
         F = self.formulation
         q, v = self._state(meas)
+        if self.base_feedback is not None:
+            refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:  # on the model of the last solve (its wrenches and contact placements)
             refs = self.stabilizer.correct(meas, refs, self.feedback())
         t0 = perf_counter()

@@ -63,6 +63,7 @@ class TaskSetSpec:
     regularization_wrench_target: float = 0.0
     solver: str = "daqp"
     stabilizer: "StabilizerConfig | None" = None
+    base_feedback: "BaseFeedbackConfig | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -171,13 +172,21 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
         from ..stabilizers.base import parse_stabilizer
 
         stab = parse_stabilizer(root.section("stabilizer"))
+    base_feedback = None
+    if root.has("base_feedback"):
+        from ..estimation.base_feedback import BaseFeedbackConfig
+
+        bf = root.section("base_feedback")
+        if bf.bool("enabled", True):
+            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True))
+        bf.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       file=file)
+                       base_feedback=base_feedback, file=file)
     reg.finish()
     root.finish()
     return spec

@@ -101,6 +101,20 @@ class CollisionCheckSpec:
 
 
 @dataclass(frozen=True)
+class SteppingSpec:
+    """What one step may do, for footstep planning from a command or a path (walking frame per step):
+    forward / backward advance [m], lateral advance of the leading foot [m] (the trailing foot closes), turn of
+    the inside foot [rad] (the outside foot closes), and the minimum clearance between the two soles' edges [m]
+    (the planner rejects footprints closer than this)."""
+
+    max_forward: float = 0.30
+    max_backward: float = 0.20
+    max_lateral: float = 0.12
+    max_turn: float = 0.35
+    min_clearance: float = 0.0
+
+
+@dataclass(frozen=True)
 class RobotProfile:
     """Everything wbcbench needs to know about one robot, validated on load."""
 
@@ -123,6 +137,7 @@ class RobotProfile:
     max_tilt: float
     repulsors: dict[Side, RepulsorSpec] = field(default_factory=dict)
     collision_check: dict[Side, CollisionCheckSpec] = field(default_factory=dict)
+    stepping: SteppingSpec = field(default_factory=SteppingSpec)
     file: str = field(default="", compare=False)
     #: joint-name prefix -> effort [N m] / velocity [rad/s] limit, for joints whose URDF gives none (or a wrong one)
     effort_overrides: dict[str, float] = field(default_factory=dict)
@@ -224,6 +239,19 @@ def _collision_check(root: Section) -> dict[Side, CollisionCheckSpec]:
     return out
 
 
+def _stepping(root: Section) -> SteppingSpec:
+    st = root.section("stepping", {})
+    d = SteppingSpec()
+    spec = SteppingSpec(
+        max_forward=st.float("max_forward", d.max_forward, positive=True, max=1.0),
+        max_backward=st.float("max_backward", d.max_backward, positive=True, max=1.0),
+        max_lateral=st.float("max_lateral", d.max_lateral, positive=True, max=1.0),
+        max_turn=st.float("max_turn", d.max_turn, positive=True, max=1.5),
+        min_clearance=st.float("min_clearance", d.min_clearance, min=0.0, max=0.2))
+    st.finish()
+    return spec
+
+
 def load_profile(name_or_path: str | Path) -> RobotProfile:
     """Load a robot profile by robot name (a file in wbcbench/robots/profiles, or a `wbcbench.robots` plugin) or by
     path to a YAML file."""
@@ -312,6 +340,7 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         max_tilt=fall.float("max_tilt", positive=True),
         repulsors=_repulsors(root),
         collision_check=_collision_check(root),
+        stepping=_stepping(root),
         file=file,
     )
     fall.finish()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..errors import PlanningError
@@ -305,3 +307,122 @@ class TerrainWalkScenario(WalkScenario):
         self.contact_plan = plan
         self.walk = walk.walk
         self.base_offset = q0[:3] - com0
+
+
+@register_kind
+class CommandWalkScenario(WalkScenario):
+    """Walk on flat ground following a velocity command or a path (wbcbench.planning.command): turns, side
+    steps, backward steps; the robot profile's `stepping` section limits each step.
+
+    The trunk's orientation task (named "waist" in the task sets) follows the walking frame's heading.
+    params (one of): command [[t, vx, vy, yaw_rate], ...] (keyframes, piecewise linear, [s, m/s, m/s, rad/s],
+    walking frame), command_csv (a CSV file t,vx,vy,yaw_rate, relative to the scenario file), path
+    [[x, y, yaw_deg], ...] (waypoints in the start walking frame [m, m, deg], reached in turn).
+    Also single_support, double_support, initial_double_support, final_double_support [s], apex [m],
+    step_width, preview_horizon as `walk`.
+    Metrics as `walk`, the base offset from the CoM turned with the walk, plus final_yaw_error_deg (base heading
+    vs the plan's walking frame).
+    """
+
+    kind = "walk-command"
+
+    def parse(self, params):
+        given = [k for k in ("command", "command_csv", "path") if params.has(k)]
+        if len(given) != 1:
+            raise params.error("command", f"give exactly one of command, command_csv, path (got {given or 'none'})")
+        self.source = given[0]
+        if self.source == "command_csv":
+            from pathlib import Path
+            raw = Path(params.str("command_csv"))
+            self.source_value = raw if raw.is_absolute() or not self.spec.file else Path(self.spec.file).parent / raw
+        else:
+            rows = params.list(self.source)
+            width = 4 if self.source == "command" else 3
+            for i, r in enumerate(rows):
+                if not (isinstance(r, list) and len(r) == width and all(
+                        isinstance(v, (int, float)) and not isinstance(v, bool) for v in r)):
+                    cols = "[t, vx, vy, yaw_rate]" if width == 4 else "[x, y, yaw_deg]"
+                    raise params.error(self.source, f"entry {i} must be {cols} (numbers), got {r!r}")
+            self.source_value = [list(map(float, r)) for r in rows]
+        self.single = params.float("single_support", positive=True)
+        self.double = params.float("double_support", positive=True)
+        self.initial_ds = params.float("initial_double_support", 2.5, positive=True)
+        self.final_ds = params.float("final_double_support", 2.0, positive=True)
+        self.apex = params.float("apex", 0.05, min=0.0)
+        self.width = params.float("step_width", 0.0, min=0.0)
+        self.preview_horizon = params.float("preview_horizon", 1.6, positive=True)
+
+    def setup(self, q0, com0):
+        import pinocchio as pin
+
+        from ..errors import ConfigError
+        from ..planning import PatternGeneratorConfig, SoleRectangle, StepTiming, generate_walk
+        from ..planning.command import StepLimits, VelocityCommand, plan_from_command, plan_from_path
+        from ..planning.geometry import yaw_of
+        Scenario.setup(self, q0, com0)
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, q0)
+        feet = {s: data.oMf[self.robot.sole_frame_id(s)] for s in Side}
+        mid = (feet[Side.LEFT].translation + feet[Side.RIGHT].translation) / 2
+        yaw0 = float(np.mean([yaw_of(feet[s].rotation) for s in Side]))
+        sep = self.width or float(np.linalg.norm(feet[Side.LEFT].translation - feet[Side.RIGHT].translation))
+        sole = self.robot.profile.sole
+        kw = dict(foot_separation=sep, timing=StepTiming(self.single, self.double, self.initial_ds, self.final_ds),
+                  sole=SoleRectangle(sole.length, sole.width, *sole.center),
+                  limits=StepLimits.from_profile(self.robot.profile.stepping), start=(*mid, yaw0))
+        try:
+            if self.source == "path":
+                w = np.array(self.source_value)
+                plan = plan_from_path(np.column_stack([w[:, :2], np.radians(w[:, 2])]), **kw)
+            else:
+                cmd = (VelocityCommand.from_csv(self.source_value) if self.source == "command_csv"
+                       else VelocityCommand.from_rows(self.source_value))
+                plan = plan_from_command(cmd, **kw)
+            self.walk = generate_walk(plan, PatternGeneratorConfig(
+                com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
+                preview_horizon=self.preview_horizon), p_world_com_init=com0)
+        except ValueError as exc:
+            raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key=f"params.{self.source}") from None
+        self.plan = plan
+        self.yaw0 = yaw0
+        # base position relative to the CoM in the walking frame, and base heading relative to it
+        from ..planning.geometry import rotation_from_yaw
+        self.base_offset_local = rotation_from_yaw(yaw0).T @ (q0[:3] - com0)
+        self.base_yaw_offset = yaw_of(pin.Quaternion(q0[6], *q0[3:6]).toRotationMatrix()) - yaw0
+        self.base_offset = q0[:3] - com0
+        self.R_base0 = pin.Quaternion(q0[6], *q0[3:6]).toRotationMatrix()
+
+    def references(self, t):
+        import pinocchio as pin
+
+        from ..planning.geometry import rotation_from_yaw
+        refs = super().references(t)
+        k = min(int(round(t / self.walk.dt)), self.walk.n_ticks - 1)
+        # the waist (trunk orientation task "waist") turns with the feet: the walking frame's heading
+        R = rotation_from_yaw(self._planned_frame_yaw(k) - self.yaw0) @ self.R_base0
+        return replace(refs, targets={**refs.targets, "waist": PoseReference(np.zeros(3), R)})
+
+    def _planned_frame_yaw(self, k: int) -> float:
+        from ..planning.geometry import yaw_of
+        yaws = np.unwrap([yaw_of(self.walk.feet[s].R_world_sole[k]) for s in Side])
+        return float(np.mean(yaws))
+
+    def metrics(self, log):
+        import pinocchio as pin
+
+        from ..planning.geometry import rotation_from_yaw, yaw_of
+        out = super().metrics(log)
+        t_end = log["t"][-1]
+        k = min(int(round(t_end / self.walk.dt)), self.walk.n_ticks - 1)
+        yaw_plan = self._planned_frame_yaw(k)
+        planned_base = self.walk.p_world_com[k] + rotation_from_yaw(yaw_plan) @ self.base_offset_local
+        base = np.array([log["q.x"][-1], log["q.y"][-1]])
+        start = np.array([log["q.x"][0], log["q.y"][0]])
+        quat = pin.Quaternion(log["q.qw"][-1], log["q.qx"][-1], log["q.qy"][-1], log["q.qz"][-1])
+        yaw = yaw_of(quat.toRotationMatrix()) - self.base_yaw_offset
+        out.update({"final_position_error_m": float(np.linalg.norm(base - planned_base[:2])),
+                    "distance_m": float(np.linalg.norm(base - start)),
+                    "planned_distance_m": float(np.linalg.norm(planned_base[:2] - start)),
+                    "final_yaw_error_deg": float(np.degrees(abs((yaw - yaw_plan + np.pi) % (2 * np.pi) - np.pi))),
+                    "planned_turn_deg": float(np.degrees(yaw_plan - self.yaw0))})
+        return out

@@ -1,0 +1,52 @@
+"""Base feedback: the drift of the integrated model from the measured robot, from the feet in contact."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.estimation.base_feedback import BaseFeedback, BaseFeedbackConfig
+from wbcbench.side import Side
+from wbcbench.types import Measurement, PointReference, References
+
+
+def _shifted(q, dx, dy, dyaw):
+    """q with its base moved by the planar transform (dx, dy, dyaw) applied in the world."""
+    q = q.copy()
+    R = pin.Quaternion(q[6], *q[3:6]).toRotationMatrix()
+    Rz = pin.rpy.rpyToMatrix(0.0, 0.0, dyaw)
+    q[:3] = Rz @ q[:3] + np.array([dx, dy, 0.0])
+    quat = pin.Quaternion(Rz @ R)
+    q[3:7] = [quat.x, quat.y, quat.z, quat.w]
+    return q
+
+
+def _meas(q):
+    return Measurement(t=0.0, q=q, v=np.zeros(q.size - 1), imu_quat=np.array([0, 0, 0, 1.0]), gyro=np.zeros(3),
+                       accelerometer=np.zeros(3))
+
+
+def test_drift_is_the_transform_from_the_robot_to_the_model_and_references_follow(talos):
+    q_model = talos.q0.copy()
+    q_real = _shifted(q_model, 0.03, -0.05, np.radians(-5.0))    # the real robot: 5 deg and 6 cm off the model
+    fb = BaseFeedback(talos, 1e-3, BaseFeedbackConfig(time_constant=0.01))
+    refs = References(t=0.0, contacts=frozenset(Side), com=PointReference([1.0, 0.0, 0.87], [0.1, 0.0, 0.0]),
+                      zmp=np.array([1.0, 0.0, 0.0]))
+    for _ in range(200):
+        out = fb.correct(_meas(q_real), refs, q_model)
+    # D undoes the real robot's offset: a point of the real robot maps onto the same point of the model
+    R, p = fb.transform()
+    x_real = _shifted(np.r_[np.array([0.4, 0.2, 0.1]), 0, 0, 0, 1.0], 0.03, -0.05, np.radians(-5.0))[:3]
+    assert R @ x_real + p == pytest.approx([0.4, 0.2, 0.1], abs=1e-6)
+    assert np.degrees(fb.drift[2]) == pytest.approx(5.0, abs=1e-6)
+    assert out.com.position == pytest.approx(R @ refs.com.position + p)
+    assert out.com.velocity == pytest.approx(R @ refs.com.velocity)
+    assert out.zmp is refs.zmp                                   # the ZMP stays in the world
+
+
+def test_no_drift_when_the_model_is_the_robot_and_held_in_single_support(talos):
+    fb = BaseFeedback(talos, 1e-3)
+    fb.update(_meas(talos.q0), talos.q0, frozenset(Side))
+    assert np.abs(fb.drift).max() < 1e-12
+    for contacts in (frozenset(), frozenset({Side.LEFT})):
+        fb.update(_meas(_shifted(talos.q0, 0.1, 0, 0)), talos.q0, contacts)
+        assert np.abs(fb.drift).max() < 1e-12

@@ -1,0 +1,122 @@
+"""Base feedback for controllers that integrate their own model (IK, TSID position): keeps the walk on its plan
+in the world although the integrated model drifts from the real robot.
+
+A position-controlled robot rocks on its soft soles and its joints lag their references, so the real robot's feet
+land a little off where the integrated model put them, and the model never hears of it: over a walk the real
+robot ends up turned and shifted with respect to the model (IK on the platforms: 5 deg of yaw, 10 cm sideways).
+
+The drift is the planar rigid transform D (yaw, x, y) that takes the real robot to the model. It is estimated from
+the feet in double support, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
+D_foot = P(T_model_foot) P(T_measured_foot)^-1 with P the planar pose of a sole (x, y, heading of its x axis),
+T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the
+robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant `time_constant`). The estimate is held in single support, where the
+robot rocks on its stance sole.
+
+The correction moves the plan into the model's world: the CoM and swing-foot references and the trunk orientation
+target are mapped through D, so the model walks the plan shifted by the drift and the real robot walks the plan.
+(Moving the integrated configuration to the real robot instead would be undone at once by the contact tasks,
+which hold the model's feet where they touched down.) The ZMP reference stays in the world: the stabilizer
+compares it with the ZMP measured there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+
+from ..robots import Robot
+from ..side import Side
+from ..types import Measurement, PointReference, PoseReference, References
+
+__all__ = ["BaseFeedbackConfig", "BaseFeedback"]
+
+
+@dataclass(frozen=True)
+class BaseFeedbackConfig:
+    """Attributes:
+        time_constant: first-order filter on the drift estimate [s] (> 0).
+    """
+
+    time_constant: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.time_constant) or self.time_constant <= 0.0:
+            raise ValueError(f"BaseFeedbackConfig.time_constant must be > 0 s, got {self.time_constant!r}")
+
+
+def _planar(T: pin.SE3) -> np.ndarray:
+    """(x, y, heading of the x axis) of a pose."""
+    R = T.rotation
+    return np.array([T.translation[0], T.translation[1], np.arctan2(R[1, 0], R[0, 0])])
+
+
+class BaseFeedback:
+    """Drift of the integrated model from the real robot, and the references mapped into the model's world.
+
+    Args:
+        robot: the robot (sole frames from its profile).
+        dt: control period [s].
+        config: filter settings.
+    """
+
+    def __init__(self, robot: Robot, dt: float, config: BaseFeedbackConfig = BaseFeedbackConfig()):
+        self.model = robot.model
+        self.data_meas = robot.model.createData()
+        self.data_model = robot.model.createData()
+        self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
+        self.alpha = 1.0 - np.exp(-dt / config.time_constant)
+        self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
+
+    def reset(self) -> None:
+        self.drift = np.zeros(3)
+
+    def update(self, meas: Measurement, q_model: np.ndarray, contacts) -> np.ndarray:
+        """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
+        feet are in contact (in single support the robot rocks on its stance sole, and updating there made TSID
+        position fall on the platforms)."""
+        feet = [s for s in Side if s in contacts]
+        if len(feet) < 2:
+            return self.drift
+        m = self.model
+        pin.forwardKinematics(m, self.data_meas, meas.q)
+        pin.forwardKinematics(m, self.data_model, q_model)
+        raw = np.zeros(3)
+        for s in feet:
+            a = _planar(pin.updateFramePlacement(m, self.data_model, self.sole_ids[s]))
+            b = _planar(pin.updateFramePlacement(m, self.data_meas, self.sole_ids[s]))
+            # planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
+            # roll/pitch difference into a translation of D
+            dyaw = self.drift[2] + np.arctan2(np.sin(a[2] - b[2] - self.drift[2]), np.cos(a[2] - b[2] - self.drift[2]))
+            c, si = np.cos(dyaw), np.sin(dyaw)
+            raw += np.array([a[0] - (c * b[0] - si * b[1]), a[1] - (si * b[0] + c * b[1]), dyaw]) / len(feet)
+        self.drift = self.drift + self.alpha * (raw - self.drift)
+        return self.drift
+
+    def transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """D as (R (3, 3), p (3,)): a world point x maps to R x + p in the model's world."""
+        x, y, yaw = self.drift
+        c, s = np.cos(yaw), np.sin(yaw)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
+
+    def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
+        """`refs` mapped into the integrated model's world (module docstring), after one `update` with the feet
+        the references put in contact."""
+        self.update(meas, q_model, refs.contacts)
+        R, p = self.transform()
+
+        def twist(v):  # a (6,) world-axes twist (linear, angular) rotated by R
+            return np.concatenate((R @ v[:3], R @ v[3:]))
+
+        def pose(ref: PoseReference) -> PoseReference:
+            return PoseReference(R @ ref.position + p, None if ref.rotation is None else R @ ref.rotation,
+                                 twist(ref.velocity), twist(ref.acceleration))
+
+        com = refs.com
+        if com is not None:
+            com = PointReference(R @ com.position + p, R @ com.velocity, R @ com.acceleration)
+        targets = refs.targets
+        if "waist" in targets:
+            targets = {**targets, "waist": pose(targets["waist"])}
+        return replace(refs, com=com, feet={s: pose(f) for s, f in refs.feet.items()}, targets=targets)
