@@ -41,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_subcommands(sub)
     from .teleop.commands import add_subcommand as add_teleop
     add_teleop(sub)
+    from .study.commands import add_subcommands as add_study
+    add_study(sub)
     return p
 
 
@@ -79,6 +81,10 @@ def main(argv: list[str] | None = None) -> int:
         from .report.commands import COMMANDS, run_command
         if args.command in COMMANDS:
             return run_command(args)
+        from .study.commands import COMMANDS as STUDY_COMMANDS
+        if args.command in STUDY_COMMANDS:
+            from .study.commands import run_command as run_study
+            return run_study(args)
         if args.command == "teleop":
             from .teleop.commands import run_command as run_teleop
             return run_teleop(args)
