@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-COMMANDS = ("sweep", "sweep-report")
+COMMANDS = ("sweep", "sweep-report", "tune")
 
 
 def add_subcommands(sub: argparse._SubParsersAction) -> None:
@@ -20,6 +20,12 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     r = sub.add_parser("sweep-report", help="tables and plots of a sweep's results.parquet")
     r.add_argument("sweep_dir", metavar="DIR")
+    t = sub.add_parser("tune", help="tune task-set gains with Optuna (SQLite study, resumable)")
+    t.add_argument("tune_file", metavar="TUNE.yaml")
+    t.add_argument("--trials", "-n", type=int, default=30, help="completed trials to reach (default 30)")
+    t.add_argument("--jobs", "-j", type=int, default=1, help="parallel trials (process pool, or CPUs of a local Ray)")
+    t.add_argument("--ray", default=None, metavar="ADDRESS|auto", help="run trials on Ray")
+    t.add_argument("--out", "-o", default=None, help="study directory (default tuning/<file stem>)")
     r.add_argument("--metric", default=None, help="metric column to plot (default: the mean ZMP error if present)")
 
 
@@ -58,6 +64,17 @@ def _cmd_sweep(args) -> int:
 def run_command(args: argparse.Namespace) -> int:
     if args.command == "sweep":
         return _cmd_sweep(args)
+    if args.command == "tune":
+        from .execute import make_executor
+        from .tune import tune
+        with make_executor(args.jobs, args.ray) as ex:
+            res = tune(args.tune_file, args.trials, args.out, ex,
+                       on_trial=lambda n, total, v: print(f"trial {n}/{total}: "
+                                                          f"{'pruned' if v is None else f'{v:.5g}'}", flush=True))
+        best = res["best"]
+        print(f"{res['out']}: {res['n_trials']} trials; shipped gains {res['baseline']}; best "
+              f"{'none' if best is None else best['value']} -> {res['out']}/best-taskset.yaml, report.md")
+        return 0
     from .report import sweep_report
     md = sweep_report(args.sweep_dir, metric=args.metric)
     print(md)

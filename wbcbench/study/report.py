@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-DEFAULT_METRICS = ("metrics.zmp_error_m.mean", "metrics.zmp_error_m.norm.mean", "metrics.E_m")
+DEFAULT_METRICS = ("metrics.zmp_error_m.x.mean", "metrics.E_m")
 
 
 def _q(name: str) -> str:
