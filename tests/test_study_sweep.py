@@ -141,3 +141,44 @@ def test_unreachable_ray_address_is_one_line_exit_2(tmp_path, capsys):
     assert main(["sweep", str(f), "--ray", "127.0.0.1:9", "--out", str(tmp_path / "o"), "-q"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot reach a Ray cluster" in err, err
+
+
+@pytest.mark.parametrize("text, expect", [
+    ("base: {scenario: stand, controller: ik}\nparams: {taskset.tasks.nope.kp: {min: 1, max: 2}}\n"
+     "objective: {metrics.E_m: 1}\n", "no entry named 'nope'"),
+    ("base: {scenario: stand, controller: ik}\nparams: {taskset.tasks.com_xy.kp: {min: 5, max: 2}}\n"
+     "objective: {metrics.E_m: 1}\n", "min (5) must be <= max (2)"),
+    ("base: {scenario: stand, controller: ik}\nparams: {}\nobjective: {metrics.E_m: 1}\n", "at least one key path"),
+    ("base: {scenario: stand, controller: ik}\nparams: {taskset.tasks.com_xy.kp: {min: 1, max: 2}}\n",
+     "objective"),
+])
+def test_bad_tune_file_is_one_line_exit_2(tmp_path, capsys, text, expect):
+    f = _write(tmp_path, text, "tune.yaml")
+    assert main(["tune", str(f), "--trials", "1", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and expect in err and "tune.yaml" in err, err
+
+
+def test_tune_two_trials_write_best_taskset_and_report(tmp_path):
+    from wbcbench.study.tune import tune
+    f = _write(tmp_path, """
+base: {scenario: stand, controller: ik, duration: 0.1}
+params: {taskset.tasks.com_xy.kp: {min: 20, max: 200, log: true}}
+objective: {metrics.E_m: 1.0}
+""", "tune.yaml")
+    res = tune(f, 2, tmp_path / "t")
+    assert res["n_trials"] == 2 and res["best"] is not None and res["baseline"] is not None
+    import yaml
+    best = yaml.safe_load((tmp_path / "t" / "best-taskset.yaml").read_text())
+    kp = next(t for t in best["tasks"] if t["name"] == "com_xy")["kp"]
+    assert kp == pytest.approx(res["best"]["params"]["taskset.tasks.com_xy.kp"]) and 20 <= kp <= 200
+    assert "shipped gains" in (tmp_path / "t" / "report.md").read_text()
+    res2 = tune(f, 3, tmp_path / "t")   # resumes the SQLite study: one more trial
+    assert res2["n_trials"] == 3
+
+
+def test_reproduce_unreachable_ray_is_one_line_exit_2(tmp_path, capsys):
+    pytest.importorskip("ray", reason="ray is not importable (pip install 'wbcbench[ray]')")
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"), "--ray", "127.0.0.1:9", "-q"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot reach a Ray cluster" in err, err

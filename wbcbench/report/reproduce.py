@@ -109,7 +109,8 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
 
 
 # ------------------------------------------------------------------------------------------- execution
-def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool) -> list[RunOutcome]:
+def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool,
+              ray: str | None = None) -> list[RunOutcome]:
     global _SINK
     runnable = [j for j in jobs if not j.missing]
     results: dict[str, RunOutcome] = {j.name: execute(j, str(runs_root)) for j in jobs if j.missing}
@@ -143,7 +144,13 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
                 prog.console.print(f"  {job.name}: {outcome.status}{why}")
 
     try:
-        if n_jobs <= 1:
+        if ray:  # the sweeps' execution layer (wbcbench.study.execute): a local Ray or a cluster
+            from ..study.execute import RayExecutor
+            with RayExecutor(ray, n_jobs if ray == "auto" else None) as ex:
+                kwargs = [{"job": job, "runs_root": str(runs_root)} for job in runnable]
+                for i, outcome in ex.map_unordered(execute, kwargs):
+                    finished(runnable[i], outcome)
+        elif n_jobs <= 1:
             _SINK = on_message
             try:
                 for job in runnable:
@@ -204,7 +211,7 @@ def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: st
 
 
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
-              *, sanity: bool = True) -> ReportResult:
+              *, sanity: bool = True, ray: str | None = None) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -214,6 +221,7 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         jobs: number of worker processes (default: the cores this process may use); 1 runs inline.
         progress: show a rich progress bar.
         sanity: also run the standing scenarios with every available controller.
+        ray: run the cells on Ray ('auto': a local instance with `jobs` CPUs; HOST:PORT: a cluster).
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -226,7 +234,7 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     if n_jobs < 1:
         raise WbcError(f"--jobs must be >= 1, got {jobs}")
     plan = matrix.plan_jobs(quick=quick, sanity=sanity)
-    outcomes = _run_jobs(plan, runs_root, n_jobs, progress)
+    outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     results, figures = write_report(outcomes, out, command="reproduce --quick" if quick else "reproduce",
                                     quick=quick, jobs=n_jobs, started_at=t0)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])

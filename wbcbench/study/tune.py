@@ -103,6 +103,14 @@ def tune(tune_file: str | Path, trials: int, out: str | Path | None = None,
     if trials < 1:
         raise ConfigError(f"--trials must be >= 1, got {trials}", key="--trials")
     out = Path(out) if out is not None else Path("tuning") / Path(tune_file).stem
+    from .cell import prepare
+    probe = {**spec["base"], **{k: (int(lo) if integer else lo) for k, (lo, hi, log, integer) in spec["ranges"].items()}}
+    try:   # an unknown key path or a rejected value fails before any run
+        prepare(probe, out / ".validate")
+    except ConfigError as exc:
+        raise ConfigError(str(exc), file=spec["file"]) from None
+    finally:
+        shutil.rmtree(out / ".validate", ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
     executor = executor or Executor()
     version = code_version()
