@@ -16,7 +16,8 @@ random:                                # n samples per grid cell, drawn with `se
     taskset.stabilizer.kp_dcm: {min: 1, max: 20, log: true}
 ```
 
-Parameter names: `controller`, `robot`, `scenario`, `mode`, `duration` [s], `seed`, or a key path into the scenario
+Parameter names: `controller`, `robot`, `scenario`, `mode`, `duration` [s], `seed`, `taskset` (a task-set YAML
+path instead of the shipped one, relative to the sweep file), or a key path into the scenario
 YAML (`scenario.<path>`), the controller's task set (`taskset.<path>`; a list of named entries such as `tasks` is
 indexed by name: `tasks.com_xy.kp`) or the simulator options (`sim.<field>` of wbcbench.sim.model.SimOptions, e.g.
 `sim.timestep`, `sim.sole_friction`). The overridden YAML is validated by the normal loaders.
@@ -37,7 +38,7 @@ import numpy as np
 from ..config import load_yaml
 from ..errors import ConfigError
 
-TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed")
+TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset")
 PATH_PREFIXES = ("scenario.", "taskset.", "sim.")
 MAX_CELLS = 10_000
 
@@ -89,6 +90,8 @@ def _sim_options_cls():
 def _fmt(v: object) -> str:
     if isinstance(v, float):
         v = f"{v:.6g}"
+    elif isinstance(v, str) and v.endswith((".yaml", ".yml")):
+        v = Path(v).stem
     s = re.sub(r"[^A-Za-z0-9.+-]+", "_", str(v))
     return s[:40]
 
@@ -168,6 +171,13 @@ def load_design(path: str | Path, allow_large: bool = False) -> Design:
     total = n_grid * (n_random if ranges else 1)
     if total > MAX_CELLS and not allow_large:
         raise ConfigError(f"the design has {total} cells (> {MAX_CELLS}); pass --yes to run it", file=file)
+    here = Path(file).resolve().parent
+    for sec in (base, grid):   # task-set and scenario files relative to the sweep file (workers' cwd may differ)
+        for k in ("taskset", "scenario"):
+            if k in sec:
+                fix = [str(here / v) if isinstance(v, str) and v.endswith((".yaml", ".yml"))
+                       and not Path(v).is_absolute() else v for v in (sec[k] if sec is grid else [sec[k]])]
+                sec[k] = fix if sec is grid else fix[0]
     varied = tuple(grid) + tuple(ranges)
     rng = np.random.default_rng(rseed)
     samples = []

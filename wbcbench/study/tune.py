@@ -72,6 +72,11 @@ def load_tune(path: str | Path) -> dict:
     seed = data.get("seed", 0)
     if not isinstance(seed, int):
         raise ConfigError(f"must be an integer, got {seed!r}", file=file, key="seed")
+    here = Path(file).resolve().parent
+    for k in ("taskset", "scenario"):
+        v = base.get(k)
+        if isinstance(v, str) and v.endswith((".yaml", ".yml")) and not Path(v).is_absolute():
+            base[k] = str(here / v)
     return {"file": file, "base": base, "ranges": ranges, "objective": obj,
             "no_fall": bool(cons.get("no_fall", True)), "max": dict(cons.get("max") or {}), "seed": seed}
 
