@@ -14,7 +14,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from wbcbench.study.execute import Executor, PoolExecutor, RayExecutor
+from wbcbench.study.execute import PoolExecutor, RayExecutor
 from wbcbench.study.sweep import run_sweep
 
 
@@ -27,7 +27,7 @@ def main() -> None:
         f = Path(tmp) / "scaling.yaml"
         f.write_text(f"base: {{scenario: stand, controller: joint-pd, duration: {a.duration}}}\n"
                      f"grid: {{seed: [{', '.join(str(i) for i in range(a.cells))}]}}\n")
-        setups = [("inline", 1, lambda: Executor()), ("pool", 2, lambda: PoolExecutor(2)),
+        setups = [("pool", 1, lambda: PoolExecutor(1)), ("pool", 2, lambda: PoolExecutor(2)),
                   ("ray", 1, lambda: RayExecutor("auto", 1)), ("ray", 2, lambda: RayExecutor("auto", 2))]
         for name, workers, make in setups:
             t0 = time.perf_counter()
