@@ -106,6 +106,7 @@ base: {scenario: walk-20cm-quick, controller: ik, duration: 0.05}
 grid:
   taskset.tasks.com_xy.kp: [50.0]
   scenario.params.step_length: [0.1]
+  profile.position_gains.kp.leg_: [12345.0]
 """)
     out, table, _ = run_sweep(f, tmp_path / "sw", Executor())
     cell = next((out / "cells").iterdir())
@@ -113,6 +114,8 @@ grid:
     assert yaml.safe_load((cell / "scenario.yaml").read_text())["params"]["step_length"] == 0.1
     ts = yaml.safe_load((cell / "taskset.yaml").read_text())
     assert next(t for t in ts["tasks"] if t["name"] == "com_xy")["kp"] == 50.0
+    prof = yaml.safe_load((cell / "profile.yaml").read_text())
+    assert prof["position_gains"]["kp"]["leg_"] == 12345.0
     assert table.column("status").to_pylist() == ["ok"]
 
 
@@ -121,6 +124,7 @@ grid:
     ("base: {scenario: stand, controller: joint-pd}\ngrid: {taskset.tasks.no_task.kp: [1.0]}\n", "controller"),
     ("base: {scenario: stand, controller: ik}\ngrid: {taskset.tasks.no_task.kp: [1.0]}\n", "no entry named"),
     ("base: {scenario: stand, controller: joint-pd}\ngrid: {gains.kp: [1.0]}\n", "unknown parameter"),
+    ("base: {scenario: stand, controller: joint-pd}\ngrid: {profile.no_such.kp: [1.0]}\n", "unknown key path"),
     ("base: {scenario: stand, controller: joint-pd}\n", "empty design"),
     ("base: {scenario: stand, controller: joint-pd}\ngrid: {seed: []}\n", "non-empty list"),
     ("base: {scenario: stand, controller: joint-pd}\nrandom: {n: 3, params: {sim.sole_friction: {min: 2, max: 1}}}\n",

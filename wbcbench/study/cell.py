@@ -38,7 +38,19 @@ def prepare(params: dict, cell_dir: Path):
     from .overrides import apply_overrides
 
     cell_dir.mkdir(parents=True, exist_ok=True)
-    robot = load_robot(str(params.get("robot", "talos")))
+    robot_src = str(params.get("robot", "talos"))
+    prof_over = _split(params, "profile.")
+    if prof_over:
+        from ..robots.profile import PROFILE_DIR
+        src = Path(robot_src) if robot_src.endswith((".yaml", ".yml")) else PROFILE_DIR / f"{robot_src}.yaml"
+        if not src.exists():
+            from ..robots import available_robots
+            from ..errors import UnknownNameError
+            raise UnknownNameError("robot", robot_src, available_robots(), key="robot")
+        robot_src = str(cell_dir / "profile.yaml")
+        Path(robot_src).write_text(yaml.safe_dump(apply_overrides(load_yaml(src), prof_over, str(src)),
+                                                  sort_keys=False))
+    robot = load_robot(robot_src)
     scen_src = scenario_path(str(params["scenario"]))
     scen_over = _split(params, "scenario.")
     scen_file = scen_src

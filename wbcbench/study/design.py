@@ -18,7 +18,7 @@ random:                                # n samples per grid cell, drawn with `se
 
 Parameter names: `controller`, `robot`, `scenario`, `mode`, `duration` [s], `seed`, `taskset` (a task-set YAML
 path instead of the shipped one, relative to the sweep file), or a key path into the scenario
-YAML (`scenario.<path>`), the controller's task set (`taskset.<path>`; a list of named entries such as `tasks` is
+YAML (`scenario.<path>`), the robot profile (`profile.<path>`, e.g. `profile.position_gains.kp.leg_`), the controller's task set (`taskset.<path>`; a list of named entries such as `tasks` is
 indexed by name: `tasks.com_xy.kp`) or the simulator options (`sim.<field>` of wbcbench.sim.model.SimOptions, e.g.
 `sim.timestep`, `sim.sole_friction`). The overridden YAML is validated by the normal loaders.
 """
@@ -39,7 +39,7 @@ from ..config import load_yaml
 from ..errors import ConfigError
 
 TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset")
-PATH_PREFIXES = ("scenario.", "taskset.", "sim.")
+PATH_PREFIXES = ("scenario.", "taskset.", "profile.", "sim.")
 MAX_CELLS = 10_000
 
 
