@@ -98,6 +98,12 @@ def test_crashing_cell_is_recorded_and_sweep_completes(tmp_path, monkeypatch):
     assert rows[1]["status"] == "error" and "boom in cell" in rows[1]["error"]
     assert rows[0]["status"] == rows[2]["status"] == "ok"
     assert list((tmp_path / "sw" / "cells").glob("seed=1-*/error.txt"))
+    from wbcbench.study.report import sweep_report
+    md = sweep_report(tmp_path / "sw", metric="metrics.E_m")
+    # per-seed table from DuckDB: seed 1 has success rate 0 and no metric, the others 1
+    assert "| 1 | 1 | 0 |" in md and "| 0 | 1 | 1 |" in md and "## Crashed cells" in md and "boom in cell" in md
+    assert (tmp_path / "sw" / "metric-vs-seed.png").stat().st_size > 1000
+    assert (tmp_path / "sw" / "report.html").read_text().count("<table>") >= 2
 
 
 def test_taskset_and_scenario_overrides_reach_the_run(tmp_path):

@@ -20,7 +20,9 @@ Parameter names: `controller`, `robot`, `scenario`, `mode`, `duration` [s], `see
 path instead of the shipped one, relative to the sweep file), or a key path into the scenario
 YAML (`scenario.<path>`), the robot profile (`profile.<path>`, e.g. `profile.position_gains.kp.leg_`), the controller's task set (`taskset.<path>`; a list of named entries such as `tasks` is
 indexed by name: `tasks.com_xy.kp`) or the simulator options (`sim.<field>` of wbcbench.sim.model.SimOptions, e.g.
-`sim.timestep`, `sim.sole_friction`). The overridden YAML is validated by the normal loaders.
+`sim.timestep`, `sim.sole_friction`). The overridden YAML is validated by the normal loaders. `seed` seeds
+numpy's global generator in the cell; the simulation has no noise source yet, so cells that differ only by seed
+give the same numbers.
 """
 
 from __future__ import annotations
