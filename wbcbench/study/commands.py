@@ -42,18 +42,22 @@ def _cmd_sweep(args) -> int:
         if args.quiet:
             out, table, n = run_sweep(args.sweep_file, args.out, ex, args.resume, args.yes)
         else:
-            with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                          TextColumn("ETA"), TimeRemainingColumn(), console=console) as prog:
-                task = prog.add_task("cells", total=None)
+            # the bar starts with the first cell, after the design is validated (errors stay one line)
+            prog = Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                            TextColumn("ETA"), TimeRemainingColumn(), console=console)
+            task = prog.add_task("cells", total=None)
 
-                def on_cell(done: int, total: int, row: dict) -> None:
-                    if not row:
-                        prog.update(task, total=total, completed=0)   # ETA from cells computed now
-                        prog.update(task, total=total - done)
-                    else:
-                        prog.advance(task)
+            def on_cell(done: int, total: int, row: dict) -> None:
+                if not row:   # the start: ETA from the cells computed now
+                    prog.start()
+                    prog.update(task, total=total - done, completed=0)
+                else:
+                    prog.advance(task)
 
+            try:
                 out, table, n = run_sweep(args.sweep_file, args.out, ex, args.resume, args.yes, on_cell=on_cell)
+            finally:
+                prog.stop()
     status = table.column("status").to_pylist() if table.num_rows else []
     print(f"{out}: {table.num_rows} cells ({n} computed now on {ex.name} with {ex.workers} workers): "
           f"{status.count('ok')} ok, {status.count('fell')} fell, {status.count('error')} error -> "
