@@ -60,6 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_teleop(sub)
     from .robustness.commands import add_subcommand as add_robustness
     add_robustness(sub)
+    from .study.commands import add_subcommands as add_study
+    add_study(sub)
     return p
 
 
@@ -137,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "robustness":
             from .robustness.commands import run_command as run_robustness
             return run_robustness(args)
+        from .study.commands import COMMANDS as STUDY_COMMANDS
+        if args.command in STUDY_COMMANDS:
+            from .study.commands import run_command as run_study
+            return run_study(args)
         if args.command == "teleop":
             from .teleop.commands import run_command as run_teleop
             return run_teleop(args)

@@ -20,6 +20,8 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--out", "-o", required=True, help="report directory (run directories go to DIR/runs)")
     r.add_argument("--quick", action="store_true", help="shortened walks and sanity runs (minutes, not an hour)")
     r.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores available)")
+    r.add_argument("--ray", default=None, metavar="ADDRESS|auto",
+                   help="run the cells on Ray ('auto': a local instance, HOST:PORT: a cluster)")
     r.add_argument("--no-sanity", action="store_true", help="skip the standing scenarios' sanity section")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     r.add_argument("--controllers", default=None,
@@ -51,7 +53,7 @@ def run_command(args: argparse.Namespace) -> int:
         res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
                         sanity=not args.no_sanity, sensors=args.sensors,
                         controllers=args.controllers.split(",") if args.controllers else None,
-                        scenarios=args.scenarios.split(",") if args.scenarios else None)
+                        scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

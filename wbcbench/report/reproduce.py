@@ -109,7 +109,8 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
 
 
 # ------------------------------------------------------------------------------------------- execution
-def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool) -> list[RunOutcome]:
+def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool,
+              ray: str | None = None) -> list[RunOutcome]:
     global _SINK
     runnable = [j for j in jobs if not j.missing]
     results: dict[str, RunOutcome] = {j.name: execute(j, str(runs_root)) for j in jobs if j.missing}
@@ -143,7 +144,13 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
                 prog.console.print(f"  {job.name}: {outcome.status}{why}")
 
     try:
-        if n_jobs <= 1:
+        if ray:  # the sweeps' execution layer (wbcbench.study.execute): a local Ray or a cluster
+            from ..study.execute import RayExecutor
+            with RayExecutor(ray, n_jobs if ray == "auto" else None) as ex:
+                kwargs = [{"job": job, "runs_root": str(runs_root)} for job in runnable]
+                for i, outcome in ex.map_unordered(execute, kwargs):
+                    finished(runnable[i], outcome)
+        elif n_jobs <= 1:
             _SINK = on_message
             try:
                 for job in runnable:
@@ -205,7 +212,7 @@ def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: st
 
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
-              scenarios: list[str] | None = None) -> ReportResult:
+              scenarios: list[str] | None = None, ray: str | None = None) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -219,6 +226,7 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
             it, reported beside the ideal runs (section "sensing").
         controllers, scenarios: restrict the matrix to these (`matrix.plan_jobs`); a user's controller is run on
             the paper's scenarios and joins the tables.
+        ray: run the cells on Ray ('auto': a local instance with `jobs` CPUs; HOST:PORT: a cluster).
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -247,7 +255,7 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
                 raise UnknownNameError("controller", c, known, key="--controllers")
     plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
                             scenarios=scenarios)
-    outcomes = _run_jobs(plan, runs_root, n_jobs, progress)
+    outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     command = "reproduce --quick" if quick else "reproduce"
     if sensors:
         command += f" --sensors {sensors}"

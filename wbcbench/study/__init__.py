@@ -1,0 +1,1 @@
+"""Studies: parameter sweeps over runs (design, execution on a process pool or Ray, results table, report)."""
