@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,10 @@ from ..config import Section, load_yaml
 from ..errors import ConfigError
 from ..robots import Robot
 from ..tasks.registry import TaskSpec, resolve_frame, task_class
+
+if TYPE_CHECKING:
+    from ..estimation.base_feedback import BaseFeedbackConfig
+    from ..stabilizers.base import StabilizerConfig
 
 __all__ = ["ContactSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame", "taskset_path"]
 

@@ -180,14 +180,14 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
     file = str(path)
     root = Section(load_yaml(path), file)
     kind = root.str("kind", "stand")
-    kinds = available_kinds()
-    if kind not in kinds:
+    known = available_kinds()
+    if kind not in known:
         broken = kind_plugin_errors().get(kind)
         if broken is not None:
             from ..plugins import PluginError
 
             raise PluginError(broken, file=file, key="kind")
-        raise UnknownNameError("scenario kind", kind, kinds, file=file, key="kind")
+        raise UnknownNameError("scenario kind", kind, known, file=file, key="kind")
     pushes = tuple(parse_push(Section(p, file, f"pushes[{i}]")) for i, p in enumerate(root.list("pushes", [])))
     spec = ScenarioSpec(
         name=root.str("name", path.stem),
@@ -208,7 +208,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         root.raw("duration", None)
     params = root.section("params", {})
     root.finish()
-    scen = kinds[kind](spec, params, robot)
+    scen = known[kind](spec, params, robot)
     if spec.duration <= 0:
         if not hasattr(type(scen), "planned_duration"):
             raise root.error("duration", "is required")

@@ -81,7 +81,7 @@ def _check_controller(name: str) -> None:
 def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, mode: str | None = None,
                 speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
-                quiet: bool = True, progress=None, **params):
+                quiet: bool = True, progress=None, overwrite: bool = False, **params):
     """Run one teleoperation session; returns the runner's `RunResult`.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
@@ -121,7 +121,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         stamp = _time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
     try:
-        result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=args.overwrite,
+        result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=overwrite,
                      sim_options=SimOptions(self_collision=self_collision), probes=probes)
     finally:
         close = getattr(scen.source, "close", None)
@@ -153,7 +153,8 @@ def run_command(args: argparse.Namespace) -> int:
         raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
     kwargs = dict(robot=args.robot, controller=args.controller, mode=args.mode, speed=args.speed,
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer, duration=args.duration,
-                  out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor)
+                  out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
+                  overwrite=args.overwrite)
     if args.quiet:
         result = run_session(args.mocap, **kwargs)
     else:
