@@ -106,7 +106,10 @@ def test_ctrl_c_keeps_the_log_and_says_so(tmp_path: Path):
 
     out = tmp_path / "r"
     proc = subprocess.Popen([sys.executable, "-m", "wbcbench.cli", "run", "walk-20cm", "-c", "tsid-torque", "--quiet",
-                             "--out", str(out)], stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+                             "--out", str(out)], stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                            # a shell that started the tests in the background leaves SIGINT ignored; a terminal's
+                            # Ctrl-C reaches a process with the default disposition
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
     while not (out / "log.parquet").exists() and time.time() < deadline:  # the first 1000 ticks are flushed
         time.sleep(0.2)
