@@ -43,7 +43,8 @@ class Recorder:
     def row(self) -> np.ndarray:
         """The row being filled (write into it with the slices returned by add_channel)."""
         if self._buf is None:
-            self._buf = np.full((self.chunk, len(self.columns)), np.nan)
+            # column-major: each column of a flushed block is contiguous and goes to Arrow without a copy
+            self._buf = np.full((self.chunk, len(self.columns)), np.nan, order="F")
         return self._buf[self._n]
 
     def commit(self) -> None:
@@ -59,7 +60,8 @@ class Recorder:
         table = pa.Table.from_arrays([pa.array(block[:, i]) for i in range(block.shape[1])], names=self.columns)
         if self._writer is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd")
+            # no dictionary encoding: float channels almost never repeat, and trying costs half the write time
+            self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd", use_dictionary=False)
         self._writer.write_table(table)
         self.rows_written += self._n
         self._n = 0

@@ -144,6 +144,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
     s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
     s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
+    per_side = [(s, s_cw[s], s_ft[s], s_in[s]) for s in Side]
     # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
     target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
     s_targets = {name: rec.add_channel(f"target_{name}", target_comps) for name in scen.target_names}
@@ -202,7 +203,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             row = rec.row
             if predictor is not None:
                 row[s_fall] = fall_log
-            q, v = sim.true_q(), sim.true_v()
+            true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
+            q, v = true_meas.q, true_meas.v  # ground truth before the sensor layer
             pin.centerOfMass(model, data, q, v)
             row[s_t] = (tick + 1) * spec.control_dt
             row[s_q] = q
@@ -224,17 +226,17 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     if target.rotation is not None:
                         cells[3:] = target.rotation.reshape(-1)
             cws = sim.contact_wrenches()
-            true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             meas = sensing.measure(true_meas)
             if injector.enabled:
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
-            for s in Side:
-                row[s_cw[s]] = cws[s]
-                row[s_ft[s]][:3] = true_meas.ft_force[s]
-                row[s_ft[s]][3:] = true_meas.ft_torque[s]
-                row[s_in[s]] = float(s in refs.contacts)
+            for s, sl_cw, sl_ft, sl_in in per_side:
+                row[sl_cw] = cws[s]
+                cells = row[sl_ft]
+                cells[:3] = true_meas.ft_force[s]
+                cells[3:] = true_meas.ft_torque[s]
+                row[sl_in] = float(s in refs.contacts)
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val

@@ -263,7 +263,8 @@ class InverseDynamicsController(Controller):
         vals = [self.qp_status, self.tau]
         if self.stabilizer is not None:
             vals.append(self.stabilizer.log)
-        vals += [F.wrenches[Side.LEFT], F.wrenches[Side.RIGHT], [float(F.contacts[s].active) for s in Side]]
+        vals += [F.wrenches[Side.LEFT], F.wrenches[Side.RIGHT],
+                 [float(F.contacts[Side.LEFT].active), float(F.contacts[Side.RIGHT].active)]]
         return vals
 
     def status(self) -> dict:

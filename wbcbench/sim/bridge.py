@@ -90,7 +90,7 @@ class StateBridge:
 
 
 def _rot_wxyz(quat_wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = quat_wxyz
+    w, x, y, z = quat_wxyz.tolist()  # Python floats: the same IEEE arithmetic as numpy scalars, faster
     n = w * w + x * x + y * y + z * z
     s = 2.0 / n
     return np.array([

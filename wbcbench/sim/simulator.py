@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -12,6 +13,7 @@ from ..errors import UnknownNameError
 from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
+from .contact_kernel import sole_wrenches
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
 from ..scene import Terrain
@@ -21,6 +23,9 @@ from ..scene import Terrain
 class FallStatus:
     fell: bool
     reason: str = ""
+
+
+_STANDING = FallStatus(False)
 
 
 class Simulator:
@@ -67,7 +72,11 @@ class Simulator:
         self._command = Command(tau=np.zeros(robot.na))
         self._tick = 0
         self._spd_M = np.zeros((self.model.nv, self.model.nv))
-        self._cf = np.zeros(6)
+        self._sole_ids = np.array(list(self._sole_geoms.values()), dtype=np.int32)
+        self._sole_wrench = np.zeros((len(self._sole_ids), 6))
+        self._min_base_height = float(robot.profile.min_base_height)
+        self._max_tilt = float(robot.profile.max_tilt)
+        self._pyramidal = int(self.model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -96,50 +105,32 @@ class Simulator:
         return self.bridge.v_from_mj(self.data.qpos, self.data.qvel)
 
     # ------------------------------------------------------------------ sensing
-    def _sensor(self, name: str, n: int) -> np.ndarray:
-        a = self._sensor_adr[name]
-        return self.data.sensordata[a:a + n].copy()
-
     def measure(self) -> Measurement:
-        """Sensors as a real robot has them. The base estimate is ground truth (no noise, no delay) for now."""
-        quat = self._sensor("imu_quat", 4)  # w, x, y, z
+        """Sensors as a real robot has them. The base estimate is ground truth (no noise, no delay) here; the
+        sensor layer (wbcbench.sensing) degrades it."""
+        sd = self.data.sensordata
+        adr = self._sensor_adr
+        a = adr["imu_quat"]
+        w, x, y, z = sd[a:a + 4].tolist()
+        g, acc = adr["gyro"], adr["accelerometer"]
+        fl, fr, tl, tr = adr["force_left"], adr["force_right"], adr["torque_left"], adr["torque_right"]
         return Measurement(
             t=self.t, q=self.true_q(), v=self.true_v(),
-            imu_quat=np.array([quat[1], quat[2], quat[3], quat[0]]),
-            gyro=self._sensor("gyro", 3), accelerometer=self._sensor("accelerometer", 3),
-            ft_force={s: self._sensor(f"force_{s.value}", 3) for s in Side},
-            ft_torque={s: self._sensor(f"torque_{s.value}", 3) for s in Side},
+            imu_quat=np.array([x, y, z, w]),
+            gyro=sd[g:g + 3].copy(), accelerometer=sd[acc:acc + 3].copy(),
+            ft_force={Side.LEFT: sd[fl:fl + 3].copy(), Side.RIGHT: sd[fr:fr + 3].copy()},
+            ft_torque={Side.LEFT: sd[tl:tl + 3].copy(), Side.RIGHT: sd[tr:tr + 3].copy()},
         )
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
         d = self.data
-        out = {s: np.zeros(6) for s in Side}
         n = d.ncon
-        if n == 0:
-            return out
+        out = self._sole_wrench
         con = d.contact
-        g1, g2 = con.geom1[:n], con.geom2[:n]
-        frames = con.frame[:n].reshape(n, 3, 3)
-        pos = con.pos[:n]
-        cf = self._cf
-        local = np.empty((n, 3))
-        for i in range(n):
-            mujoco.mj_contactForce(self.model, d, i, cf)
-            local[i] = cf[:3]
-        # contact frame rows: normal first; force of geom1 on geom2
-        world = np.einsum("nij,ni->nj", frames, local)
-        for s, gid in self._sole_geoms.items():
-            sign = np.where(g1 == gid, -1.0, np.where(g2 == gid, 1.0, 0.0))
-            if not sign.any():
-                continue
-            f = world * sign[:, None]
-            w = out[s]
-            w[:3] = f.sum(axis=0)
-            w[3] = (pos[:, 1] * f[:, 2] - pos[:, 2] * f[:, 1]).sum()
-            w[4] = (pos[:, 2] * f[:, 0] - pos[:, 0] * f[:, 2]).sum()
-            w[5] = (pos[:, 0] * f[:, 1] - pos[:, 1] * f[:, 0]).sum()
-        return out
+        sole_wrenches(d.efc_force, con.efc_address[:n], con.dim[:n], con.friction[:n], con.frame[:n], con.pos[:n],
+                      con.geom[:n], self._sole_ids, self._pyramidal, out)
+        return {s: out[k].copy() for k, s in enumerate(self._sole_geoms)}
 
     def set_joint_fault(self, joint: str, kind: str | None) -> None:
         """A joint's actuator fails (inria_wbc's CUT / LOCKED / PASSIVE): `cut` gives no torque, `passive` only
@@ -169,21 +160,22 @@ class Simulator:
 
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
-        q = self.data.qpos
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(self.data.qvel))):
+        d = self.data
+        q = d.qpos
+        if not (math.isfinite(q.sum()) and math.isfinite(d.qvel.sum())):  # a NaN or inf anywhere
             return FallStatus(True, "simulation diverged (non-finite state)")
         a = self.bridge.root_qadr
-        base_z = q[a + 2]
-        feet_z = min(self.data.geom_xpos[g][2] for g in self._sole_geoms.values())
-        height = base_z - feet_z
-        if height < self.robot.profile.min_base_height:
-            return FallStatus(True, f"base {height:.3f} m above the lower foot (< {self.robot.profile.min_base_height})")
-        w, x, y, z = q[a + 3:a + 7]
-        cos_tilt = 1 - 2 * (x * x + y * y)
-        tilt = float(np.arccos(np.clip(cos_tilt / (w * w + x * x + y * y + z * z), -1, 1)))
-        if tilt > self.robot.profile.max_tilt:
-            return FallStatus(True, f"base tilted {tilt:.2f} rad (> {self.robot.profile.max_tilt})")
-        return FallStatus(False)
+        xpos = d.geom_xpos
+        g_left, g_right = self._sole_ids
+        height = float(q[a + 2]) - min(float(xpos[g_left, 2]), float(xpos[g_right, 2]))
+        if height < self._min_base_height:
+            return FallStatus(True, f"base {height:.3f} m above the lower foot (< {self._min_base_height})")
+        w, x, y, z = q[a + 3:a + 7].tolist()
+        cos_tilt = (1 - 2 * (x * x + y * y)) / (w * w + x * x + y * y + z * z)
+        tilt = math.acos(min(1.0, max(-1.0, cos_tilt)))
+        if tilt > self._max_tilt:
+            return FallStatus(True, f"base tilted {tilt:.2f} rad (> {self._max_tilt})")
+        return _STANDING
 
     # ------------------------------------------------------------------ acting
     def apply(self, command: Command) -> None:

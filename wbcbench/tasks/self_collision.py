@@ -36,6 +36,7 @@ either side of the gripper from cancelling each other. Table I of paper 004 uses
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -104,15 +105,33 @@ def attractor(r: npt.ArrayLike, exponent: float, scale: float) -> tuple[float, F
     return C, g, H
 
 
+RepulsorGeometry = namedtuple("RepulsorGeometry",
+                              ["slot_of", "offsets", "offset_x", "scales", "exponent", "negligible", "masks",
+                               "mask_x"])
+RepulsorGeometry.__doc__ = """A self-collision task's fixed inputs to :func:`_position_kernel`: ``slot_of`` (n,) the
+row of each repulsor's joint in the placements, ``offsets`` (n, 3) each repulsor in its joint's frame [m],
+``offset_x`` (3,) the protected point in its joint's frame (slot 0) [m], ``scales`` (n,) ``s_i``, ``exponent``
+``p``, ``negligible`` the value of ``C`` below which a repulsor gives no row, ``masks`` (n, nv) / ``mask_x`` (nv,)
+the supports (velocity columns) of the repulsors' joints / of the protected point's joint."""
+
+PositionOutputs = namedtuple("PositionOutputs", ["C", "dist", "J", "G", "HC", "HK", "REL", "RW", "rx", "act"])
+PositionOutputs.__doc__ = """The buffers :func:`_position_kernel` fills: ``C`` (n,), ``dist`` (n,) [m], the rows
+``J`` (n, nv); for the active repulsors (indices in ``act``) the gradient ``G`` (n, 3), the Hessian coefficients
+``HC`` (of rel rel^T) and ``HK`` (of I) (n,), ``REL = x - p_i`` (n, 3); ``RW`` (n, 3) joint origin -> point and
+``rx`` (3,) for the protected point, world axes [m]."""
+
+
 @njit
-def _position_kernel(R_all, t_all, slot_of, offsets, offset_x, scales, p, negligible, JW, masks, mask_x,
-                     C, dist, J, G, HC, HK, REL, RW, rx, act):
-    """The compiled twin of the numpy path of ``SelfCollisionTask._evaluate`` (same quantities): fills ``C``,
-    ``dist``, the rows ``J`` (zero for the negligible repulsors) and, for the active ones (their indices in
-    ``act``, their number returned), the gradient ``G``, the Hessian coefficients ``HC`` (of rel rel^T) and
-    ``HK`` (of I), ``REL = x - p_i``; ``RW`` (joint origin -> point, world axes) and ``rx`` for every point.
-    Jacobians from pinocchio's ``data.J`` (WORLD: point velocity ``J_lin - skew(point) J_ang`` on the columns
-    of the joint's support, ``masks`` / ``mask_x``)."""
+def _position_kernel(R_all, t_all, JW, geo, out):
+    """The compiled position-level quantities of ``SelfCollisionTask._evaluate``: ``R_all`` (k, 3, 3), ``t_all``
+    (k, 3) the placements of the joints carrying the points (slot 0: the protected point's), ``JW`` pinocchio's
+    ``data.J`` (WORLD: point velocity ``J_lin - skew(point) J_ang`` on the columns of the joint's support),
+    ``geo`` a :class:`RepulsorGeometry`; fills ``out`` (:class:`PositionOutputs`; ``J`` zero for the negligible
+    repulsors) and returns the number of active repulsors (their indices first in ``out.act``)."""
+    slot_of, offsets, offset_x, scales = geo.slot_of, geo.offsets, geo.offset_x, geo.scales
+    p, negligible, masks, mask_x = geo.exponent, geo.negligible, geo.masks, geo.mask_x
+    C, dist, J, G, HC, HK = out.C, out.dist, out.J, out.G, out.HC, out.HK
+    REL, RW, rx, act = out.REL, out.RW, out.rx, out.act
     n = slot_of.shape[0]
     nv = JW.shape[1]
     for a in range(3):
@@ -356,6 +375,8 @@ class SelfCollisionTask(Task):
         self._mask_x = support(self._joint_x)
         self._masks = np.array([support(j) for j in self._rep_joint])
         self._act = np.zeros(self.dim, dtype=np.intp)
+        self._geometry = RepulsorGeometry(self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
+                                          float(self._exponent), float(self._negligible), self._masks, self._mask_x)
 
     # ------------------------------------------------------------------------------------------ description
     @property
@@ -410,9 +431,8 @@ class SelfCollisionTask(Task):
         G, HC, HK, REL, RW, rx = (np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
                                   np.empty(3))
         act = self._act
-        k = _position_kernel(R_all, t_all, self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
-                             self._exponent, self._negligible, data.J, self._masks, self._mask_x,
-                             C, dist, J, G, HC, HK, REL, RW, rx, act)
+        k = _position_kernel(R_all, t_all, data.J, self._geometry,
+                             PositionOutputs(C, dist, J, G, HC, HK, REL, RW, rx, act))
         rows = {i: (G[i], HC[i], HK[i], REL[i], RW[i]) for i in act[:k].tolist()}
         self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=list(rows), rows=rows, rx=rx)
         return self._cache
