@@ -26,7 +26,6 @@ QPBuffers = namedtuple("QPBuffers", ["H", "g", "A_eq", "b_eq", "lb_joints", "ub_
 JointLimits = namedtuple("JointLimits", ["QL", "VL", "horizon", "dt"])
 
 
-@njit
 def assemble(rows, reg_dv, q_joints, v_joints, limits, out):
     """Fill the QP of one tick in place (``rows``: `AssemblyRows`, ``limits``: `JointLimits`, ``out``:
     `QPBuffers`, the buffers of ``id_formulation._Layout``).
@@ -36,9 +35,16 @@ def assemble(rows, reg_dv, q_joints, v_joints, limits, out):
     rows (``A_hard``: the contacts', then priority-0 tasks'). Bounds on the joint accelerations:
     ``a_hi = min(2 (q_hi - q - v h) / h^2, (v_max - v) / dt)``, ``a_lo`` likewise, ``a_lo <= a_hi`` enforced.
     """
-    A_cost, b_cost, sw, Jc, A_hard, b_hard, M_base, nle_base = rows
-    H, g, A_eq, b_eq, lb_joints, ub_joints = out
-    QL, VL, horizon, dt = limits
+    _assemble(*rows, reg_dv, q_joints, v_joints, *limits, *out)
+
+
+# The compiled kernels take their arrays flat: numba types a named tuple argument in Python on every call
+# (~2-4 us for a dozen arrays, measured), flat arrays in C (~1 us); the public functions above and below give
+# the structure, these the speed.
+@njit
+def _assemble(A_cost, b_cost, sw, Jc, A_hard, b_hard, M_base, nle_base, reg_dv, q_joints, v_joints, QL, VL, horizon,
+              dt, H, g, A_eq, b_eq, lb_joints, ub_joints):
+    """`assemble` on flat arrays."""
     m_c, nv = A_cost.shape
     for i in range(nv):
         for j in range(nv):
