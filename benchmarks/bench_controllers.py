@@ -17,15 +17,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
-import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from _alternate import alternate
 from wbcbench import types as _types
 from wbcbench.controllers.base import available_controllers, make_controller
 from wbcbench.robots import load_robot
@@ -82,21 +79,9 @@ def _line(name: str, r: dict) -> str:
 
 def against(args, names: list[str]) -> None:
     """Alternate this checkout and `args.against`, one process per round and side, pinned to one core."""
-    here = Path(__file__).resolve().parents[1]
-    sides = {"new": here, "other": Path(args.against).resolve()}
-    env0 = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    pin_cmd = ["taskset", "-c", args.core] if args.core else []
-    rounds: dict[str, list[dict]] = {k: [] for k in sides}
-    for r in range(args.rounds):
-        for side, root in sides.items():
-            with tempfile.NamedTemporaryFile(suffix=".json") as f:
-                cmd = pin_cmd + [sys.executable, str(Path(__file__).resolve()), "--ticks", str(args.ticks),
-                                 "--controllers", ",".join(names), "--robot", args.robot, "--json", f.name]
-                subprocess.run(cmd, env={**env0, "PYTHONPATH": str(root)}, check=True, stdout=subprocess.DEVNULL)
-                rounds[side].append(json.loads(Path(f.name).read_text()))
-        print(f"  round {r + 1}/{args.rounds} done", flush=True)
-    print(f"new: {sides['new']}\nother: {sides['other']}\n{args.rounds} rounds x {args.ticks} ticks, "
-          f"core {args.core or 'any'}; median of the rounds' medians [us] (p99 likewise)")
+    rounds = alternate(__file__, ["--ticks", str(args.ticks), "--controllers", ",".join(names), "--robot", args.robot],
+                       args.against, args.rounds, args.core)
+    print(f"{args.ticks} ticks per run; median of the rounds' medians [us] (p99 likewise)")
     for name in names:
         med = {k: float(np.median([x[name]["median_us"] for x in v])) for k, v in rounds.items()}
         p99 = {k: float(np.median([x[name]["p99_us"] for x in v])) for k, v in rounds.items()}

@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from _alternate import alternate
 
 
 def measure(scenario: str, controller: str) -> dict:
@@ -65,24 +64,12 @@ def _line(label: str, r: dict) -> str:
 
 
 def against(args) -> None:
-    here = Path(__file__).resolve().parents[1]
-    sides = {"new": here, "other": Path(args.against).resolve()}
-    env0 = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    pin_cmd = ["taskset", "-c", args.core] if args.core else []
-    rounds: dict[str, list[dict]] = {k: [] for k in sides}
-    for r in range(args.rounds):
-        for side, root in sides.items():
-            with tempfile.NamedTemporaryFile(suffix=".json") as f:
-                cmd = pin_cmd + [sys.executable, str(Path(__file__).resolve()), "--scenario", args.scenario,
-                                 "--controller", args.controller, "--json", f.name]
-                subprocess.run(cmd, env={**env0, "PYTHONPATH": str(root)}, check=True, stdout=subprocess.DEVNULL)
-                rounds[side].append(json.loads(Path(f.name).read_text()))
-        print(f"  round {r + 1}/{args.rounds} done", flush=True)
-    print(f"{args.controller} on {args.scenario}; new: {sides['new']}, other: {sides['other']}; "
-          f"median over {args.rounds} rounds, core {args.core or 'any'} [us per tick]")
+    rounds = alternate(__file__, ["--scenario", args.scenario, "--controller", args.controller], args.against,
+                       args.rounds, args.core)
+    print(f"{args.controller} on {args.scenario}; median over the rounds [us per tick]")
     med = {side: {k: float(np.median([x[k] for x in v])) for k in v[0] if k != "fell"} | {"fell": any(x["fell"] for x in v)}
            for side, v in rounds.items()}
-    for side in sides:
+    for side in med:
         print(_line(side, med[side]))
     print(f"  new/other: rest {med['new']['rest_us'] / med['other']['rest_us']:.2f}, "
           f"tick {med['new']['tick_us'] / med['other']['tick_us']:.2f}")
