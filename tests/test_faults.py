@@ -76,3 +76,21 @@ def test_bad_fault_option(tmp_path, spec, needle):
     out = subprocess.run([sys.executable, "-m", "wbcbench.cli", "run", "stand", "-c", "joint-pd", "--duration", "0.01",
                           "--fault", spec, "--out", str(tmp_path / "r")], capture_output=True, text=True)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and needle in out.stderr, out.stderr
+
+
+def test_passive_joint_only_damps(talos, tmp_path):
+    """A passive joint's actuator gives only the damping torque -kd v of the profile's gain, whatever the controller
+    commands (inria_wbc's PASSIVE); the run goes on and the event is logged."""
+    joint = "arm_left_4_joint"
+    res = run("sway", "tsid-torque", duration=1.0, out=tmp_path / "p",
+              faults=[Fault("joint_passive", 0.5, None, joint)])
+    kd = talos.profile.position_gains.resolve(talos.joint_names, talos.profile.file)[1][talos.joint_names.index(joint)]
+    t, tau, v = res.log["t"], res.log[f"tau.{joint}"], res.log[f"v.{joint}"]
+    after = np.flatnonzero(t > 0.51)
+    # the torque of a step comes from the velocity at its start: the state logged one tick before
+    np.testing.assert_allclose(tau[after], -kd * v[after - 1], rtol=1e-9, atol=1e-9)
+    assert np.abs(tau[after]).max() > 1e-3  # the joint moves, so the damping is really there
+    cmd = res.log[f"tau_cmd.{joint}"]
+    assert np.abs(cmd[after] - tau[after]).max() > 0.1  # and the command is ignored
+    assert res.summary["faults"]["events"][0]["type"] == "joint_passive"
+    assert not res.summary["fell"]
