@@ -151,6 +151,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_time = rec.add_channel("controller_time_us")
     extra = ctrl.log_channels()
     s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
+    # a scenario may log its own per-tick channels (e.g. the teleoperation command filter's interventions)
+    scen_channels = scen.log_channels() if hasattr(scen, "log_channels") else {}
+    s_scen = [rec.add_channel(name, comps) for name, comps in scen_channels.items()]
     s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
     s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
              if sensing.estimator is not None else None)
@@ -240,6 +243,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
+            if s_scen:
+                for sl, val in zip(s_scen, scen.log_values()):
+                    row[sl] = val
             if s_est is not None:
                 row[s_est] = sensing.base_error()
             for slices, p in zip(s_probe, probes):

@@ -47,6 +47,13 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     references (what the controller was asked to track).
   realtime: live streams only (default true): the run is paced so that simulated time does not run ahead of
     the wall clock.
+  safety: the command filter between the operator and the controller (wbcbench/teleop/safety.py): garbage held
+    out, references pushed out of the body, jumps re-joined smoothly, speeds and accelerations clipped; keys
+    enabled (default true), max_speed [m/s] (4), max_angular_speed [rad/s] (10), max_acceleration [m/s^2] (150),
+    max_angular_acceleration [rad/s^2] (500), jump_distance [m] (0.05 per tick), jump_angle [rad] (0.3),
+    rejoin_speed [m/s] (0.5), rejoin_angular_speed [rad/s] (1.5), min_rejoin_time [s] (0.3), body (default:
+    on, off with anchor absolute), body_margin [m] (0.03). Interventions: the `teleop_filter` log channel and
+    `teleop.filter` in the summary.
   targets: {effector: [task names]} (default left_hand -> [left_hand], right_hand -> [right_hand],
     head -> [head, head_pitch, head_yaw]).
 
@@ -110,6 +117,7 @@ class TeleopScenario(Scenario):
         if not (np.all(np.isfinite(blend)) and 0.0 <= blend[0] < blend[1]):
             raise params.error("rest_blend", f"must be [r_in, r_out] with 0 <= r_in < r_out, got {list(blend)}")
         self.rest_blend = (float(blend[0]), float(blend[1]))
+        self.safety = _parse_safety(params.section("safety", None), self.anchor)
         tg = params.section("targets", None)
         if tg.data:
             targets = {}
@@ -206,7 +214,16 @@ class TeleopScenario(Scenario):
                                   feedforward=self.feedforward, smoothing=self.smoothing, on_loss=self.on_loss,
                                   return_time=self.return_time, stale_after=self.stale_after, realtime=self.realtime,
                                   engage_time=self.engage_time, anchor=self.anchor, rest_blend=self.rest_blend,
-                                  targets=dict(self.targets), dt=dt, duration=duration)
+                                  targets=dict(self.targets), dt=dt, duration=duration, safety=self.safety)
+
+    def log_channels(self) -> dict:
+        """Per tick, the command filter's interventions (1 where one happened; wbcbench/teleop/safety.py)."""
+        from ..teleop.safety import FILTER_KINDS
+
+        return {"teleop_filter": list(FILTER_KINDS)}
+
+    def log_values(self) -> list:
+        return [self.reference_source.command_filter.flags]
 
     def __getattr__(self, name: str):
         # the reference source's state (trajectory, poses, health counters) read through the scenario
@@ -240,5 +257,27 @@ class TeleopScenario(Scenario):
                                 "malformed": st.malformed, "duplicates": st.duplicates, "reordered": st.reordered,
                                 "restarts": st.restarts, "last_error": st.last_error,
                                 "status_at_end": self.source.status().value}
+        teleop["filter"] = self.reference_source.command_filter.summary()
         out["teleop"] = teleop
         return out
+
+
+def _parse_safety(sec, anchor: str):
+    """The `safety` params (wbcbench/teleop/safety.py): any SafetyConfig field; `body` defaults to off with the
+    paper's absolute anchor (its references inside the body are what the repulsors are studied on)."""
+    from dataclasses import fields
+
+    from ..teleop.safety import SafetyConfig
+
+    values = {}
+    for f in fields(SafetyConfig):
+        if not sec.has(f.name):
+            continue
+        if f.type in ("bool", bool):
+            values[f.name] = sec.bool(f.name)
+        else:
+            values[f.name] = (sec.float(f.name, min=0.0) if f.name == "body_margin"
+                              else sec.float(f.name, positive=True))
+    values.setdefault("body", anchor != "absolute")
+    sec.finish()
+    return SafetyConfig(**values)

@@ -53,6 +53,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
                         "offset: every position shifted by the calibration offset (relative teleoperation)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
+    p.add_argument("--no-filter", action="store_true",
+                   help="pass the operator's references to the controller unfiltered (no garbage, body, jump or "
+                        "speed filter; wbcbench/teleop/safety.py)")
     p.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -155,6 +158,8 @@ def run_command(args: argparse.Namespace) -> int:
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer, duration=args.duration,
                   out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
                   overwrite=args.overwrite)
+    if args.no_filter:
+        kwargs["safety"] = {"enabled": False}
     if args.quiet:
         result = run_session(args.mocap, **kwargs)
     else:

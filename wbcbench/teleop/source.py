@@ -19,6 +19,7 @@ import pinocchio as pin
 
 from ..side import Side
 from ..types import PoseReference
+from .safety import CommandFilter, SafetyConfig
 
 __all__ = ["ANCHORS", "DEFAULT_ANCHOR", "DEFAULT_TARGETS", "HANDS", "REST_BLEND", "TeleopReferenceSource",
            "TeleopSourceConfig", "rotation_error", "stats"]
@@ -94,6 +95,7 @@ class TeleopSourceConfig:
     targets: dict = field(default_factory=lambda: dict(DEFAULT_TARGETS))
     dt: float = 1e-3
     duration: float = 0.0
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
 
 
 class TeleopReferenceSource:
@@ -128,6 +130,7 @@ class TeleopReferenceSource:
             cal = self.retargeter.sample(float(self.source.times[0]) if self.start is None else self.start)
             self._set_anchor(cal.references)
         self.trajectory = None if self.live else self._precompute()
+        self.command_filter = CommandFilter(self.robot, q0, self.config.safety, self.dt)
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
         self._filtered: dict[str, pin.SE3] = {}
         self._live_offset_set = False
@@ -268,15 +271,19 @@ class TeleopReferenceSource:
         self._valid_prev = valid
         if t < self.engage_time:
             targets = self._engage(t, targets)
+        targets = self.command_filter(t, targets)  # last: nothing unfiltered reaches the controller
         for k, c in clamped.items():
             self.clamped_ticks[k] += int(c)
         self.record_t.append(t)
         self.record_valid.append(valid)
         for k in DEFAULT_TARGETS:
-            M = targets[k][0]
-            self.record_pose[k].append(np.concatenate([M.translation, M.rotation.reshape(-1)]))
+            M = targets[k][0] if k in targets else None
+            self.record_pose[k].append(np.concatenate([M.translation, M.rotation.reshape(-1)]) if M is not None
+                                       else np.full(12, np.nan))
         named = {}
         for effector, tasks in self.task_names.items():
+            if effector not in targets:  # garbage before any valid reference: the task keeps its own
+                continue
             M, vel, acc = targets[effector]
             ref = PoseReference(M.translation, M.rotation, vel, acc)
             for task in tasks:

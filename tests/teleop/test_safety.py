@@ -1,0 +1,181 @@
+"""The command filter between the operator and the controller (wbcbench/teleop/safety.py): every case it handles,
+the stream watchdog's resume, and that the shipped recordings pass through untouched."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.scenarios.teleop_kind import TeleopScenario
+from wbcbench.side import Side
+from wbcbench.teleop.safety import CommandFilter, SafetyConfig
+
+DT = 1e-3
+
+
+@pytest.fixture(scope="module")
+def start(talos):
+    """The robot's own effector poses at its reference posture (the filter's first outputs)."""
+    model = talos.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, talos.q0)
+    frames = {"left_hand": talos.profile.hands[Side.LEFT], "right_hand": talos.profile.hands[Side.RIGHT],
+              "head": talos.profile.head_frame}
+    return {k: pin.SE3(data.oMf[model.getFrameId(f)]) for k, f in frames.items()}
+
+
+def _feed(flt, poses_at, n, t0=0.0):
+    """Run the filter over n ticks of `poses_at(k) -> {effector: SE3}` (zero feed-forward); the outputs."""
+    out = []
+    for k in range(n):
+        raw = {e: (M, np.zeros(6), np.zeros(6)) for e, M in poses_at(k).items()}
+        out.append(flt(t0 + k * DT, raw))
+    return out
+
+
+def _moved(M, dp):
+    return pin.SE3(M.rotation, M.translation + np.asarray(dp, float))
+
+
+def test_garbage_is_held_and_counted(talos, start):
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    bad_rotation = pin.SE3(2.0 * np.eye(3), start["left_hand"].translation)
+    nan = pin.SE3(start["left_hand"].rotation, np.array([np.nan, 0.0, 0.0]))
+
+    def poses(k):
+        M = {10: nan, 11: bad_rotation}.get(k, start["left_hand"])
+        return {"left_hand": M}
+
+    out = _feed(flt, poses, 20)
+    for k in (10, 11):
+        M, v, a = out[k]["left_hand"]
+        assert np.array_equal(M.translation, start["left_hand"].translation) and not v.any() and not a.any()
+    assert flt.counts["non_finite"] == {"left_hand": 2}
+    assert flt.summary()["events"][0]["t"] == pytest.approx(10 * DT)
+
+
+def test_a_teleport_is_rejoined_smoothly(talos, start):
+    """0.4 m in one tick (a stream resuming elsewhere): the output leaves with zero velocity, never moves faster
+    than the limit, and arrives on the reference by the end of the re-join (min-jerk over 0.8 s at 0.5 m/s)."""
+    cfg = SafetyConfig()
+    flt = CommandFilter(talos, talos.q0, cfg, DT)
+    far = _moved(start["right_hand"], [0.4, 0.0, 0.0])
+    out = _feed(flt, lambda k: {"right_hand": start["right_hand"] if k < 5 else far}, 1200)
+    p = np.array([o["right_hand"][0].translation for o in out])
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    assert flt.counts["jump"] == {"right_hand": 1}
+    assert step[4] < 1e-5  # the first tick of the re-join barely moves (min-jerk starts at rest)
+    assert step.max() <= cfg.max_speed * DT + 1e-12
+    assert step.max() == pytest.approx(1.875 * 0.4 / 0.8 * DT, rel=0.01)  # min-jerk peak speed 1.875 d / T
+    np.testing.assert_allclose(p[5 + 800], far.translation, atol=1e-9)
+    # the feed-forward velocity is the blend's own
+    v = np.array([o["right_hand"][1][:3] for o in out])
+    np.testing.assert_allclose(v[6:800], np.diff(p, axis=0)[6:800] / DT, atol=0.01)
+
+
+def test_speed_and_acceleration_are_clipped(talos, start):
+    cfg = SafetyConfig(max_speed=1.0, max_acceleration=5.0)
+    flt = CommandFilter(talos, talos.q0, cfg, DT)
+    fast = lambda k: {"left_hand": _moved(start["left_hand"], [0.004 * k, 0.0, 0.0])}  # 4 m/s
+    out = _feed(flt, fast, 50)
+    p = np.array([o["left_hand"][0].translation for o in out])
+    np.testing.assert_allclose(np.diff(p[:, 0]), 1.0 * DT, rtol=1e-9)  # held at 1 m/s
+    assert flt.counts["speed"]["left_hand"] == 49
+    M = _moved(start["left_hand"], [0.2, 0.0, 0.0])  # the stream goes on (no jump)
+    res = flt(50 * DT, {"left_hand": (M, np.array([3.0, 0, 0, 0, 0, 0]), np.array([0.0, 40.0, 0, 0, 0, 0]))})
+    _, v, a = res["left_hand"]
+    assert np.linalg.norm(v[:3]) == pytest.approx(1.0) and np.linalg.norm(a[:3]) == pytest.approx(5.0)
+    assert flt.counts["acceleration"] == {"left_hand": 1}
+
+
+def test_references_inside_the_body_are_pushed_out(talos, start):
+    """A hand reference at the pelvis is moved radially to r_rep + margin from the nearest static sphere; the
+    paper's absolute anchor keeps it (the repulsors' study), and so does `body: false`."""
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    offset, centres, radii = flt._body["left_hand"]
+    pelvis = centres[np.argmax(radii)]  # the largest static sphere: the pelvis (0.15 m)
+    M = pin.SE3(start["left_hand"].rotation, pelvis - start["left_hand"].rotation @ offset + [0.02, 0.0, 0.0])
+    out = flt(0.0, {"left_hand": (M, np.zeros(6), np.zeros(6))})["left_hand"][0]
+    x = out.act(offset)
+    gaps = np.linalg.norm(x - centres, axis=1) - (radii + 0.03)
+    assert gaps.min() >= -1e-9 and gaps.min() < 1e-6  # on the surface of the sphere it was in, in no other
+    assert flt.counts["body"] == {"left_hand": 1}
+    kept = CommandFilter(talos, talos.q0, SafetyConfig(body=False), DT)(0.0, {"left_hand": (M, np.zeros(6),
+                                                                                           np.zeros(6))})
+    np.testing.assert_array_equal(kept["left_hand"][0].translation, M.translation)
+    sc = TeleopScenario.from_source(talos, "arms_down", duration=1.0, anchor="absolute")
+    assert sc.safety.body is False
+
+
+def test_a_stalled_stream_holds_then_resumes_smoothly(talos, start):
+    """The watchdog: a stream that stops is held (the source's loss policy); the operator has moved meanwhile, and
+    the first fresh pose is re-joined, not jumped to."""
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    held = start["left_hand"]
+    moved = _moved(held, [0.0, 0.25, 0.1])
+    out = _feed(flt, lambda k: {"left_hand": held if k < 300 else moved}, 1000)
+    p = np.array([o["left_hand"][0].translation for o in out])
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    assert flt.counts["jump"] == {"left_hand": 1} and step.max() < 0.0012  # 1.2 m/s at the most
+    np.testing.assert_allclose(p[-1], moved.translation, atol=1e-9)
+
+
+def test_the_shipped_recordings_pass_through_untouched_at_twice_their_speed(talos):
+    """No jump, speed, acceleration or garbage intervention on any shipped recording at x2; the body projection
+    moves a reference at most 1 cm (crossing_arms' right hand near the chest)."""
+    from wbcbench.teleop import list_recordings
+
+    for rec in list_recordings():
+        sc = TeleopScenario.from_source(talos, rec.name, duration=rec.duration / 2, speed=2.0)
+        sc.setup(talos.q0, pin.centerOfMass(talos.model, talos.model.createData(), talos.q0))
+        raw_source = TeleopScenario.from_source(talos, rec.name, duration=rec.duration / 2, speed=2.0,
+                                                safety={"enabled": False})
+        raw_source.setup(talos.q0, pin.centerOfMass(talos.model, talos.model.createData(), talos.q0))
+        worst = 0.0
+        for k in range(0, int(round(sc.spec.duration / DT))):
+            got, raw = sc.references(k * DT).targets, raw_source.references(k * DT).targets
+            for name in ("left_hand", "right_hand", "head"):
+                worst = max(worst, float(np.linalg.norm(got[name].position - raw[name].position)))
+        counts = sc.reference_source.command_filter.counts
+        assert not any(counts[kind] for kind in ("non_finite", "jump", "speed", "acceleration")), (rec.name, counts)
+        assert worst < 0.01, (rec.name, worst)
+
+
+def test_a_glitching_recording_reaches_the_robot_filtered(talos, tmp_path):
+    """One frame of reach_forward with the right hand 0.5 m off (a marker swap): unfiltered, the hand reference
+    moves at tens of m/s; through the filter no target step exceeds the speed limit, the interventions are in the
+    log channel and the summary, and the robot stands."""
+    import dataclasses
+
+    from wbcbench.teleop import open_recording
+    from wbcbench.teleop.commands import run_session
+
+    rec = open_recording("reach_forward")
+    positions = np.array(rec.positions)
+    hand = rec.segments.index("RightHand")
+    positions[100, hand] += [0.5, 0.0, 0.0]  # t = 2 s
+    glitch = dataclasses.replace(rec, positions=positions)
+    raw = TeleopScenario.from_source(talos, glitch, duration=3.0, safety={"enabled": False})
+    raw.setup(talos.q0, pin.centerOfMass(talos.model, talos.model.createData(), talos.q0))
+    p = np.array([raw.references(k * DT).targets["right_hand"].position for k in range(3000)])
+    assert np.linalg.norm(np.diff(p, axis=0), axis=1).max() > 10.0 * DT  # > 10 m/s: the glitch is real
+
+    res = run_session(glitch, duration=3.0, out=tmp_path / "g")
+    log, s = res.log, res.summary
+    assert not s["fell"]
+    target = np.column_stack([log[f"target_right_hand.{c}"] for c in "xyz"])
+    assert np.linalg.norm(np.diff(target, axis=0), axis=1).max() <= SafetyConfig().max_speed * DT + 1e-9
+    flt = s["metrics"]["teleop"]["filter"]
+    assert flt["counts"]["speed"]["right_hand"] > 0 and flt["events"][0]["effector"] == "right_hand"
+    t = log["t"]
+    flagged = t[log["teleop_filter.speed"] > 0]
+    assert flagged.min() > 1.9 and flagged.max() < 2.2  # around the glitch only
+
+
+@pytest.mark.parametrize("safety,needle", [({"max_speed": -1.0}, "max_speed"), ({"jump_distanse": 0.1}, "jump_distanse"),
+                                           ({"body": "yes"}, "body")])
+def test_bad_safety_params_name_the_key(talos, safety, needle):
+    from wbcbench.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        TeleopScenario.from_source(talos, "arms_down", duration=1.0, safety=safety)
+    assert needle in str(err.value) and "\n" not in str(err.value)

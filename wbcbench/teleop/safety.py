@@ -1,0 +1,257 @@
+"""Unsafe-command filtering between the operator and the controller: what the teleoperation reference source
+hands the robot passes through here last, so that nothing surprising reaches it.
+
+Per effector (hands, head) and tick, on the pose reference M (position, rotation) with its feed-forward velocity
+and acceleration (6,) each, in this order:
+
+1. Garbage: a non-finite number anywhere, or a rotation that is not one (||R^T R - I|| > 1e-6), is not used: the
+   last output is held (velocity and acceleration zero). Counted as `non_finite`.
+2. Inside the body: the hand's protected point (the gripper centre of the profile's `repulsors`) closer than
+   r_rep + `body_margin` to a repulsion point on a link that does not move with the arms (torso, pelvis, legs; at
+   the reference posture, the robot standing) is pushed out radially, so a reference never asks the gripper
+   into the hips or the chest. Counted as `body`. Off with the paper's `absolute` anchor, where such references
+   are the repulsors' study (scenario param).
+3. Jumps: a reference more than `jump_distance` [m] or `jump_angle` [rad] from the last one in one tick
+   (a teleport: a stream that resumes after a loss, a recalibration, a corrupt frame) is re-joined with a min-jerk
+   blend from the last output to the moving reference over max(`min_rejoin_time`, distance / `rejoin_speed`,
+   angle / `rejoin_angular_speed`) s. Counted as `jump`.
+4. Speed: the output moves at most `max_speed` [m/s] and `max_angular_speed` [rad/s] per tick (towards the
+   reference, along the straight line / the geodesic); counted as `speed`. The feed-forward velocity and
+   acceleration are clipped to `max_speed`, `max_angular_speed`, `max_acceleration` [m/s^2] and
+   `max_angular_acceleration` [rad/s^2] (norms); counted as `acceleration` when the acceleration is clipped.
+
+Every intervention is counted per kind and effector (`counts`), the first ones kept with their time
+(`events`), and the tick's flags are logged (`teleop_filter` channel). The defaults let the shipped recordings
+through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad/s, 135 m/s^2, 470 rad/s^2 at
+x2; a test checks that nothing is filtered) and stop teleports and garbage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ..side import Side
+
+__all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig"]
+
+#: The intervention kinds, in the order of the log channel's components.
+FILTER_KINDS = ("non_finite", "body", "jump", "speed", "acceleration")
+_MAX_EVENTS = 100
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """Limits of the command filter (module docstring). `enabled`: False passes everything through."""
+
+    enabled: bool = True
+    max_speed: float = 4.0
+    max_angular_speed: float = 10.0
+    max_acceleration: float = 150.0
+    max_angular_acceleration: float = 500.0
+    jump_distance: float = 0.05
+    jump_angle: float = 0.3
+    rejoin_speed: float = 0.5
+    rejoin_angular_speed: float = 1.5
+    min_rejoin_time: float = 0.3
+    body: bool = True
+    body_margin: float = 0.03
+
+
+def _min_jerk(u: float) -> tuple[float, float]:
+    """s(u) and ds/du of the min-jerk profile, u clipped to [0, 1]."""
+    u = min(max(u, 0.0), 1.0)
+    return 10 * u**3 - 15 * u**4 + 6 * u**5, 30 * u**2 - 60 * u**3 + 30 * u**4
+
+
+def _clip_norm(x: np.ndarray, limit: float) -> tuple[np.ndarray, bool]:
+    n = float(np.linalg.norm(x))
+    if n > limit:
+        return x * (limit / n), True
+    return x, False
+
+
+@dataclass
+class _Rejoin:
+    t0: float
+    duration: float
+    start: pin.SE3
+
+
+class CommandFilter:
+    """The filter for a robot's effector references (module docstring); `q_reference`: the posture the static
+    body spheres are placed at; `dt`: the control period [s]."""
+
+    def __init__(self, robot, q_reference: np.ndarray, config: SafetyConfig, dt: float):
+        self.config = config
+        self.dt = dt
+        self.counts = {k: {} for k in FILTER_KINDS}
+        self.events: list[dict] = []
+        self.flags = np.zeros(len(FILTER_KINDS))
+        self._last: dict[str, pin.SE3] = {}
+        self._t_prev: float | None = None
+        self._raw_last: dict[str, pin.SE3] = {}
+        self._rejoin: dict[str, _Rejoin] = {}
+        self._body = self._body_spheres(robot, q_reference) if config.body else {}
+
+    @staticmethod
+    def _body_spheres(robot, q: np.ndarray) -> dict:
+        """Per hand: (protected-point offset in the hand frame, centres (k, 3), radii (k,)) of the repulsion points
+        on links that do not move with the arms, at configuration q."""
+        model = robot.model
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q)
+        # the arms' own joints: those that carry one gripper and not the other
+        chains = {}
+        for side in Side:
+            spec = robot.profile.repulsors.get(side)
+            if spec is not None:
+                chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
+        arm_joints = set()
+        if len(chains) == 2:
+            arm_joints = chains[Side.LEFT] ^ chains[Side.RIGHT]
+        out = {}
+        for hand, side in (("left_hand", Side.LEFT), ("right_hand", Side.RIGHT)):
+            spec = robot.profile.repulsors.get(side)
+            if spec is None:
+                continue
+            hand_frame = model.getFrameId(robot.profile.hands[side])
+            gripper = model.getFrameId(spec.frame)
+            # the protected point in the hand frame (the hand frame and the gripper frame are rigidly attached)
+            point = data.oMf[gripper].act(np.asarray(spec.offset, float))
+            offset = data.oMf[hand_frame].actInv(point)
+            centres, radii = [], []
+            for p in spec.points:
+                fid = model.getFrameId(p.frame)
+                if _moves_with_arms(model, model.frames[fid].parentJoint, arm_joints):
+                    continue
+                centres.append(data.oMf[fid].act(np.asarray(p.offset, float)))
+                radii.append(p.radius)
+            if centres:
+                out[hand] = (offset, np.array(centres), np.array(radii))
+        return out
+
+    def _push_out(self, effector: str, M: pin.SE3) -> tuple[pin.SE3, bool]:
+        spheres = self._body.get(effector)
+        if spheres is None:
+            return M, False
+        offset, centres, radii = spheres
+        x = M.act(offset)
+        moved = False
+        for _ in range(3):  # overlapping spheres: a few passes
+            d = x - centres
+            dist = np.linalg.norm(d, axis=1)
+            reach = radii + self.config.body_margin
+            inside = np.flatnonzero(dist < reach)
+            if inside.size == 0:
+                break
+            i = inside[np.argmax(reach[inside] - dist[inside])]
+            direction = d[i] / dist[i] if dist[i] > 1e-9 else np.array([0.0, 0.0, 1.0])
+            x = centres[i] + direction * reach[i]
+            moved = True
+        if not moved:
+            return M, False
+        return pin.SE3(M.rotation, M.translation + (x - M.act(offset))), True
+
+    def _count(self, t: float, effector: str, kind: str) -> None:
+        c = self.counts[kind]
+        c[effector] = c.get(effector, 0) + 1
+        self.flags[FILTER_KINDS.index(kind)] = 1.0
+        if len(self.events) < _MAX_EVENTS and (not self.events or self.events[-1]["kind"] != kind
+                                                or self.events[-1]["effector"] != effector
+                                                or t - self.events[-1]["t_last"] > 2 * self.dt):
+            self.events.append({"t": t, "t_last": t, "effector": effector, "kind": kind})
+        elif self.events and self.events[-1]["kind"] == kind and self.events[-1]["effector"] == effector:
+            self.events[-1]["t_last"] = t
+
+    def __call__(self, t: float, targets: dict) -> dict:
+        """{effector: (SE3, velocity (6,), acceleration (6,))} -> the same, filtered (module docstring)."""
+        self.flags[:] = 0.0
+        if not self.config.enabled:
+            return targets
+        cfg = self.config
+        # the limits per elapsed time: a run calls every tick; a query at an earlier time starts afresh
+        dt = None if self._t_prev is None else t - self._t_prev
+        if dt is not None and dt <= 0.0:
+            self._last.clear()
+            self._raw_last.clear()
+            self._rejoin.clear()
+            dt = None
+        self._t_prev = t
+        scale = 1.0 if dt is None else max(1.0, dt / self.dt)
+        out = {}
+        for e, (M, vel, acc) in targets.items():
+            last = self._last.get(e) if dt is not None else None
+            R = M.rotation
+            finite = (np.isfinite(M.translation).all() and np.isfinite(R).all() and np.isfinite(vel).all()
+                      and np.isfinite(acc).all())
+            if not finite or np.abs(R.T @ R - np.eye(3)).max() > 1e-6:
+                self._count(t, e, "non_finite")
+                if last is None:  # nothing safe to hold yet: drop the effector's reference this tick
+                    continue
+                M, vel, acc = last, np.zeros(6), np.zeros(6)
+            M, pushed = self._push_out(e, M)
+            if pushed:
+                self._count(t, e, "body")
+            previous = self._raw_last.get(e) if last is not None else None
+            self._raw_last[e] = M
+            if previous is not None:  # a jump is a discontinuity of the reference stream itself
+                step = float(np.linalg.norm(M.translation - previous.translation))
+                turn = float(np.linalg.norm(pin.log3(previous.rotation.T @ M.rotation)))
+                if e not in self._rejoin and (step > cfg.jump_distance * scale or turn > cfg.jump_angle * scale):
+                    dist = float(np.linalg.norm(M.translation - last.translation))
+                    angle = float(np.linalg.norm(pin.log3(last.rotation.T @ M.rotation)))
+                    T = max(cfg.min_rejoin_time, dist / cfg.rejoin_speed, angle / cfg.rejoin_angular_speed)
+                    self._rejoin[e] = _Rejoin(t, T, pin.SE3(last))
+                    self._count(t, e, "jump")
+            rj = self._rejoin.get(e)
+            if rj is not None:
+                u = (t - rj.t0) / rj.duration
+                if u >= 1.0:
+                    del self._rejoin[e]
+                else:
+                    s, ds = _min_jerk(u)
+                    ds /= rj.duration
+                    dp = M.translation - rj.start.translation
+                    dr = pin.log3(M.rotation @ rj.start.rotation.T)  # world axes
+                    M = pin.SE3(pin.exp3(s * dr) @ rj.start.rotation, rj.start.translation + s * dp)
+                    vel = s * vel
+                    vel[:3] += ds * dp
+                    vel[3:] += ds * dr
+                    acc = s * acc
+            if last is not None:
+                step = M.translation - last.translation
+                step_c, fast = _clip_norm(step, cfg.max_speed * dt)
+                rot = pin.log3(M.rotation @ last.rotation.T)
+                rot_c, spin = _clip_norm(rot, cfg.max_angular_speed * dt)
+                if fast or spin:
+                    M = pin.SE3(pin.exp3(rot_c) @ last.rotation, last.translation + step_c)
+                    self._count(t, e, "speed")
+            v_lin, f1 = _clip_norm(vel[:3], cfg.max_speed)
+            v_ang, f2 = _clip_norm(vel[3:], cfg.max_angular_speed)
+            a_lin, f3 = _clip_norm(acc[:3], cfg.max_acceleration)
+            a_ang, f4 = _clip_norm(acc[3:], cfg.max_angular_acceleration)
+            if f1 or f2:
+                self._count(t, e, "speed")
+            if f3 or f4:
+                self._count(t, e, "acceleration")
+            vel, acc = np.concatenate([v_lin, v_ang]), np.concatenate([a_lin, a_ang])
+            self._last[e] = M
+            out[e] = (M, vel, acc)
+        return out
+
+    def summary(self) -> dict:
+        """Counts per kind and effector, their total, and the first events ({t, t_last, effector, kind})."""
+        return {"counts": self.counts, "total": int(sum(sum(c.values()) for c in self.counts.values())),
+                "events": self.events}
+
+
+def _moves_with_arms(model, joint: int, arm_joints: set) -> bool:
+    j = joint
+    while j > 0:
+        if j in arm_joints:
+            return True
+        j = model.parents[j]
+    return False
