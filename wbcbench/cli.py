@@ -50,6 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--fault", action="append", default=[], metavar="TYPE[:TARGET]@START[+DURATION]",
                    help="inject a fault, e.g. sensor_nan:ft_left@1.0+0.2, qp_failure@2+0.05, "
                         "joint_locked:leg_left_4_joint@1.5 (repeatable; see wbcbench/faults.py)")
+    r.add_argument("--realtime", action="store_true",
+                   help="pace the simulation to the wall clock; late ticks are counted (summary `realtime`, log "
+                        "`lateness_ms`)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -85,7 +88,8 @@ def _cmd_run(args) -> int:
     if args.quiet:
         result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                      taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite)
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite,
+                     realtime=args.realtime)
     else:
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                       TimeElapsedColumn(), console=console, transient=True) as prog:
@@ -93,7 +97,8 @@ def _cmd_run(args) -> int:
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                          progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
                          sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite)
+                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite,
+                     realtime=args.realtime)
     render_summary(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

@@ -57,7 +57,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
-        overwrite: bool = False) -> RunResult:
+        overwrite: bool = False, realtime: bool = False) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -161,6 +161,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     # predicted falls from the measurement (capture point vs support polygon, tilt rate); optional safe stop
     predictor = FallPredictor(robot) if (predict_falls or safe_stop) else None
     s_fall = rec.add_channel("fall_prediction", list(FallPredictor.LOG_LABELS)) if predictor else None
+    # paced to the wall clock: how late each tick started [ms] (0 when on time)
+    s_late = rec.add_channel("lateness_ms") if realtime else None
     stopper = None
 
     model, data = robot.model, robot.model.createData()
@@ -170,6 +172,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     n_ticks = int(round(duration / spec.control_dt))
     fell, reason, error, interrupted = False, "", None, False
     ctrl_us = np.full(n_ticks, np.nan)
+    lateness = np.zeros(n_ticks) if realtime else None
     wall0 = time.perf_counter()
     tick = 0
     try:
@@ -185,6 +188,17 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                               file=spec.file) from None
         for tick in range(n_ticks):
             t = tick * spec.control_dt
+            if realtime and tick > 0:  # tick k starts at wall_start + k dt, or late
+                now = time.perf_counter()
+                if tick == 1:  # the clock starts after the first tick (one-off start-up work is not a delay)
+                    wall_start = now - t
+                ahead = wall_start + t - now
+                if ahead > 0:
+                    time.sleep(ahead)
+                else:
+                    lateness[tick] = -ahead * 1e3
+                    if -ahead > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
+                        wall_start -= ahead
             refs = scen.references(t)
             c0 = time.perf_counter()
             cmd = ctrl.step(meas, refs)
@@ -206,6 +220,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             row = rec.row
             if predictor is not None:
                 row[s_fall] = fall_log
+            if s_late is not None:
+                row[s_late] = lateness[tick]
             true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
             q, v = true_meas.q, true_meas.v  # ground truth before the sensor layer
             pin.centerOfMass(model, data, q, v)
@@ -283,6 +299,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         "controller_status": ctrl.status(),
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
         "faults": injector.summary() if injector.enabled else None,
+        "realtime": None if lateness is None else _lateness_summary(lateness[: tick + 1], spec.control_dt,
+                                                                     sim_time, wall),
         "fall_prediction": None if predictor is None else {
             "first_prediction_t": predictor.first_prediction_t, "safe_stop": safe_stop,
             "time_to_fall_s": (sim_time - predictor.first_prediction_t
@@ -310,6 +328,19 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     if interrupted:
         raise RunInterrupted(f"interrupted at t = {sim_time:.3f} s; {run_dir} keeps the log and the summary up to there")
     return RunResult(run_dir, summary, log)
+
+
+#: [s] a paced run that falls further behind than this resumes from the wall clock (the stall is counted)
+#: instead of running the simulation faster than real time to catch up
+_MAX_CATCH_UP = 0.005
+
+
+def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float) -> dict:
+    """A wall-clock-paced run: how many ticks started more than one control period late, the worst lateness
+    [ms], and whether it kept up (no tick later than 5 ms)."""
+    worst = float(late_ms.max()) if late_ms.size else 0.0
+    return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
+            "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
 
 
 class LogWriteError(WbcError):

@@ -16,6 +16,13 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def pacing_text(rt: dict) -> str:
+    """One line on a wall-clock-paced run (the summary's `realtime` section)."""
+    verdict = "[green]kept up[/green]" if rt["kept_up"] else "[red]could not keep up[/red]"
+    return (f"{verdict}: {rt['late_ticks']} ticks late by more than one period, worst "
+            f"{rt['worst_lateness_ms']:.1f} ms")
+
+
 def render_summary(console: Console, s: dict, run_dir: Path) -> None:
     status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
     t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}: {status}",
@@ -28,6 +35,8 @@ def render_summary(console: Console, s: dict, run_dir: Path) -> None:
     st = s["step_time_us"]
     if st["median"] is not None:
         t.add_row("controller step", f"median {st['median']:.1f} us, p99 {st['p99']:.1f} us, max {st['max']:.1f} us")
+    if s.get("realtime"):
+        t.add_row("wall-clock pacing", pacing_text(s["realtime"]))
     for k, v in s.get("controller_status", {}).items():
         t.add_row(k, _fmt(v))
     for k, v in s.get("metrics", {}).items():

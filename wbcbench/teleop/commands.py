@@ -53,6 +53,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
                         "offset: every position shifted by the calibration offset (relative teleoperation)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace the replay to the wall clock (live streams are always paced); late ticks and the "
+                        "worst lateness are counted in the summary (`realtime`) and logged (`lateness_ms`)")
     p.add_argument("--no-filter", action="store_true",
                    help="pass the operator's references to the controller unfiltered (no garbage, body, jump or "
                         "speed filter; wbcbench/teleop/safety.py)")
@@ -84,7 +87,7 @@ def _check_controller(name: str) -> None:
 def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, mode: str | None = None,
                 speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
-                quiet: bool = True, progress=None, overwrite: bool = False, **params):
+                quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, **params):
     """Run one teleoperation session; returns the runner's `RunResult`.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
@@ -124,7 +127,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         stamp = _time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
     try:
-        result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=overwrite,
+        result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=overwrite, realtime=realtime,
                      sim_options=SimOptions(self_collision=self_collision), probes=probes)
     finally:
         close = getattr(scen.source, "close", None)
@@ -157,7 +160,7 @@ def run_command(args: argparse.Namespace) -> int:
     kwargs = dict(robot=args.robot, controller=args.controller, mode=args.mode, speed=args.speed,
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer, duration=args.duration,
                   out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
-                  overwrite=args.overwrite)
+                  overwrite=args.overwrite, realtime=args.realtime)
     if args.no_filter:
         kwargs["safety"] = {"enabled": False}
     if args.quiet:
@@ -184,6 +187,10 @@ def render(console, summary: dict, run_dir) -> None:
     t.add_column("key", style="bold")
     t.add_column("value")
     t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s (wall {s['wall_time_s']:.1f} s)")
+    if s.get("realtime"):
+        from ..summary import pacing_text
+
+        t.add_row("wall-clock pacing", pacing_text(s["realtime"]))
     st = s["step_time_us"]
     if st["median"] is not None:
         t.add_row("controller step", f"median {st['median']:.0f} us, p99 {st['p99']:.0f} us")
