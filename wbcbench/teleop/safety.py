@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..jit import njit
 from ..side import Side
 
 __all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig"]
@@ -58,6 +59,64 @@ class SafetyConfig:
     min_rejoin_time: float = 0.3
     body: bool = True
     body_margin: float = 0.03
+
+
+@njit
+def _screen(p, R, vel, acc, has_last, last_p, last_R, raw_p, raw_R, offset, centres, reach, lim):
+    """True when the reference needs none of the filter's work (the common case, decided in one compiled call):
+    finite, a rotation, outside the body spheres (``reach``: radius + margin, empty when off), no jump from the
+    last raw reference and within the speed limits from the last output (when ``has_last``), feed-forward
+    within its limits. ``lim``: [jump distance, jump angle, max step, max turn, max speed, max angular speed,
+    max acceleration, max angular acceleration] (per tick where it says step / turn)."""
+    for i in range(3):
+        if not (np.isfinite(p[i]) and np.isfinite(vel[i]) and np.isfinite(vel[i + 3]) and np.isfinite(acc[i])
+                and np.isfinite(acc[i + 3])):
+            return False
+        for j in range(3):
+            if not np.isfinite(R[i, j]):
+                return False
+    for i in range(3):
+        for j in range(3):
+            g = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j]
+            if abs(g - (1.0 if i == j else 0.0)) > 1e-6:
+                return False
+    x0 = p[0] + R[0, 0] * offset[0] + R[0, 1] * offset[1] + R[0, 2] * offset[2]
+    x1 = p[1] + R[1, 0] * offset[0] + R[1, 1] * offset[1] + R[1, 2] * offset[2]
+    x2 = p[2] + R[2, 0] * offset[0] + R[2, 1] * offset[1] + R[2, 2] * offset[2]
+    for k in range(reach.shape[0]):
+        d0, d1, d2 = x0 - centres[k, 0], x1 - centres[k, 1], x2 - centres[k, 2]
+        if d0 * d0 + d1 * d1 + d2 * d2 < reach[k] * reach[k]:
+            return False
+    if has_last:
+        if _dist(p, raw_p) > lim[0] or _angle(R, raw_R) > lim[1]:
+            return False
+        if _dist(p, last_p) > lim[2] or _angle(R, last_R) > lim[3]:
+            return False
+    if (_norm3(vel, 0) > lim[4] or _norm3(vel, 3) > lim[5] or _norm3(acc, 0) > lim[6]
+            or _norm3(acc, 3) > lim[7]):
+        return False
+    return True
+
+
+@njit
+def _dist(a, b):
+    return np.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+
+
+@njit
+def _norm3(v, i):
+    return np.sqrt(v[i] * v[i] + v[i + 1] * v[i + 1] + v[i + 2] * v[i + 2])
+
+
+@njit
+def _angle(A, B):
+    """The angle [rad] of the rotation between A and B (from trace(A^T B))."""
+    tr = 0.0
+    for i in range(3):
+        for j in range(3):
+            tr += A[i, j] * B[i, j]
+    c = min(1.0, max(-1.0, 0.5 * (tr - 1.0)))
+    return np.arccos(c)
 
 
 def _min_jerk(u: float) -> tuple[float, float]:
@@ -95,6 +154,13 @@ class CommandFilter:
         self._raw_last: dict[str, pin.SE3] = {}
         self._rejoin: dict[str, _Rejoin] = {}
         self._body = self._body_spheres(robot, q_reference) if config.body else {}
+        # the compiled screen's inputs: the spheres' reach (radius + margin), the limits, the last poses as arrays
+        self._body_arrays = {e: (off, c, r + config.body_margin) for e, (off, c, r) in self._body.items()}
+        self._no_body = (np.zeros(3), np.zeros((0, 3)), np.zeros(0))
+        self._limits = np.zeros(8)
+        self._limits[4:] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
+                            config.max_angular_acceleration)
+        self._arrays: dict[str, tuple] = {}
 
     @staticmethod
     def _body_spheres(robot, q: np.ndarray) -> dict:
@@ -181,10 +247,24 @@ class CommandFilter:
             dt = None
         self._t_prev = t
         scale = 1.0 if dt is None else max(1.0, dt / self.dt)
+        lim = self._limits
+        lim[2], lim[3] = cfg.max_speed * (dt or 0.0), cfg.max_angular_speed * (dt or 0.0)
+        lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
         out = {}
         for e, (M, vel, acc) in targets.items():
             last = self._last.get(e) if dt is not None else None
             R = M.rotation
+            if e not in self._rejoin:
+                p = M.translation
+                arrays = self._arrays.get(e)
+                has_last = last is not None and arrays is not None
+                lp, lR, rp, rR = arrays if has_last else (p, R, p, R)
+                offset, centres, reach = self._body_arrays.get(e, self._no_body)
+                if _screen(p, R, vel, acc, has_last, lp, lR, rp, rR, offset, centres, reach, lim):
+                    self._last[e] = self._raw_last[e] = M
+                    self._arrays[e] = (p, R, p, R)
+                    out[e] = (M, vel, acc)
+                    continue
             finite = (np.isfinite(M.translation).all() and np.isfinite(R).all() and np.isfinite(vel).all()
                       and np.isfinite(acc).all())
             if not finite or np.abs(R.T @ R - np.eye(3)).max() > 1e-6:
@@ -239,6 +319,7 @@ class CommandFilter:
                 self._count(t, e, "acceleration")
             vel, acc = np.concatenate([v_lin, v_ang]), np.concatenate([a_lin, a_ang])
             self._last[e] = M
+            self._arrays[e] = (M.translation, M.rotation, self._raw_last[e].translation, self._raw_last[e].rotation)
             out[e] = (M, vel, acc)
         return out
 
