@@ -47,6 +47,10 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     references (what the controller was asked to track).
   realtime: live streams only (default true): the run is paced so that simulated time does not run ahead of
     the wall clock.
+  length_unit: a BVH file's length unit: auto (default: detected from the skeleton's standing extent), m, dm,
+    cm, mm, in, ft, or metres per unit. up_axis: auto (default), x, y or z (the detection's vertical).
+  segment_map: a YAML file `canonical MVN segment name: the file's segment name` when neither the names nor the
+    skeleton's chains identify the segments (wbcbench/teleop/skeleton_map.py).
   safety: the command filter between the operator and the controller (wbcbench/teleop/safety.py): garbage held
     out, references pushed out of the body, jumps re-joined smoothly, speeds and accelerations clipped; keys
     enabled (default true), max_speed [m/s] (4), max_angular_speed [rad/s] (10), max_acceleration [m/s^2] (150),
@@ -118,6 +122,12 @@ class TeleopScenario(Scenario):
             raise params.error("rest_blend", f"must be [r_in, r_out] with 0 <= r_in < r_out, got {list(blend)}")
         self.rest_blend = (float(blend[0]), float(blend[1]))
         self.safety = _parse_safety(params.section("safety", None), self.anchor)
+        lu = params.raw("length_unit", "auto")
+        if not isinstance(lu, (str, int, float)) or isinstance(lu, bool):
+            raise params.error("length_unit", "use auto, m, dm, cm, mm, in, ft or metres per unit")
+        self.length_unit = lu
+        self.up_axis = params.str("up_axis", "auto", choices=["auto", "x", "y", "z"])
+        self.segment_map_file = params.str("segment_map", "") or None
         tg = params.section("targets", None)
         if tg.data:
             targets = {}
@@ -179,7 +189,7 @@ class TeleopScenario(Scenario):
             raise UnknownNameError("recording", m, MOTIONS, file=self.spec.file or None, key="mocap")
         if not path.is_absolute() and self.spec.file:
             path = Path(self.spec.file).parent / path
-        return load_recording(path)
+        return load_recording(path, length_unit=self.length_unit, up_axis=self.up_axis)
 
     @property
     def planned_duration(self) -> float:
@@ -214,7 +224,19 @@ class TeleopScenario(Scenario):
                                   feedforward=self.feedforward, smoothing=self.smoothing, on_loss=self.on_loss,
                                   return_time=self.return_time, stale_after=self.stale_after, realtime=self.realtime,
                                   engage_time=self.engage_time, anchor=self.anchor, rest_blend=self.rest_blend,
-                                  targets=dict(self.targets), dt=dt, duration=duration, safety=self.safety)
+                                  targets=dict(self.targets), dt=dt, duration=duration, safety=self.safety,
+                                  segment_map=self._segment_map())
+
+    def _segment_map(self) -> dict | None:
+        """The `segment_map` file's mapping (checked against the recording's segments), or None."""
+        if self.segment_map_file is None:
+            return None
+        from ..teleop.skeleton_map import load_segment_map
+
+        path = Path(self.segment_map_file)
+        if not path.is_absolute() and self.spec.file:
+            path = Path(self.spec.file).parent / path
+        return load_segment_map(path, getattr(self.source, "segments", None)).names
 
     def log_channels(self) -> dict:
         """Per tick, the command filter's interventions (1 where one happened; wbcbench/teleop/safety.py)."""
@@ -258,6 +280,7 @@ class TeleopScenario(Scenario):
                                 "restarts": st.restarts, "last_error": st.last_error,
                                 "status_at_end": self.source.status().value}
         teleop["filter"] = self.reference_source.command_filter.summary()
+        teleop["skeleton"] = self.reference_source.skeleton_summary()
         out["teleop"] = teleop
         return out
 

@@ -53,6 +53,14 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
                         "offset: every position shifted by the calibration offset (relative teleoperation)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
+    p.add_argument("--length-unit", default="auto",
+                   help="a BVH file's length unit: auto (detected from the skeleton, default), m, cm, mm, in, ft "
+                        "or metres per unit")
+    p.add_argument("--up-axis", default="auto", choices=["auto", "x", "y", "z"],
+                   help="the recording's vertical axis for the unit detection (default auto)")
+    p.add_argument("--segment-map", default=None, metavar="FILE.yaml",
+                   help="canonical MVN segment name -> the file's segment name, when the names and the skeleton's "
+                        "chains do not tell")
     p.add_argument("--realtime", action="store_true",
                    help="pace the replay to the wall clock (live streams are always paced); late ticks and the "
                         "worst lateness are counted in the summary (`realtime`) and logged (`lateness_ms`)")
@@ -163,6 +171,9 @@ def run_command(args: argparse.Namespace) -> int:
                   overwrite=args.overwrite, realtime=args.realtime)
     if args.no_filter:
         kwargs["safety"] = {"enabled": False}
+    kwargs.update(length_unit=args.length_unit, up_axis=args.up_axis)
+    if args.segment_map:
+        kwargs["segment_map"] = str(Path(args.segment_map).resolve())
     if args.quiet:
         result = run_session(args.mocap, **kwargs)
     else:
@@ -187,6 +198,10 @@ def render(console, summary: dict, run_dir) -> None:
     t.add_column("key", style="bold")
     t.add_column("value")
     t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s (wall {s['wall_time_s']:.1f} s)")
+    sk = m.get("teleop", {}).get("skeleton") or {}
+    if sk.get("length_unit") or sk.get("mapping") not in (None, "names"):
+        t.add_row("skeleton", f"segments by {sk.get('mapping')}; length unit {sk.get('length_unit') or 'metres'}; "
+                              f"up {sk.get('up_axis')}")
     if s.get("realtime"):
         from ..summary import pacing_text
 

@@ -61,6 +61,7 @@ class MocapRecording:
             ``"<joint>:<x|y|z>"`` for MVNX.
         joint_angles: (N, J) joint angles [rad] (J may be 0).
         up_axis: the recording's vertical axis, "x", "y" or "z" (informative: the alignment does not use it).
+        length_unit_note: how a BVH file's length unit was chosen (detected or given), "" for other formats.
 
     Raises:
         ConfigError: inconsistent shapes, non-increasing or non-finite times, non-unit quaternions (the message
@@ -77,6 +78,7 @@ class MocapRecording:
     joint_names: tuple[str, ...] = ()
     joint_angles: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     up_axis: str = "z"
+    length_unit_note: str = ""
 
     def __post_init__(self) -> None:
         err = self._error
@@ -198,6 +200,7 @@ class MocapRecording:
             source=source, frame_rate=self.frame_rate, times=self.times, segments=self.segments,
             positions=self.positions, orientations=self.orientations, parents=self.parents,
             joint_names=self.joint_names, joint_angles=self.joint_angles, up_axis=self.up_axis,
+            length_unit_note=self.length_unit_note,
         )
 
     def __repr__(self) -> str:

@@ -197,6 +197,12 @@ class Retargeter:
     ) -> None:
         self._robot = robot
         self._source = source
+        self.segment_mapping = None
+        if segment_map is None and isinstance(source, MocapRecording):
+            from .skeleton_map import map_segments  # names first, then the skeleton's chains
+
+            self.segment_mapping = map_segments(source.segments, source.parents, source.source)
+            segment_map = self.segment_mapping.names
         if human is None:
             human = (
                 HumanModel.from_recording(source, segment_map=segment_map)

@@ -96,6 +96,7 @@ class TeleopSourceConfig:
     dt: float = 1e-3
     duration: float = 0.0
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    segment_map: dict | None = None
 
 
 class TeleopReferenceSource:
@@ -116,7 +117,8 @@ class TeleopReferenceSource:
         """Retarget, calibrate the anchor and precompute a recording's references, at the robot's start q0."""
         from . import Retargeter
 
-        self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion)
+        self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion,
+                                     segment_map=self.config.segment_map)
         self.reference_poses = {k: pin.SE3(v) for k, v in self.retargeter.reference_poses.items()}
         model = self.robot.model
         data = model.createData()
@@ -143,6 +145,14 @@ class TeleopReferenceSource:
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
+
+    def skeleton_summary(self) -> dict:
+        """How the source's skeleton was read: the length unit, the up axis and the segment mapping."""
+        m = self.retargeter.segment_mapping
+        method = "file" if self.config.segment_map is not None else (m.method if m is not None else "names")
+        names = self.config.segment_map if self.config.segment_map is not None else (m.names if m else None)
+        return {"length_unit": getattr(self.source, "length_unit_note", "") or None,
+                "up_axis": getattr(self.source, "up_axis", None), "mapping": method, "segments": names}
 
     def _set_anchor(self, references: dict) -> None:
         """Calibration of the `offset` / `rest` anchors on one retargeted frame (the operator at rest)."""
