@@ -9,6 +9,13 @@ The public API, imported lazily (``import wbcbench`` stays light and imports no 
 from __future__ import annotations
 
 import importlib
+import os
+import sys
+
+# MuJoCo picks its OpenGL backend when it is imported; without a display, rendering (wbcbench.viz) needs EGL
+# (headless; Mesa's works in software). A value the user set is kept.
+if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+    os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
 

@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--realtime", action="store_true",
                    help="pace the simulation to the wall clock; late ticks are counted (summary `realtime`, log "
                         "`lateness_ms`)")
+    r.add_argument("--video", action="store_true",
+                   help="render the run to RUN_DIR/video.mp4 when it ends (see `wbcbench render`)")
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -65,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_robustness(sub)
     from .study.commands import add_subcommands as add_study
     add_study(sub)
+    from .viz.commands import add_subcommand as add_render
+    add_render(sub)
     return p
 
 
@@ -100,6 +104,10 @@ def _cmd_run(args) -> int:
                      predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite,
                      realtime=args.realtime)
     render_summary(console, result.summary, result.run_dir)
+    if args.video:
+        from .viz.render import render_run
+
+        console.print(f"video: {render_run(result.run_dir)}")
     return 1 if result.summary["fell"] else 0
 
 
@@ -131,11 +139,23 @@ def _cmd_list() -> int:
     return 2 if errors else 0
 
 
+def _check_mujoco() -> None:
+    """MuJoCo picks its OpenGL backend at import: a MUJOCO_GL whose library is missing breaks the import itself."""
+    try:
+        import mujoco  # noqa: F401
+    except Exception as exc:
+        import os
+
+        raise WbcError(f"MuJoCo cannot be imported with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} "
+                       f"({type(exc).__name__}: {exc}); unset MUJOCO_GL or use MUJOCO_GL=egl") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return _cmd_list()
+        _check_mujoco()
         if args.command == "run":
             return _cmd_run(args)
         from .report.commands import COMMANDS, run_command
@@ -151,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "teleop":
             from .teleop.commands import run_command as run_teleop
             return run_teleop(args)
+        if args.command == "render":
+            from .viz.commands import run_command as run_render
+            return run_render(args)
     except WbcError as exc:
         from .errors import one_line
 

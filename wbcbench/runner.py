@@ -6,6 +6,7 @@ summary.json. A run that falls or fails still writes its log up to the failure a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import platform
 import time
@@ -122,6 +123,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                       "noslip_iterations": options.noslip_iterations, "substeps": substeps,
                       "self_collision": options.self_collision},
               "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
+              "scene": dataclasses.asdict(spec.terrain),
               "sensors": {**sensing.profile.__dict__, "seed": seed},
               "model_error": {"spec": model_error.__dict__ if model_error is not None else None,
                               "applied": sim.model_error},

@@ -46,6 +46,7 @@ class SimOptions:
     solref: tuple[float, float] = (0.02, 1.0)
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     self_collision: str = "off"
+    visuals: bool = False
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -137,6 +138,36 @@ def _self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
             g.friction = [0.5, 0.005, 0.0001]
 
 
+#: geom group of the URDF's visual meshes (rendering only)
+VISUAL_GROUP = 2
+
+
+def _visual_geoms(spec: mujoco.MjSpec, robot: Robot, body_of_joint: dict) -> None:
+    """The URDF's visual meshes (pinocchio's visual geometry model) as visual-only geoms: no contact (contype and
+    conaffinity 0), no mass (density 0), their own group (`VISUAL_GROUP`); so a run renders as the robot looks
+    and simulates exactly as without them. Meshes MuJoCo cannot read (e.g. .dae) are left out."""
+    spec.compiler.discardvisual = False  # (set for the URDF import, where it drops the URDF's own visuals)
+    geom_model = pin.buildGeomFromUrdf(robot.model, str(robot.files.urdf), pin.GeometryType.VISUAL,
+                                       package_dirs=[str(robot.files.package_root)])
+    pmodel = robot.model
+    for i, g in enumerate(geom_model.geometryObjects):
+        path = str(g.meshPath or "")
+        if not path.lower().endswith((".stl", ".obj")):
+            continue
+        mesh = spec.add_mesh(name=f"visual_mesh_{i}", file=path)
+        mesh.scale = list(np.asarray(g.meshScale, dtype=float))
+        body = body_of_joint[pmodel.names[g.parentJoint]] if g.parentJoint > 0 else spec.worldbody
+        M = g.placement
+        geom = body.add_geom(name=f"visual_{i}", type=mujoco.mjtGeom.mjGEOM_MESH, meshname=mesh.name,
+                             pos=M.translation, quat=_quat_wxyz(M.rotation))
+        geom.contype = geom.conaffinity = 0
+        geom.group = VISUAL_GROUP
+        geom.density = 0.0
+        geom.mass = 0.0
+        color = np.asarray(g.meshColor, dtype=float)
+        geom.rgba = list(color) if color.size == 4 and color[3] > 0 else [0.7, 0.7, 0.7, 1.0]
+
+
 def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
                        options: SimOptions | None = None) -> mujoco.MjModel:
     """Compile the MuJoCo model of `robot` standing in `terrain`, with actuators for `mode`."""
@@ -179,6 +210,8 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
 
     if check:
         _self_collision_geoms(spec, check)
+    if options.visuals:
+        _visual_geoms(spec, robot, body_of_joint)
 
     # sole boxes and F/T sites
     sole = robot.profile.sole

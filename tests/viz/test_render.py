@@ -1,0 +1,101 @@
+"""Rendering runs (wbcbench/viz/render.py): an MP4 that decodes to the right frames with the robot in them, a
+walk that moves across a fixed camera's image, visual meshes that change nothing in the simulation, and bad
+input answered in one line."""
+
+import subprocess
+import sys
+
+import av
+import numpy as np
+import pytest
+
+from wbcbench.runner import run
+from wbcbench.sim.model import VISUAL_GROUP, SimOptions
+from wbcbench.viz.render import Overlays, _Renderer, _Replay, keyframe_strip, render_run
+
+
+def _decode(path):
+    with av.open(str(path)) as c:
+        return [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+
+
+def _robot_mask(run_dir, frame, time_s, camera, size):
+    """Pixels of a decoded frame that differ from the same view rendered without the robot (H.264 tolerant)."""
+    replay = _Replay(run_dir)
+    r = _Renderer(replay, size[0], size[1], camera, Overlays.none())
+    r.options.geomgroup[VISUAL_GROUP] = 0
+    empty = r.frame(time_s)
+    r.close()
+    return (np.abs(frame.astype(int) - empty.astype(int)).max(axis=2) > 40)
+
+
+@pytest.fixture(scope="module")
+def stand_run(tmp_path_factory):
+    return run("stand", "tsid-torque", duration=1.0, out=tmp_path_factory.mktemp("r") / "stand").run_dir
+
+
+def test_one_second_of_stand_to_mp4(stand_run, tmp_path):
+    out = render_run(stand_run, tmp_path / "s.mp4", size="320x240", fps=30, overlays=Overlays.none())
+    frames = _decode(out)
+    assert abs(len(frames) - 31) <= 1  # 0, 1/30, ..., 1 s
+    assert frames[0].shape == (240, 320, 3)
+    robot = _robot_mask(stand_run, frames[0], 0.0, "follow", (320, 240))
+    assert robot.mean() > 0.02  # the robot covers a real part of the image, not a blank frame
+    slow = _decode(render_run(stand_run, tmp_path / "slow.mp4", size="160x120", fps=10, speed=0.5))
+    assert abs(len(slow) - 21) <= 1  # 2 s of video for 1 s at half speed
+
+
+def test_a_walk_moves_across_a_fixed_camera(tmp_path):
+    res = run("walk-20cm-quick", "tsid-torque", duration=5.0, out=tmp_path / "w")  # 0.38 m forward by 5 s
+    out = render_run(res.run_dir, tmp_path / "w.mp4", size="320x240", fps=10, camera="top", overlays=Overlays.none())
+    frames = _decode(out)
+    centroids = []
+    for frame, t in ((frames[0], 0.0), (frames[-1], 5.0)):
+        mask = _robot_mask(res.run_dir, frame, t, "top", (320, 240))
+        assert mask.mean() > 0.005
+        ys, xs = np.nonzero(mask)
+        centroids.append(np.array([xs.mean(), ys.mean()]))
+    moved_px = np.linalg.norm(centroids[1] - centroids[0])
+    moved_m = np.linalg.norm(res.log["q.x"][-1] - res.log["q.x"][0])
+    assert moved_m > 0.1 and moved_px > 10.0
+
+
+def test_keyframe_strip(stand_run, tmp_path):
+    from PIL import Image
+
+    out = keyframe_strip(stand_run, tmp_path / "k.png", frames=3, size="80x100")
+    assert Image.open(out).size == (240, 100)
+
+
+def test_visual_meshes_leave_the_run_bit_identical(tmp_path):
+    a = run("stand", "tsid-torque", duration=0.3, out=tmp_path / "a")
+    b = run("stand", "tsid-torque", duration=0.3, out=tmp_path / "b", sim_options=SimOptions(visuals=True))
+    assert a.log.keys() == b.log.keys()
+    for k in a.log:
+        if k != "controller_time_us":
+            np.testing.assert_array_equal(a.log[k], b.log[k], err_msg=k)
+
+
+def _cli(*args, env=None):
+    import os
+
+    return subprocess.run([sys.executable, "-m", "wbcbench.cli", "render", *args], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})})
+
+
+def test_bad_input_is_one_line(stand_run, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    corrupt = tmp_path / "corrupt"
+    corrupt.mkdir()
+    (corrupt / "config.json").write_text((stand_run / "config.json").read_text())
+    (corrupt / "log.parquet").write_bytes(b"PAR1 this is not parquet")
+    cases = [((str(empty),), {}, "no log.parquet"), ((str(corrupt),), {}, "cannot read the log"),
+             ((str(stand_run), "--size", "100x"), {}, "--size"),
+             ((str(stand_run), "--camera", "drone"), {}, "drone"),
+             ((str(stand_run), "--out", str(tmp_path / "x.mp4")), {"MUJOCO_GL": "glx"}, "MUJOCO_GL")]
+    for args, env, needle in cases:
+        proc = _cli(*args, env=env)
+        assert proc.returncode == 2, (args, proc.stderr)
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and needle in lines[0], (args, proc.stderr)
