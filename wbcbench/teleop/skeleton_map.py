@@ -110,20 +110,16 @@ def map_segments(segments: Sequence[str], parents: Sequence[int], source: str = 
     roots = [i for i, p in enumerate(parents) if p < 0]
     pelvis = min(roots, key=lambda i: -sum(1 for p in parents if p == i)) if roots else None
     arms = {}
+    limbs = ((("hand", "wrist"), ("Hand", "ForeArm", "UpperArm")), (("foot", "ankle"), ("Foot", "LowerLeg", "UpperLeg")))
     for side, prefix in (("L", "Left"), ("R", "Right")):
-        hand = shallowest(side, ("hand", "wrist"))
-        if hand is not None:
-            chain = _walk_up(hand, parents, segments, 2)
+        for words, names in limbs:  # the extremity by name, the two segments above it by the chain
+            end = shallowest(side, words)
+            chain = _walk_up(end, parents, segments, 2) if end is not None else []
             if len(chain) == 2:
-                out[f"{prefix}Hand"], out[f"{prefix}ForeArm"], out[f"{prefix}UpperArm"] = (
-                    segments[hand], segments[chain[0]], segments[chain[1]])
-                arms[side] = chain[1]
-        foot = shallowest(side, ("foot", "ankle"))
-        if foot is not None:
-            chain = _walk_up(foot, parents, segments, 2)
-            if len(chain) == 2:
-                out[f"{prefix}Foot"], out[f"{prefix}LowerLeg"], out[f"{prefix}UpperLeg"] = (
-                    segments[foot], segments[chain[0]], segments[chain[1]])
+                for k, name in zip((end, *chain), names):
+                    out[prefix + name] = segments[k]
+                if names[0] == "Hand":
+                    arms[side] = chain[1]
     if pelvis is not None:
         out["Pelvis"] = segments[pelvis]
     if len(arms) == 2:  # the thorax: the deepest common ancestor of the two upper arms, below any clavicle
