@@ -20,8 +20,9 @@ run: $(STAMP)
 reproduce: $(STAMP)
 	$(BIN)/wbcbench reproduce --out reports/full
 
+# the suite on every core (pytest-xdist); the tests of one file run in the same worker
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sim.py

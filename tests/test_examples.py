@@ -1,9 +1,14 @@
-"""The examples/ folder, installed and run as a user would: a controller plugin (pip-installed into this
-environment, found through its entry point), a scenario built in Python, a third robot by YAML alone."""
+"""The examples/ folder, installed and run as a user would: a controller plugin (pip-installed, found through its
+entry point), a scenario built in Python, a third robot by YAML alone.
+
+Plugins are pip-installed into a directory of their own that the commands under test get on their PYTHONPATH
+(`pip install --target`): the installed distribution and its entry points are found exactly as in site-packages,
+and the test environment shared with the rest of the suite (which runs in parallel workers) never sees them."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -14,21 +19,29 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
 
-def _cli(*args, check_rc=None):
-    out = subprocess.run([sys.executable, "-m", "wbcbench.cli", *args], capture_output=True, text=True)
+def _cli(*args, check_rc=None, plugins: Path | None = None):
+    env = None
+    if plugins is not None:
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(plugins),
+                                                                          os.environ.get("PYTHONPATH")]))}
+    out = subprocess.run([sys.executable, "-m", "wbcbench.cli", *args], capture_output=True, text=True, env=env)
     if check_rc is not None:
         assert out.returncode == check_rc, out.stderr + out.stdout
     return out
 
 
-@pytest.fixture(scope="module")
-def weighted_ik():
-    """pip-install examples/weighted_ik into this environment for the module, uninstall afterwards."""
-    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
-    subprocess.run(pip + ["install", "--no-deps", "--no-build-isolation", str(EXAMPLES / "weighted_ik")],
+def _pip_install(package: Path, target: Path) -> Path:
+    """`pip install` a plugin package into `target` (a directory put on the PYTHONPATH of the commands)."""
+    subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", "install", "--no-deps",
+                    "--no-build-isolation", "--target", str(target), str(package)],
                    check=True, capture_output=True, text=True)
-    yield "weighted-ik"
-    subprocess.run(pip + ["uninstall", "-y", "wbcbench-weighted-ik"], capture_output=True, text=True)
+    return target
+
+
+@pytest.fixture(scope="module")
+def weighted_ik(tmp_path_factory):
+    """examples/weighted_ik pip-installed for the module: (controller name, its install directory)."""
+    return "weighted-ik", _pip_install(EXAMPLES / "weighted_ik", tmp_path_factory.mktemp("weighted-ik"))
 
 
 def test_the_example_controller_is_at_most_40_lines():
@@ -37,18 +50,20 @@ def test_the_example_controller_is_at_most_40_lines():
 
 
 def test_plugin_controller_is_listed_and_keeps_talos_up_through_sway(weighted_ik, tmp_path):
-    out = _cli("list", check_rc=0)
+    weighted_ik, plugins = weighted_ik
+    out = _cli("list", check_rc=0, plugins=plugins)
     line = next(l for l in out.stdout.splitlines() if l.startswith("controllers:"))
     assert "weighted-ik [wbcbench_weighted_ik]" in line
-    _cli("run", "sway", "-c", weighted_ik, "--out", str(tmp_path / "sway"), "--quiet", check_rc=0)
+    _cli("run", "sway", "-c", weighted_ik, "--out", str(tmp_path / "sway"), "--quiet", check_rc=0, plugins=plugins)
     s = json.loads((tmp_path / "sway" / "summary.json").read_text())
     assert not s["fell"] and s["metrics"]["com_rms_error_m"] < 0.02 and s["mode"] == "position"
 
 
 def test_plugin_controller_joins_the_reproduce_report(weighted_ik, tmp_path):
+    weighted_ik, plugins = weighted_ik
     out = tmp_path / "rep"
     _cli("reproduce", "--quick", "--controllers", weighted_ik, "--scenarios", "walk-20cm,sway", "--jobs", "1",
-         "--quiet", "--out", str(out), check_rc=0)
+         "--quiet", "--out", str(out), check_rc=0, plugins=plugins)
     res = json.loads((out / "results.json").read_text())
     cell = res["tables"]["table2"]["values"][weighted_ik]["walk-20cm"]
     assert cell["status"] in ("ok", "fell") and cell["zmp_error_m.x.mean"]["paper"] is None
@@ -92,18 +107,15 @@ def test_broken_plugins_are_one_line_and_break_nothing_else(tmp_path):
         'joint-pd = "wbcbench_badplugins_dup:Dup"\n'
         '[tool.setuptools]\npackage-dir = {"" = "src"}\npy-modules = ["wbcbench_badplugins_dup"]\n'
         '[tool.setuptools.packages.find]\nwhere = ["src"]\n')
-    pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
-    subprocess.run(pip + ["install", "--no-deps", "--no-build-isolation", str(pkg)], check=True, capture_output=True)
-    try:
-        out = _cli("list", check_rc=2)
-        assert "controllers:" in out.stdout and "tsid-torque" in out.stdout
-        errors = out.stderr.strip().splitlines()
-        assert len(errors) == 2
-        assert any("'broken'" in e and "wbcbench-badplugins" in e and "failed to import" in e for e in errors)
-        assert any("'joint-pd'" in e and "built-in" in e for e in errors)
-        out = _cli("run", "stand", "-c", "broken", "--duration", "0.01", "--out", str(tmp_path / "r"), check_rc=2)
-        assert len(out.stderr.strip().splitlines()) == 1 and "ModuleNotFoundError" in out.stderr
-        _cli("run", "stand", "-c", "joint-pd", "--duration", "0.05", "--quiet", "--out", str(tmp_path / "ok"),
-             check_rc=0)
-    finally:
-        subprocess.run(pip + ["uninstall", "-y", "wbcbench-badplugins"], capture_output=True)
+    plugins = _pip_install(pkg, tmp_path / "site")
+    out = _cli("list", check_rc=2, plugins=plugins)
+    assert "controllers:" in out.stdout and "tsid-torque" in out.stdout
+    errors = out.stderr.strip().splitlines()
+    assert len(errors) == 2
+    assert any("'broken'" in e and "wbcbench-badplugins" in e and "failed to import" in e for e in errors)
+    assert any("'joint-pd'" in e and "built-in" in e for e in errors)
+    out = _cli("run", "stand", "-c", "broken", "--duration", "0.01", "--out", str(tmp_path / "r"), check_rc=2,
+               plugins=plugins)
+    assert len(out.stderr.strip().splitlines()) == 1 and "ModuleNotFoundError" in out.stderr
+    _cli("run", "stand", "-c", "joint-pd", "--duration", "0.05", "--quiet", "--out", str(tmp_path / "ok"),
+         check_rc=0, plugins=plugins)
