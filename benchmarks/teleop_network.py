@@ -7,8 +7,8 @@ reference (the recording's spline at the tick: what the robot should be doing no
 and the reference's own lag behind it (`hand_reference_lag_m`). A run of the recording without the link (its
 spline and feed-forward, the usual replay) is the floor.
 
-    .venv/bin/python benchmarks/teleop_network.py                                  # reach_forward, 6 s, 2 jobs
-    .venv/bin/python benchmarks/teleop_network.py --recordings reach_forward waving --duration 6 --jobs 2
+    .venv/bin/python benchmarks/teleop_network.py                  # reach_forward 0.5-3.5 s (the right reach), 2 jobs
+    .venv/bin/python benchmarks/teleop_network.py --recordings reach_forward waving --start 0 --duration 6
     .venv/bin/python benchmarks/teleop_network.py --latency 0 50 --loss 0 --predict none spline   # a corner
 
 Writes <out>/network.md and <out>/network.json; the run directories go to <out>/runs/.
@@ -26,6 +26,15 @@ from pathlib import Path
 
 
 def one(job: dict) -> dict:
+    done = Path(job["out"]) / "network_row.json"
+    if job["resume"] and done.exists():
+        return json.loads(done.read_text())
+    row = _run(job)
+    done.write_text(json.dumps(row, default=str))
+    return row
+
+
+def _run(job: dict) -> dict:
     from wbcbench.teleop.commands import run_session
     from wbcbench.teleop.network import NetworkImpairment
 
@@ -35,8 +44,8 @@ def one(job: dict) -> dict:
         params = {"network": NetworkImpairment(latency=job["latency_ms"] * 1e-3, loss=job["loss_pct"] / 100.0,
                                                seed=job["seed"]),
                   "predict": job["predict"]}
-    result = run_session(job["recording"], duration=job["duration"], out=job["out"], quiet=True, overwrite=True,
-                         **params)
+    result = run_session(job["recording"], duration=job["duration"], start=job["start"], out=job["out"], quiet=True,
+                         overwrite=True, **params)
     s = result.summary
     m = s.get("metrics", {})
     true = m.get("hand_position_error_true_m") or m.get("hand_position_error_m")
@@ -57,30 +66,35 @@ def cell(r: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--recordings", nargs="+", default=["reach_forward"])
-    ap.add_argument("--duration", type=float, default=6.0, help="seconds of each recording, from its start")
+    ap.add_argument("--start", type=float, default=0.5, help="recording time to start from [s]")
+    ap.add_argument("--duration", type=float, default=3.0, help="seconds of each recording from --start")
     ap.add_argument("--latency", type=float, nargs="+", default=[0, 20, 50, 100], help="added latency [ms]")
     ap.add_argument("--loss", type=float, nargs="+", default=[0, 5, 20], help="loss [%%]")
     ap.add_argument("--predict", nargs="+", default=["none", "velocity", "spline"])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--out", default="reports/teleop-network")
+    ap.add_argument("--resume", action="store_true", help="reuse the rows of runs already done in --out")
     args = ap.parse_args(argv)
     out = Path(args.out)
     jobs = []
     for rec in args.recordings:
         jobs.append({"recording": rec, "latency_ms": None, "loss_pct": None, "predict": "-", "seed": args.seed,
-                     "duration": args.duration, "out": str(out / "runs" / f"{rec}-nolink")})
+                     "duration": args.duration, "start": args.start, "out": str(out / "runs" / f"{rec}-nolink"),
+                     "resume": args.resume})
         for lat in args.latency:
             for loss in args.loss:
                 for pred in args.predict:
                     jobs.append({"recording": rec, "latency_ms": lat, "loss_pct": loss, "predict": pred,
-                                 "seed": args.seed, "duration": args.duration,
+                                 "seed": args.seed, "duration": args.duration, "start": args.start,
+                                 "resume": args.resume,
                                  "out": str(out / "runs" / f"{rec}-{lat:g}ms-{loss:g}pct-{pred}")})
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(one, jobs))
     wall = time.perf_counter() - t0
-    lines = [f"# Hand error against added latency and loss, seed {args.seed}, first {args.duration:g} s", "",
+    lines = [f"# Hand error against added latency and loss, seed {args.seed}, {args.duration:g} s from "
+             f"recording time {args.start:g} s", "",
              "Hand position error against the operator's undelayed reference [mm], mean / max over both hands and "
              "every tick (tsid-teleop, SPD, repulsors and stabilizer on, `rest` anchor); the stream's frames at "
              "50 Hz through the simulated link (fixed latency, Bernoulli loss), the newest received frame low-pass "

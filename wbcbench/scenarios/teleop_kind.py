@@ -13,8 +13,10 @@ params (YAML `params:` or `TeleopScenario.from_source`):
   proportion: robot/human scale, "shoulders" (default), "head" or a number (see the Retargeter).
   feedforward: true (default): recordings give the frame tasks the velocity and acceleration of the references
     (a C2 cubic spline through the retargeted frames, scipy's CubicSpline / RotationSpline); false: zero.
-    Live streams never feed forward: their references are the latest frame through a first-order low-pass
-    (`smoothing` [s], default 0.03) so that 50-60 Hz steps do not reach the 8000 s^-2 hand tasks as jumps.
+    Streams (live, or a recording through `network`) have their references from the newest received frame
+    through a first-order low-pass (`smoothing` [s], default 0.03) so that 50-60 Hz steps do not reach the
+    8000 s^-2 hand tasks as jumps, and feed forward the velocity of the last frames (through the same filter; no
+    acceleration).
   on_loss: what the robot tracks while the source is invalid (stream stale or not started, file ended, frame
     without the effector): "hold" (default) the last valid targets; "reference" the effectors' poses in the
     reference posture, reached by a min-jerk blend over `return_time` s (default 2 s). Before any valid frame
@@ -58,6 +60,15 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     rejoin_speed [m/s] (0.5), rejoin_angular_speed [rad/s] (1.5), min_rejoin_time [s] (0.3), body (default:
     on, off with anchor absolute), body_margin [m] (0.03). Interventions: the `teleop_filter` log channel and
     `teleop.filter` in the summary.
+  network: an impaired link between the operator and the robot (wbcbench/teleop/network.py), e.g.
+    "latency=50ms,jitter=5ms,loss=5%,burst=3,reorder=2%,duplicate=1%,corrupt=1%,stall=0.5s@3s,seed=1". A recording
+    is then replayed through the link in simulated time into the live receiver's own decoder (reproducible), and
+    the hands' undelayed references are logged (`teleop_truth`) and measured against; a `udp://HOST:PORT`
+    stream passes through a loopback relay listening on HOST:PORT. Default: none.
+  predict: none (default), velocity or spline: streams extrapolate the newest frame over its age plus the
+    filter's lag (wbcbench/teleop/prediction.py), at most `predict_horizon` [s] (default 0.15); `predict_latency`
+    [s] (default 0): a live stream's one-way latency the receiver cannot observe, added to the frames' age. Each
+    tick's age and horizon are in the `teleop_stream` log channel with the receiver's counters.
   targets: {effector: [task names]} (default left_hand -> [left_hand], right_hand -> [right_hand],
     head -> [head, head_pitch, head_yaw]).
 
@@ -70,7 +81,9 @@ the gripper centre of the profile's `repulsors`, farther than r_rep + r_frame fr
 robot's configuration of that tick) and the fraction inside (`hand_reference_inside_body_fraction`): a
 reference inside the hips cannot be tracked without interpenetration, whatever the controller;
 `head_position_error_m`; and `teleop` (invalid ticks, loss events and their duration, clamped ticks per
-effector, the live stream's receiver counters).
+effector, the stream's receiver counters, the network link's counters and the prediction horizon). Through the
+simulated link, also the hand errors against the undelayed reference (`hand_position_error_true_m`,
+`hand_rotation_error_true`) and the reference's lag behind it (`hand_reference_lag_m`).
 """
 
 from __future__ import annotations

@@ -312,6 +312,11 @@ class ImpairedReplay:
     def source(self) -> str:
         return self.recording.source
 
+    @property
+    def in_flight(self) -> int:
+        """Datagrams sent and not arrived yet."""
+        return len(self._queue)
+
     def sender_time(self, t: float) -> float:
         """The recording time being sent at run time t [s] (the shared clock of the simulated link)."""
         return self.start + t * self.speed

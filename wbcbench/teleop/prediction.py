@@ -56,6 +56,7 @@ class PosePredictor:
         self.max_horizon = float(max_horizon)
         self.max_gap = float(max_gap)
         self._frames: deque = deque(maxlen=int(history))
+        self._coefficients: dict | None = None
 
     @property
     def newest_time(self) -> float | None:
@@ -76,6 +77,7 @@ class PosePredictor:
                                           for k, M in poses.items()}))
         while self._frames[0][0] < tau - self.max_gap:
             self._frames.popleft()
+        self._coefficients = None
         return True
 
     def horizon(self, age: float) -> float:
@@ -85,6 +87,24 @@ class PosePredictor:
             return 0.0
         return float(min(max(age, 0.0), self.max_horizon))
 
+    def _fit(self) -> dict:
+        """Per effector (p0, R0, b, c): y(h) = b h + c h^2 about the newest pose (c = 0: constant velocity;
+        b = c = 0: no older frame). Computed once per received frame."""
+        tau0, newest = self._frames[-1]
+        older = list(self._frames)[:-1]
+        s = np.array([tau - tau0 for tau, _ in older])  # < 0
+        fit = {}
+        for k, (p0, R0) in newest.items():
+            b = c = np.zeros(6)
+            Y = np.array([np.concatenate([f[k][0] - p0, pin.log3(R0.T @ f[k][1])]) for _, f in older if k in f])
+            if older and len(Y) == len(older):
+                if self.method == "spline" and len(older) >= 2:
+                    (b, c), *_ = np.linalg.lstsq(np.column_stack([s, s * s]), Y, rcond=None)
+                else:
+                    b = Y[-1] / s[-1]  # the newest older frame: constant velocity
+            fit[k] = (p0, R0, b, c)
+        return fit
+
     def predict(self, age: float) -> tuple[dict, dict, float]:
         """(effector -> pin.SE3 extrapolated over `horizon(age)`, effector -> the rate of that extrapolation (6,)
         [m/s, rad/s per second of sender time, world axes], the horizon used [s]). Without an older frame: the
@@ -92,26 +112,13 @@ class PosePredictor:
         rates (a feed-forward estimate)."""
         if not self._frames:
             return {}, {}, 0.0
-        tau0, newest = self._frames[-1]
+        if self._coefficients is None:
+            self._coefficients = self._fit()
         h = self.horizon(age)
-        older = list(self._frames)[:-1]
-        if not older:
-            return {k: pin.SE3(R, p) for k, (p, R) in newest.items()}, {k: np.zeros(6) for k in newest}, 0.0
-        s = np.array([tau - tau0 for tau, _ in older])  # < 0
         poses, rates = {}, {}
-        for k, (p0, R0) in newest.items():
-            Y = np.array([np.concatenate([f[k][0] - p0, pin.log3(R0.T @ f[k][1])]) for _, f in older if k in f])
-            if len(Y) != len(older):
-                poses[k], rates[k] = pin.SE3(R0, p0), np.zeros(6)
-                continue
-            if self.method == "spline" and len(older) >= 2:
-                A = np.column_stack([s, s * s])
-                (b, c), *_ = np.linalg.lstsq(A, Y, rcond=None)
-                y, dy = b * h + c * h * h, b + 2.0 * c * h
-            else:
-                dy = Y[-1] / s[-1]  # the newest older frame: constant velocity
-                y = dy * h
-            R = R0 @ pin.exp3(y[3:])
+        for k, (p0, R0, b, c) in self._coefficients.items():
+            y, dy = b * h + c * (h * h), b + (2.0 * h) * c
+            R = R0 @ pin.exp3(y[3:]) if h > 0 else R0
             poses[k] = pin.SE3(R, p0 + y[:3])
             rates[k] = np.concatenate([dy[:3], R @ dy[3:]])  # body rate of the log, to world axes (small steps)
         return poses, rates, h

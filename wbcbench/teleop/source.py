@@ -157,6 +157,7 @@ class TeleopReferenceSource:
         self.predictor = (PosePredictor(cfg.predict, cfg.predict_horizon, max_gap=cfg.stale_after)
                           if self.streamed else None)
         self._filtered_rate: dict[str, np.ndarray] = {}
+        self._sample = self._sample_key = self._anchored_sample = None
         self._min_delay = None
         self.stream_age, self.stream_horizon = np.nan, 0.0
         self.truth = np.full(24, np.nan)
@@ -278,7 +279,10 @@ class TeleopReferenceSource:
     def _link_targets(self, t: float) -> tuple[dict, bool, dict]:
         """A recording through the simulated impaired link: what a live receiver holds at t (shared clock)."""
         frame = self.link.frame_at(t)
-        sample = self.retargeter.sample_frame(frame, t)
+        key = None if frame is None else (frame.time, frame.valid)
+        if key != self._sample_key or self._sample is None:  # retarget a frame once
+            self._sample, self._sample_key = self.retargeter.sample_frame(frame, t), key
+        sample = self._sample
         age = np.nan if frame is None else self.link.sender_time(t) - frame.time
         return self._stream_targets(t, sample, None if frame is None else frame.time, age)
 
@@ -287,9 +291,12 @@ class TeleopReferenceSource:
         targets: the anchor, the prediction over the frame's age, the first-order filter."""
         if self.anchor != "absolute" and sample.valid and not self.calibration_positions:
             self._set_anchor(sample.references)
-        anchored = {k: self._anchored(k, M.translation) for k, M in sample.references.items()}
-        clamped = {k: bool(c or anchored[k][1][0]) for k, c in sample.clamped.items()}
-        refs = {k: pin.SE3(M.rotation, anchored[k][0][0]) for k, M in sample.references.items()}
+        if sample is not self._anchored_sample:  # anchor a sample once
+            anchored = {k: self._anchored(k, M.translation) for k, M in sample.references.items()}
+            self._anchored_refs = ({k: pin.SE3(M.rotation, anchored[k][0][0]) for k, M in sample.references.items()},
+                                   {k: bool(c or anchored[k][1][0]) for k, c in sample.clamped.items()})
+            self._anchored_sample = sample
+        refs, clamped = dict(self._anchored_refs[0]), self._anchored_refs[1]
         horizon, rates = 0.0, {}
         if sample.valid:
             if frame_time is not None and frame_time != self.predictor.newest_time:
