@@ -264,6 +264,35 @@ def test_a_stalled_sender_goes_stale_and_the_robot_holds_then_resumes(talos):
     assert sc.reference_source.loss_events == 1 and r["horizon"].max() <= 0.15
 
 
+def test_a_live_streams_frame_age_without_a_shared_clock(talos):
+    """A live receiver (own clock) fed a recording 50 ms late with up to 10 ms of jitter: the age the source gives
+    a frame is its delay beyond the fastest delivery plus the time since it arrived plus `predict_latency`, i.e.
+    the true age within the jitter of the fastest delivery."""
+    from wbcbench.teleop.sender import recording_datagram
+
+    rec = open_recording("reach_forward")
+    now = [0.0]
+    receiver = UdpPoseReceiver(None, clock=lambda: now[0])
+    sc = TeleopScenario.from_source(talos, receiver, duration=1.0, realtime=False, predict="velocity",
+                                    predict_latency=0.05, engage_time=0.0)
+    sc.setup(talos.q0, np.zeros(3))
+    src = sc.reference_source
+    rng = np.random.default_rng(0)
+    arrivals = [(rec.times[i] + 0.05 + 0.01 * rng.random(), i) for i in range(60)]
+    ages = []
+    for k in range(1000):
+        t = now[0] = k * 1e-3
+        while arrivals and arrivals[0][0] <= t:
+            arrival, i = arrivals.pop(0)
+            receiver.feed(recording_datagram(rec, i, i), arrival=arrival)
+        src.targets(t)
+        if receiver.latest is not None:
+            ages.append(src.stream_age - (t - receiver.latest.timestamp))
+    ages = np.array(ages)
+    assert len(ages) > 900 and np.all(np.abs(ages) <= 0.01 + 1e-9)
+    assert src.stream_horizon == pytest.approx(min(src.stream_age + 0.03, 0.15))
+
+
 # ------------------------------------------------------------------------------- garbage on a live stream
 def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
