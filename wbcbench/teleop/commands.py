@@ -6,6 +6,10 @@ UDP stream.
                     [--duration S] [--out DIR] [--net SPEC] [--predict none|velocity|spline]
     wbcbench teleop --list
 
+`--net SPEC` impairs the operator's stream (wbcbench/teleop/network.py): a recording is replayed through the
+link in simulated time, a udp:// stream passes through a loopback relay listening on HOST:PORT; `--predict`
+extrapolates the newest received pose over its age (wbcbench/teleop/prediction.py).
+
 The session is a `teleop` scenario (wbcbench/scenarios/teleop_kind.py) run by the usual runner, with the
 self-collision geoms of the robot profile checked every tick (`SimOptions.self_collision = "detect"`, or
 `--self-collision physical` to make them act). The run directory is the usual one; `hand_errors.npz` adds the
