@@ -140,18 +140,19 @@ def test_the_relay_delays_duplicates_and_loses_real_datagrams():
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             sent = time.monotonic()
             s.sendto(encode_datagram(0, 0.0, {15: ((0, 0, 0), (0, 0, 0, 1.0))}), ("127.0.0.1", relay.port))
-            while receiver.stats.received < 2 and time.monotonic() - sent < 2.0:
+            while receiver.stats.received < 2 and time.monotonic() - sent < 3.0:
                 receiver.poll()
                 time.sleep(0.001)
             delay = receiver.latest.arrival - sent
-        assert 0.08 <= delay < 0.3
+        assert 0.08 <= delay < 1.0  # never early; the upper bound only catches a relay that does not delay
         assert receiver.stats.received == 2 and receiver.stats.duplicates == 1
     with UdpPoseReceiver(port=0) as receiver, ImpairedRelay(NetworkImpairment(loss=0.5, seed=1),
                                                             receiver.address) as relay:
         with ReplaySender(open_recording("waving"), relay.port, speed=20.0) as sender:
             sender.run(0, 100)
-        end = time.monotonic() + 1.0
-        while receiver.stats.received < relay.link.stats.delivered and time.monotonic() < end:
+        end = time.monotonic() + 3.0
+        while ((relay.link.stats.offered < 100 or receiver.stats.received < relay.link.stats.delivered)
+               and time.monotonic() < end):
             receiver.poll()
             time.sleep(0.002)
         assert receiver.stats.received == relay.link.stats.delivered == 100 - relay.link.stats.lost
