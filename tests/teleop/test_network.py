@@ -144,7 +144,7 @@ def test_the_relay_delays_duplicates_and_loses_real_datagrams():
                 receiver.poll()
                 time.sleep(0.001)
             delay = receiver.latest.arrival - sent
-        assert 0.08 <= delay < 1.0  # never early; the upper bound only catches a relay that does not delay
+        assert 0.08 <= delay < 1.0  # never early (the upper bound is loose: a loaded machine)
         assert receiver.stats.received == 2 and receiver.stats.duplicates == 1
     with UdpPoseReceiver(port=0) as receiver, ImpairedRelay(NetworkImpairment(loss=0.5, seed=1),
                                                             receiver.address) as relay:
