@@ -13,8 +13,10 @@ params (YAML `params:` or `TeleopScenario.from_source`):
   proportion: robot/human scale, "shoulders" (default), "head" or a number (see the Retargeter).
   feedforward: true (default): recordings give the frame tasks the velocity and acceleration of the references
     (a C2 cubic spline through the retargeted frames, scipy's CubicSpline / RotationSpline); false: zero.
-    Live streams never feed forward: their references are the latest frame through a first-order low-pass
-    (`smoothing` [s], default 0.03) so that 50-60 Hz steps do not reach the 8000 s^-2 hand tasks as jumps.
+    Streams (live, or a recording through `network`) have their references from the newest received frame
+    through a first-order low-pass (`smoothing` [s], default 0.03) so that 50-60 Hz steps do not reach the
+    8000 s^-2 hand tasks as jumps, and feed forward the velocity of the last frames (through the same filter; no
+    acceleration).
   on_loss: what the robot tracks while the source is invalid (stream stale or not started, file ended, frame
     without the effector): "hold" (default) the last valid targets; "reference" the effectors' poses in the
     reference posture, reached by a min-jerk blend over `return_time` s (default 2 s). Before any valid frame
@@ -58,6 +60,15 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     rejoin_speed [m/s] (0.5), rejoin_angular_speed [rad/s] (1.5), min_rejoin_time [s] (0.3), body (default:
     on, off with anchor absolute), body_margin [m] (0.03). Interventions: the `teleop_filter` log channel and
     `teleop.filter` in the summary.
+  network: an impaired link between the operator and the robot (wbcbench/teleop/network.py), e.g.
+    "latency=50ms,jitter=5ms,loss=5%,burst=3,reorder=2%,duplicate=1%,corrupt=1%,stall=0.5s@3s,seed=1". A recording
+    is then replayed through the link in simulated time into the live receiver's own decoder (reproducible), and
+    the hands' undelayed references are logged (`teleop_truth`) and measured against; a `udp://HOST:PORT`
+    stream passes through a loopback relay listening on HOST:PORT. Default: none.
+  predict: none (default), velocity or spline: streams extrapolate the newest frame over its age plus the
+    filter's lag (wbcbench/teleop/prediction.py), at most `predict_horizon` [s] (default 0.15); `predict_latency`
+    [s] (default 0): a live stream's one-way latency the receiver cannot observe, added to the frames' age. Each
+    tick's age and horizon are in the `teleop_stream` log channel with the receiver's counters.
   targets: {effector: [task names]} (default left_hand -> [left_hand], right_hand -> [right_hand],
     head -> [head, head_pitch, head_yaw]).
 
@@ -70,7 +81,9 @@ the gripper centre of the profile's `repulsors`, farther than r_rep + r_frame fr
 robot's configuration of that tick) and the fraction inside (`hand_reference_inside_body_fraction`): a
 reference inside the hips cannot be tracked without interpenetration, whatever the controller;
 `head_position_error_m`; and `teleop` (invalid ticks, loss events and their duration, clamped ticks per
-effector, the live stream's receiver counters).
+effector, the stream's receiver counters, the network link's counters and the prediction horizon). Through the
+simulated link, also the hand errors against the undelayed reference (`hand_position_error_true_m`,
+`hand_rotation_error_true`) and the reference's lag behind it (`hand_reference_lag_m`).
 """
 
 from __future__ import annotations
@@ -87,6 +100,12 @@ from ..types import PointReference, References
 from ..teleop.source import (ANCHORS, DEFAULT_ANCHOR, DEFAULT_TARGETS, HANDS, REST_BLEND, TeleopReferenceSource,
                              TeleopSourceConfig, rotation_error, stats)
 from .base import Scenario, ScenarioSpec, register_kind
+
+#: the `teleop_stream` log channel (live streams and the simulated link): the newest frame's age and the
+#: prediction horizon used [ms], the receiver's counters (cumulative), and whether the tick's source was valid
+STREAM_LOG = ("age_ms", "horizon_ms", "received", "accepted", "lost", "malformed", "duplicates", "reordered",
+              "valid")
+_POSE_COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
 
 @register_kind
 class TeleopScenario(Scenario):
@@ -128,6 +147,18 @@ class TeleopScenario(Scenario):
         self.length_unit = lu
         self.up_axis = params.str("up_axis", "auto", choices=["auto", "x", "y", "z"])
         self.segment_map_file = params.str("segment_map", "") or None
+        from ..teleop.network import parse_impairment
+        from ..teleop.prediction import DEFAULT_HORIZON, PREDICTORS
+
+        net = params.raw("network", None)
+        try:
+            self.network = (None if net is None or (isinstance(net, str) and net.strip().lower() in ("", "none"))
+                            else parse_impairment(net, where="network"))
+        except ConfigError as exc:
+            raise ConfigError(str(exc), file=self.spec.file or None) from None
+        self.predict = params.str("predict", "none", choices=list(PREDICTORS))
+        self.predict_horizon = params.float("predict_horizon", DEFAULT_HORIZON, min=0.0)
+        self.predict_latency = params.float("predict_latency", 0.0, min=0.0)
         tg = params.section("targets", None)
         if tg.data:
             targets = {}
@@ -142,6 +173,7 @@ class TeleopScenario(Scenario):
             self.targets = targets
         else:
             self.targets = dict(DEFAULT_TARGETS)
+        self.relay = None
         self.source = self._open_source()
 
     @classmethod
@@ -167,6 +199,9 @@ class TeleopScenario(Scenario):
                 self.live = False
                 return given
             if isinstance(given, UdpPoseReceiver):
+                if self.network is not None:
+                    raise ConfigError("a given receiver cannot be impaired: put an ImpairedRelay "
+                                      "(wbcbench.teleop.network) in front of it", key="network")
                 self.live = True
                 return given
             raise ConfigError(f"mocap must be a MocapRecording or a UdpPoseReceiver, got {type(given).__name__}",
@@ -180,7 +215,19 @@ class TeleopScenario(Scenario):
                 raise ConfigError(f"'{m}' is not udp://HOST:PORT", file=self.spec.file or None,
                                   key="mocap") from None
             self.live = True
-            return UdpPoseReceiver(port_n, host or "127.0.0.1", stale_after=self.stale_after)
+            if self.network is None:
+                return UdpPoseReceiver(port_n, host or "127.0.0.1", stale_after=self.stale_after)
+            # the impaired link in front of the receiver: a relay listens where the operator sends
+            from ..teleop.network import ImpairedRelay
+
+            receiver = UdpPoseReceiver(0, "127.0.0.1", stale_after=self.stale_after)
+            try:
+                self.relay = ImpairedRelay(self.network, receiver.address, listen=(host or "127.0.0.1", port_n))
+            except ConfigError:
+                receiver.close()
+                raise
+            self.relay.start()
+            return receiver
         self.live = False
         if m in MOTIONS:
             return open_recording(m)
@@ -225,7 +272,8 @@ class TeleopScenario(Scenario):
                                   return_time=self.return_time, stale_after=self.stale_after, realtime=self.realtime,
                                   engage_time=self.engage_time, anchor=self.anchor, rest_blend=self.rest_blend,
                                   targets=dict(self.targets), dt=dt, duration=duration, safety=self.safety,
-                                  segment_map=self._segment_map())
+                                  segment_map=self._segment_map(), network=self.network, predict=self.predict,
+                                  predict_horizon=self.predict_horizon, predict_latency=self.predict_latency)
 
     def _segment_map(self) -> dict | None:
         """The `segment_map` file's mapping (checked against the recording's segments), or None."""
@@ -242,10 +290,24 @@ class TeleopScenario(Scenario):
         """Per tick, the command filter's interventions (1 where one happened; wbcbench/teleop/safety.py)."""
         from ..teleop.safety import FILTER_KINDS
 
-        return {"teleop_filter": list(FILTER_KINDS)}
+        out = {"teleop_filter": list(FILTER_KINDS)}
+        if self.live or self.network is not None:
+            out["teleop_stream"] = list(STREAM_LOG)
+        if self.network is not None and not self.live:
+            out["teleop_truth"] = [f"{h}.{c}" for h in HANDS for c in _POSE_COMPONENTS]
+        return out
 
     def log_values(self) -> list:
-        return [self.reference_source.command_filter.flags]
+        src = self.reference_source
+        out = [src.command_filter.flags]
+        if self.live or self.network is not None:
+            receiver = self.source if self.live else src.link.receiver
+            st = receiver.stats
+            out.append(np.array([1e3 * src.stream_age, 1e3 * src.stream_horizon, st.received, st.accepted, st.lost,
+                                 st.malformed, st.duplicates, st.reordered, float(src.record_valid[-1])]))
+        if self.network is not None and not self.live:
+            out.append(src.truth)
+        return out
 
     def __getattr__(self, name: str):
         # the reference source's state (trajectory, poses, health counters) read through the scenario
@@ -273,12 +335,22 @@ class TeleopScenario(Scenario):
                   "loss_events": self.loss_events, "invalid_time_s": float((~valid).sum() * self.spec.control_dt),
                   "longest_invalid_s": float(max(losses, default=0.0)), "on_loss": self.on_loss,
                   "clamped_ticks": dict(self.clamped_ticks)}
-        if self.live:
-            st = self.source.stats
+        src = self.reference_source
+        if src.streamed:
+            stream_src = src.link.receiver if src.link is not None else self.source
+            st = stream_src.stats
             teleop["stream"] = {"received": st.received, "accepted": st.accepted, "lost": st.lost,
                                 "malformed": st.malformed, "duplicates": st.duplicates, "reordered": st.reordered,
                                 "restarts": st.restarts, "last_error": st.last_error,
-                                "status_at_end": self.source.status().value}
+                                "status_at_end": stream_src.status().value}
+            link = src.link.link if src.link is not None else (self.relay.link if self.relay is not None else None)
+            if self.network is not None:
+                teleop["network"] = {"spec": self.network.describe(),
+                                     "path": "simulated" if src.link is not None else "relay",
+                                     "link": link.stats.as_dict() if link is not None else None}
+            horizons = log.get("teleop_stream.horizon_ms")
+            teleop["prediction"] = {"method": self.predict, "max_horizon_s": self.predict_horizon,
+                                    "horizon_ms": stats(np.asarray(horizons)) if horizons is not None else None}
         teleop["filter"] = self.reference_source.command_filter.summary()
         teleop["skeleton"] = self.reference_source.skeleton_summary()
         out["teleop"] = teleop

@@ -5,6 +5,9 @@
 * live stream: :class:`UdpPoseReceiver` (non-blocking, counts lost / reordered / duplicated / malformed datagrams,
   ``stale`` detection) and :class:`ReplaySender` (a recording over loopback); datagram format in
   :mod:`wbcbench.teleop.protocol`;
+* network realism: :class:`NetworkImpairment` (latency, jitter, loss and bursts, reordering, duplication,
+  corruption, sender stalls; :func:`parse_impairment`) on a loopback relay (:class:`ImpairedRelay`) or in simulated
+  time (:class:`ImpairedReplay`), and :class:`PosePredictor` (constant-velocity or spline extrapolation);
 * :func:`umeyama` similarity / rigid alignment of point sets;
 * :class:`HumanModel`: example-robot-data's human, posed from joint angles, scaled to the operator;
 * :class:`Retargeter`: ``references_at(t) -> {"left_hand", "right_hand", "head": pin.SE3}`` for the robot, with
@@ -18,6 +21,8 @@ from .csv_poses import read_pose_csv, write_pose_csv
 from .human_model import HumanModel, estimate_segment_lengths
 from .loader import load_recording
 from .mvnx import read_mvnx, write_mvnx
+from .network import ImpairedLink, ImpairedRelay, ImpairedReplay, NetworkImpairment, parse_impairment
+from .prediction import PosePredictor
 from .protocol import Datagram, DatagramError, decode_datagram, encode_datagram
 from .receiver import ReceivedFrame, ReceiverStats, StreamStatus, UdpPoseReceiver
 from .recording import MocapRecording, PoseFrame
@@ -38,8 +43,13 @@ __all__ = [
     "Datagram",
     "DatagramError",
     "HumanModel",
+    "ImpairedLink",
+    "ImpairedRelay",
+    "ImpairedReplay",
     "MocapRecording",
+    "NetworkImpairment",
     "PoseFrame",
+    "PosePredictor",
     "PoseSource",
     "ReachShell",
     "ReceivedFrame",
@@ -59,6 +69,7 @@ __all__ = [
     "list_recordings",
     "load_recording",
     "open_recording",
+    "parse_impairment",
     "parse_bvh",
     "read_bvh",
     "read_mvnx",

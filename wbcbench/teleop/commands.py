@@ -3,8 +3,12 @@ UDP stream.
 
     wbcbench teleop --mocap FILE|NAME|udp://127.0.0.1:PORT [--controller tsid-teleop] [--mode spd|position|torque]
                     [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--anchor rest|absolute|offset]
-                    [--duration S] [--out DIR]
+                    [--duration S] [--out DIR] [--net SPEC] [--predict none|velocity|spline]
     wbcbench teleop --list
+
+`--net SPEC` impairs the operator's stream (wbcbench/teleop/network.py): a recording is replayed through the
+link in simulated time, a udp:// stream passes through a loopback relay listening on HOST:PORT; `--predict`
+extrapolates the newest received pose over its age (wbcbench/teleop/prediction.py).
 
 The session is a `teleop` scenario (wbcbench/scenarios/teleop_kind.py) run by the usual runner, with the
 self-collision geoms of the robot profile checked every tick (`SimOptions.self_collision = "detect"`, or
@@ -67,6 +71,19 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-filter", action="store_true",
                    help="pass the operator's references to the controller unfiltered (no garbage, body, jump or "
                         "speed filter; wbcbench/teleop/safety.py)")
+    p.add_argument("--net", default=None, metavar="SPEC",
+                   help="impair the operator's stream, e.g. latency=50ms,jitter=5ms,loss=5%%,burst=3,reorder=2%%,"
+                        "duplicate=1%%,corrupt=1%%,stall=0.5s@3s,seed=1: a recording is replayed through the link "
+                        "in simulated time (reproducible); a udp:// stream passes through a loopback relay that "
+                        "listens on HOST:PORT (wbcbench/teleop/network.py)")
+    p.add_argument("--predict", default="none", choices=["none", "velocity", "spline"],
+                   help="extrapolate the newest received operator pose over its age (streams and --net): "
+                        "constant velocity, or a quadratic over the last frames (default none)")
+    p.add_argument("--predict-horizon", type=float, default=0.15, metavar="S",
+                   help="cap on the extrapolation [s] (default 0.15: a stalled stream does not fly away)")
+    p.add_argument("--predict-latency", type=float, default=0.0, metavar="S",
+                   help="live streams: the one-way latency the receiver cannot observe, added to the frames' "
+                        "age (e.g. half the round trip) [s] (default 0)")
     p.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -141,6 +158,8 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         close = getattr(scen.source, "close", None)
         if scen.live and close is not None:
             close()
+        if scen.relay is not None:
+            scen.relay.close()
     errors = getattr(scen, "hand_error_samples", None)
     if errors:
         np.savez_compressed(Path(result.run_dir) / "hand_errors.npz", **errors)
@@ -174,6 +193,14 @@ def run_command(args: argparse.Namespace) -> int:
     kwargs.update(length_unit=args.length_unit, up_axis=args.up_axis)
     if args.segment_map:
         kwargs["segment_map"] = str(Path(args.segment_map).resolve())
+    if args.net is not None:
+        from .network import parse_impairment
+
+        kwargs["network"] = parse_impairment(args.net, where="--net")
+    for key, value in (("--predict-horizon", args.predict_horizon), ("--predict-latency", args.predict_latency)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ConfigError(f"must be a duration >= 0 s, got {value}", key=key)
+    kwargs.update(predict=args.predict, predict_horizon=args.predict_horizon, predict_latency=args.predict_latency)
     if args.quiet:
         result = run_session(args.mocap, **kwargs)
     else:
@@ -229,6 +256,21 @@ def render(console, summary: dict, run_dir) -> None:
         stream = tele.get("stream")
         if stream:
             t.add_row("stream", ", ".join(f"{k} {v}" for k, v in stream.items() if v not in ("", None)))
+        net = tele.get("network")
+        if net:
+            link = net.get("link") or {}
+            t.add_row("network", f"{net['spec']} ({net['path']})"
+                      + (": " + ", ".join(f"{k} {v}" for k, v in link.items() if v) if link else ""))
+        pred = tele.get("prediction")
+        if pred and pred.get("method") != "none":
+            h = pred.get("horizon_ms") or {}
+            t.add_row("prediction", f"{pred['method']}, horizon mean {h.get('mean') or 0:.1f} ms, max "
+                                    f"{h.get('max') or 0:.1f} ms (cap {1e3 * pred['max_horizon_s']:.0f} ms)")
+        for key, label in (("hand_position_error_true_m", "hand error vs the undelayed reference [m]"),
+                           ("hand_reference_lag_m", "reference lag behind the undelayed one [m]")):
+            v = m.get(key)
+            if v and v.get("mean") is not None:
+                t.add_row(label, f"mean {v['mean']:.4f}  max {v['max']:.4f}")
         clamped = {k: v for k, v in tele.get("clamped_ticks", {}).items() if v}
         if clamped:
             t.add_row("targets out of reach", ", ".join(f"{k} {v} ticks (clamped)" for k, v in clamped.items()))

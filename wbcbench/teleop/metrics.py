@@ -5,6 +5,11 @@ any run directory, so that both give the same numbers.
 
 Alignment: log row i (the state after tick i) is compared with the reference of tick i - 1 (row 0: tick 0's),
 as the run-time metrics always did.
+
+Through an impaired link (a recording replayed through wbcbench/teleop/network.py's simulated link), the log
+also holds the hands' undelayed reference (`teleop_truth` channels: the recording's spline at the tick, what the
+robot should be doing now): the hand errors are then also measured against it (`*_true`), and the reference's
+own error against it (`reference_lag`: what the link and the prediction left in the target).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import pinocchio as pin
 from ..side import Side
 from .source import HANDS, rotation_error, stats
 
-__all__ = ["EFFECTORS", "has_targets", "teleop_errors_from_log", "teleop_metrics_from_log"]
+__all__ = ["EFFECTORS", "has_targets", "has_truth", "teleop_errors_from_log", "teleop_metrics_from_log"]
 
 EFFECTORS = ("left_hand", "right_hand", "head")
 _COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
@@ -23,6 +28,11 @@ _COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "
 
 def has_targets(log: dict) -> bool:
     return all(f"target_{e}.x" in log for e in EFFECTORS)
+
+
+def has_truth(log: dict) -> bool:
+    """The log holds the hands' undelayed reference (a run through the simulated impaired link)."""
+    return all(f"teleop_truth.{h}.x" in log for h in HANDS)
 
 
 def teleop_errors_from_log(log: dict, robot) -> dict[str, np.ndarray]:
@@ -58,9 +68,15 @@ def teleop_errors_from_log(log: dict, robot) -> dict[str, np.ndarray]:
             inside[h][i] = any(np.linalg.norm(x - data.oMf[fid].act(off)) < a for fid, off, a in points)
     e_pos = {k: np.linalg.norm(ref[k][:, :3] - pos[k], axis=1) for k in frames}
     e_rot = {k: rotation_error(ref[k][:, 3:].reshape(-1, 3, 3), rot[k]) for k in frames}
-    return {"position": np.stack([e_pos[h] for h in HANDS]), "rotation": np.stack([e_rot[h] for h in HANDS]),
-            "reference_inside_body": np.stack([inside[h] for h in HANDS]), "head_position": e_pos["head"],
-            "t": np.asarray(log["t"]) - (log["t"][0] if n else 0.0)}
+    out = {"position": np.stack([e_pos[h] for h in HANDS]), "rotation": np.stack([e_rot[h] for h in HANDS]),
+           "reference_inside_body": np.stack([inside[h] for h in HANDS]), "head_position": e_pos["head"],
+           "t": np.asarray(log["t"]) - (log["t"][0] if n else 0.0)}
+    if has_truth(log):
+        true = {h: np.column_stack([log[f"teleop_truth.{h}.{c}"] for c in _COMPONENTS])[shift] for h in HANDS}
+        out["position_true"] = np.stack([np.linalg.norm(true[h][:, :3] - pos[h], axis=1) for h in HANDS])
+        out["rotation_true"] = np.stack([rotation_error(true[h][:, 3:].reshape(-1, 3, 3), rot[h]) for h in HANDS])
+        out["reference_lag"] = np.stack([np.linalg.norm(true[h][:, :3] - ref[h][:, :3], axis=1) for h in HANDS])
+    return out
 
 
 def teleop_metrics_from_log(log: dict, robot, errors: dict | None = None) -> dict:
@@ -68,7 +84,7 @@ def teleop_metrics_from_log(log: dict, robot, errors: dict | None = None) -> dic
     e = errors if errors is not None else teleop_errors_from_log(log, robot)
     outside = ~e["reference_inside_body"].reshape(-1)
     all_pos, all_rot = e["position"].reshape(-1), e["rotation"].reshape(-1)
-    return {
+    out = {
         "hand_position_error_m": stats(all_pos),
         "hand_rotation_error": stats(all_rot),
         "hand_errors": {h: {"position_m": stats(e["position"][i]), "rotation": stats(e["rotation"][i])}
@@ -78,3 +94,8 @@ def teleop_metrics_from_log(log: dict, robot, errors: dict | None = None) -> dic
         "hand_reference_inside_body_fraction": float(1.0 - outside.mean()) if outside.size else None,
         "head_position_error_m": stats(e["head_position"]),
     }
+    if "position_true" in e:
+        out["hand_position_error_true_m"] = stats(e["position_true"].reshape(-1))
+        out["hand_rotation_error_true"] = stats(e["rotation_true"].reshape(-1))
+        out["hand_reference_lag_m"] = stats(e["reference_lag"].reshape(-1))
+    return out

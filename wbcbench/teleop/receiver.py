@@ -100,7 +100,8 @@ class UdpPoseReceiver:
     """Receive the pose stream on a UDP port, without blocking.
 
     Args:
-        port: UDP port; 0 picks a free one (read it back from :attr:`port`).
+        port: UDP port; 0 picks a free one (read it back from :attr:`port`); None: no socket, datagrams come
+            only through :meth:`feed` (the simulated link of :mod:`wbcbench.teleop.network`).
         host: address to bind, default loopback ``127.0.0.1``.
         stale_after: seconds without an accepted frame before the status is ``stale`` (> 0).
         segment_ids: segment name -> id map of the stream (default: the 23 MVN segments).
@@ -114,7 +115,7 @@ class UdpPoseReceiver:
 
     def __init__(
         self,
-        port: int = 0,
+        port: int | None = 0,
         host: str = "127.0.0.1",
         *,
         stale_after: float = 0.2,
@@ -134,13 +135,16 @@ class UdpPoseReceiver:
         self._clock = clock
         self._window = int(window)
         self._max_per_poll = int(max_per_poll)
-        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self._sock.bind((host, int(port)))
-        except OSError as exc:
-            self._sock.close()
-            raise ConfigError(f"cannot bind UDP {host}:{port} ({exc.strerror or exc})", key="port") from None
-        self._sock.setblocking(False)
+        self._sock = None
+        if port is not None:
+            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:
+                self._sock.bind((host, int(port)))
+            except (OSError, OverflowError) as exc:
+                self._sock.close()
+                raise ConfigError(f"cannot bind UDP {host}:{port} ({getattr(exc, 'strerror', None) or exc})",
+                                  key="port") from None
+            self._sock.setblocking(False)
         self._stats = ReceiverStats()
         self._latest: ReceivedFrame | None = None
         self._seen: deque[int] = deque()
@@ -150,18 +154,21 @@ class UdpPoseReceiver:
     # ------------------------------------------------------------------------------------------ socket
     @property
     def port(self) -> int:
-        """The bound UDP port."""
-        return int(self._sock.getsockname()[1])
+        """The bound UDP port (0 without a socket)."""
+        return int(self._sock.getsockname()[1]) if self._sock is not None else 0
 
     @property
     def address(self) -> tuple[str, int]:
-        """The bound (host, port)."""
+        """The bound (host, port) (("", 0) without a socket)."""
+        if self._sock is None:
+            return "", 0
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)
 
     def close(self) -> None:
         """Close the socket (idempotent)."""
-        self._sock.close()
+        if self._sock is not None:
+            self._sock.close()
 
     def __enter__(self) -> "UdpPoseReceiver":
         return self
@@ -177,6 +184,8 @@ class UdpPoseReceiver:
             The number of frames accepted by this call.
         """
         accepted = 0
+        if self._sock is None:
+            return 0
         for _ in range(self._max_per_poll):
             try:
                 data = self._sock.recv(65536)
@@ -276,6 +285,10 @@ class UdpPoseReceiver:
     def latest(self) -> ReceivedFrame | None:
         """The newest accepted frame, or ``None`` before the first one."""
         return self._latest
+
+    def now(self) -> float:
+        """The receiver's clock [s] (arrivals and staleness)."""
+        return self._clock()
 
     def status(self, now: float | None = None) -> StreamStatus:
         """``waiting``, ``live`` or ``stale`` at receiver time ``now`` (default: the clock)."""

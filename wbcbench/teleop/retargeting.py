@@ -369,6 +369,11 @@ class Retargeter:
         frame = self._source.frame_at(t)
         if self._calibration is None and frame is not None and frame.valid:
             self.calibrate(frame.time)
+        return self.sample_frame(frame, t)
+
+    def sample_frame(self, frame: PoseFrame | None, t: float) -> TeleopSample:
+        """References, validity and clamping flags of a given frame (e.g. one that came through a link), labelled
+        with time ``t`` [s]; the calibration must have happened (else the reference poses, invalid)."""
         cal = self._calibration
         if frame is None or cal is None:
             refs = {name: pin.SE3(pose) for name, pose in self._reference_poses.items()}

@@ -18,7 +18,7 @@ from .protocol import MAX_SEGMENTS, encode_datagram
 from .recording import MocapRecording
 from .segments import MVN_SEGMENT_IDS
 
-__all__ = ["ReplaySender"]
+__all__ = ["ReplaySender", "recording_datagram"]
 
 
 def _check_loopback(host: str) -> str:
@@ -30,6 +30,15 @@ def _check_loopback(host: str) -> str:
         raise ConfigError(f"host {host!r} ({address}) is not a loopback address; only 127.0.0.1 is allowed",
                           key="host")
     return address
+
+
+def recording_datagram(recording: MocapRecording, index: int, sequence: int,
+                       segment_ids: Mapping[str, int] = MVN_SEGMENT_IDS) -> bytes:
+    """The stream's datagram of frame `index` of a recording: its segments with an id, the recording time as the
+    time stamp, `sequence` (wrapped to uint32)."""
+    poses = {int(segment_ids[name]): (recording.positions[index, k], recording.orientations[index, k])
+             for k, name in enumerate(recording.segments) if name in segment_ids}
+    return encode_datagram(sequence & 0xFFFFFFFF, float(recording.times[index]), poses)
 
 
 class ReplaySender:
@@ -64,6 +73,7 @@ class ReplaySender:
         self._address = (_check_loopback(host), int(port))
         self._recording = recording
         self._speed = float(speed)
+        self._segment_ids = dict(segment_ids)
         self._ids = [(k, int(segment_ids[name])) for k, name in enumerate(recording.segments) if name in segment_ids]
         if not self._ids:
             raise ConfigError("no segment of the recording has a stream id", file=recording.source or None)
@@ -87,10 +97,8 @@ class ReplaySender:
 
     def datagram(self, index: int, sequence: int | None = None) -> bytes:
         """The datagram of frame ``index`` (sequence ``first_sequence + index`` unless given)."""
-        rec = self._recording
         seq = (self._first_sequence + index) & 0xFFFFFFFF if sequence is None else sequence
-        poses = {seg_id: (rec.positions[index, k], rec.orientations[index, k]) for k, seg_id in self._ids}
-        return encode_datagram(seq, float(rec.times[index]), poses)
+        return recording_datagram(self._recording, index, seq, self._segment_ids)
 
     def datagrams(self, start: int = 0, stop: int | None = None) -> Iterator[tuple[float, bytes]]:
         """``(due time [s] after the start, datagram)`` for frames ``start .. stop - 1``."""

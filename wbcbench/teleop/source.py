@@ -7,6 +7,15 @@ velocities and accelerations as feed-forward (or a first-order filter on a live 
 to the wall clock for live streams, the signal-loss policy (hold, or return to the reference posture), the
 engagement blend from the robot's own poses, and the bookkeeping of valid / invalid ticks, losses and clamped
 effectors (`record_*`, `loss_events`, `clamped_ticks`).
+
+Streams (a live receiver, or a recording through the simulated impaired link of wbcbench/teleop/network.py,
+`network`): the newest frame can be extrapolated over its age (`predict`: velocity or spline,
+wbcbench/teleop/prediction.py, capped at `predict_horizon`) before the filter. Its age is exact on the simulated
+link (one clock); on a live stream, with no clock shared with the sender, it is the time since the frame's
+sending as far as the receiver can tell (its delay beyond the fastest delivery seen, plus the time since it
+arrived) plus `predict_latency`, the fixed one-way latency the receiver cannot observe (e.g. half the round trip).
+Each tick's age and horizon are kept (`stream_age`, `stream_horizon`) for the log; on the simulated link, so is
+the undelayed reference of the hands (`truth`: the recording's spline at t, what the robot should be doing now).
 """
 
 from __future__ import annotations
@@ -19,6 +28,8 @@ import pinocchio as pin
 
 from ..side import Side
 from ..types import PoseReference
+from .network import ImpairedReplay, NetworkImpairment
+from .prediction import DEFAULT_HORIZON, PosePredictor
 from .safety import CommandFilter, SafetyConfig
 
 __all__ = ["ANCHORS", "DEFAULT_ANCHOR", "DEFAULT_TARGETS", "HANDS", "REST_BLEND", "TeleopReferenceSource",
@@ -97,6 +108,10 @@ class TeleopSourceConfig:
     duration: float = 0.0
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     segment_map: dict | None = None
+    network: NetworkImpairment | None = None
+    predict: str = "none"
+    predict_horizon: float = DEFAULT_HORIZON
+    predict_latency: float = 0.0
 
 
 class TeleopReferenceSource:
@@ -132,10 +147,23 @@ class TeleopReferenceSource:
             cal = self.retargeter.sample(float(self.source.times[0]) if self.start is None else self.start)
             self._set_anchor(cal.references)
         self.trajectory = None if self.live else self._precompute()
+        cfg = self.config
+        # a recording through the simulated impaired link: references from what arrived; the trajectory above
+        # stays as the undelayed truth the hand errors are also measured against
+        self.link = (ImpairedReplay(self.source, cfg.network, speed=self.speed, start=self.start,
+                                    stale_after=cfg.stale_after) if cfg.network is not None and not self.live
+                     else None)
+        self.streamed = self.live or self.link is not None
+        self.predictor = (PosePredictor(cfg.predict, cfg.predict_horizon, max_gap=cfg.stale_after)
+                          if self.streamed else None)
+        self._filtered_rate: dict[str, np.ndarray] = {}
+        self._sample = self._sample_key = self._anchored_sample = None
+        self._min_delay = None
+        self.stream_age, self.stream_horizon = np.nan, 0.0
+        self.truth = np.full(24, np.nan)
         self.command_filter = CommandFilter(self.robot, q0, self.config.safety, self.dt)
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
         self._filtered: dict[str, pin.SE3] = {}
-        self._live_offset_set = False
         self._valid_prev = None
         self._loss_start = None
         self._wall0 = None
@@ -239,31 +267,69 @@ class TeleopReferenceSource:
             if ahead > 0:
                 time.sleep(ahead)
         sample = self.retargeter.sample(t)
-        if self.anchor != "absolute" and sample.valid and not self._live_offset_set:
+        latest = self.source.latest
+        age = np.nan
+        if latest is not None:
+            # no shared clock: the age past the fastest delivery seen, plus the latency the receiver cannot see
+            delay = latest.arrival - latest.timestamp
+            self._min_delay = delay if self._min_delay is None else min(self._min_delay, delay)
+            age = self.source.now() - latest.timestamp - self._min_delay + self.config.predict_latency
+        return self._stream_targets(t, sample, None if latest is None else latest.timestamp, age)
+
+    def _link_targets(self, t: float) -> tuple[dict, bool, dict]:
+        """A recording through the simulated impaired link: what a live receiver holds at t (shared clock)."""
+        frame = self.link.frame_at(t)
+        key = None if frame is None else (frame.time, frame.valid)
+        if key != self._sample_key or self._sample is None:  # retarget a frame once
+            self._sample, self._sample_key = self.retargeter.sample_frame(frame, t), key
+        sample = self._sample
+        age = np.nan if frame is None else self.link.sender_time(t) - frame.time
+        return self._stream_targets(t, sample, None if frame is None else frame.time, age)
+
+    def _stream_targets(self, t: float, sample, frame_time: float | None, age: float) -> tuple[dict, bool, dict]:
+        """A stream's newest frame (retargeted `sample`, sender time stamp `frame_time`, `age` [s] at t) ->
+        targets: the anchor, the prediction over the frame's age, the first-order filter."""
+        if self.anchor != "absolute" and sample.valid and not self.calibration_positions:
             self._set_anchor(sample.references)
-            self._live_offset_set = True
-        anchored = {k: self._anchored(k, M.translation) for k, M in sample.references.items()}
-        clamped = {k: bool(c or anchored[k][1][0]) for k, c in sample.clamped.items()}
-        sample = sample._replace(references={k: pin.SE3(M.rotation, anchored[k][0][0])
-                                             for k, M in sample.references.items()}, clamped=clamped)
+        if sample is not self._anchored_sample:  # anchor a sample once
+            anchored = {k: self._anchored(k, M.translation) for k, M in sample.references.items()}
+            self._anchored_refs = ({k: pin.SE3(M.rotation, anchored[k][0][0]) for k, M in sample.references.items()},
+                                   {k: bool(c or anchored[k][1][0]) for k, c in sample.clamped.items()})
+            self._anchored_sample = sample
+        refs, clamped = dict(self._anchored_refs[0]), self._anchored_refs[1]
+        horizon, rates = 0.0, {}
+        if sample.valid:
+            if frame_time is not None and frame_time != self.predictor.newest_time:
+                self.predictor.push(frame_time, refs)
+            # the horizon covers the frame's age and the filter's own lag (a first-order filter trails a ramp by
+            # its time constant)
+            predicted, rates, horizon = self.predictor.predict(age + self.smoothing)
+            refs.update(predicted)
+        self.stream_age, self.stream_horizon = float(age), horizon
         alpha = 1.0 if self.smoothing <= 0 else 1.0 - np.exp(-self.dt / self.smoothing)
+        ff = self.speed if self.feedforward else 0.0
         out = {}
-        for e, M in sample.references.items():
+        for e, M in refs.items():
             prev = self._filtered.get(e)
+            v = ff * rates.get(e, np.zeros(6))
             if prev is None or not sample.valid:
                 F = pin.SE3(M)
             else:
                 F = pin.SE3(prev.rotation @ pin.exp3(alpha * pin.log3(prev.rotation.T @ M.rotation)),
                             prev.translation + alpha * (M.translation - prev.translation))
+                v = self._filtered_rate[e] + alpha * (v - self._filtered_rate[e])
             if sample.valid:
-                self._filtered[e] = F
-            out[e] = (F, np.zeros(6), np.zeros(6))
-        return out, bool(sample.valid), dict(sample.clamped)
+                self._filtered[e], self._filtered_rate[e] = F, v
+            out[e] = (F, v if sample.valid else np.zeros(6), np.zeros(6))
+        return out, bool(sample.valid), clamped
 
     def targets(self, t: float) -> dict:
         """The named frame-task references at time t [s] (effector targets through the anchor, spline or filter,
         signal-loss policy and engagement blend), with the health bookkeeping."""
-        targets, valid, clamped = (self._live_targets(t) if self.live else self._recorded_targets(t))
+        if self.link is not None:
+            targets, valid, clamped = self._link_targets(t)
+        else:
+            targets, valid, clamped = (self._live_targets(t) if self.live else self._recorded_targets(t))
         if valid:
             if self._valid_prev is False and self._loss_start is not None:
                 self.loss_durations.append(t - self._loss_start)
@@ -282,6 +348,13 @@ class TeleopReferenceSource:
         if t < self.engage_time:
             targets = self._engage(t, targets)
         targets = self.command_filter(t, targets)  # last: nothing unfiltered reaches the controller
+        if self.link is not None:
+            # the undelayed reference: what the robot would be asked without the link (the recording's spline)
+            truth = self._recorded_targets(t)[0]
+            if t < self.engage_time:
+                truth = self._engage(t, truth)
+            self.truth = np.concatenate([np.concatenate([truth[h][0].translation, truth[h][0].rotation.reshape(-1)])
+                                         for h in HANDS])
         for k, c in clamped.items():
             self.clamped_ticks[k] += int(c)
         self.record_t.append(t)
