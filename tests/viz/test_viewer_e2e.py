@@ -13,6 +13,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.request
 
 import numpy as np
 import pytest
@@ -46,7 +47,7 @@ def served(walk_run):
             if proc.poll() is not None:
                 pytest.fail(f"wbcbench view exited: {proc.stderr.read()}")
             try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                urllib.request.urlopen(f"http://127.0.0.1:{port}", timeout=5).close()  # the page is served
                 break
             except OSError:
                 time.sleep(0.3)

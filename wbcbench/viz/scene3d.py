@@ -77,9 +77,22 @@ def _tint(rgb: tuple[int, int, int], tint: tuple[int, int, int] | None, amount: 
     return tuple(int(round((1 - amount) * a + amount * b)) for a, b in zip(rgb, tint))
 
 
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise products of (n, 4) wxyz quaternions."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
+
+
 class RobotNodes:
     """The robot's visual meshes of a MuJoCo model (built with `SimOptions(visuals=True)`) in a viser scene under
-    `root`. `set(data)` moves them to the pose of an `MjData` after `mj_kinematics`."""
+    `root`. `set(data)` moves them to the pose of an `MjData` after `mj_kinematics`.
+
+    The body frames form the kinematic tree (`root/b1/b2/...`), each posed in its parent's frame: a frame sends
+    the base's pose and one rotation per joint that turned; the positions of bodies on revolute joints never
+    change, so they are not sent again. (Each pose is a message, and viser's handling of messages is most of the
+    cost of a frame.)"""
 
     def __init__(self, scene, root: str, model, *, opacity: float | None = None,
                  tint: tuple[int, int, int] | None = None):
@@ -87,9 +100,22 @@ class RobotNodes:
 
         self.root = root
         geoms = [g for g in range(model.ngeom) if model.geom_group[g] == VISUAL_GROUP and model.geom_dataid[g] >= 0]
-        self.bodies = np.array(sorted({int(model.geom_bodyid[g]) for g in geoms}), dtype=int)
-        self.frames = [scene.add_frame(f"{root}/b{b}", show_axes=False) for b in self.bodies]
+        chain = set()
+        for g in geoms:  # the visual bodies and every body between them and the world
+            b = int(model.geom_bodyid[g])
+            while b > 0 and b not in chain:
+                chain.add(b)
+                b = int(model.body_parentid[b])
+        self.bodies = np.array(sorted(chain), dtype=int)  # MuJoCo numbers parents before their children
+        self.parents = np.array([int(model.body_parentid[b]) for b in self.bodies], dtype=int)
+        names = {0: root}
+        for b, p in zip(self.bodies, self.parents):
+            names[int(b)] = f"{names[int(p)]}/b{b}"
+        self.frames = [scene.add_frame(names[int(b)], show_axes=False) for b in self.bodies]
         self._impls = [h._impl for h in self.frames]
+        self._sent_pos = np.full((len(self.bodies), 3), np.inf)
+        self._sent_quat = np.full((len(self.bodies), 4), np.inf)
+        self.world_pos = np.full((len(self.bodies), 3), np.nan)  # as last set [m]
         self.meshes, self._colors = [], []
         for g in geoms:
             m = int(model.geom_dataid[g])
@@ -98,18 +124,31 @@ class RobotNodes:
             color = _rgb(model.geom_rgba[g])
             self._colors.append(color)
             self.meshes.append(scene.add_mesh_simple(
-                f"{root}/b{int(model.geom_bodyid[g])}/g{g}", model.mesh_vert[v0:v0 + nv],
+                f"{names[int(model.geom_bodyid[g])]}/g{g}", model.mesh_vert[v0:v0 + nv],
                 model.mesh_face[f0:f0 + nf], color=_tint(color, tint), opacity=opacity,
                 position=model.geom_pos[g], wxyz=model.geom_quat[g], cast_shadow=False, receive_shadow=False))
 
-    def set(self, data) -> None:
-        """Move the body frames to `data.xpos`, `data.xquat` (world frame, MuJoCo's wxyz quaternions)."""
-        pos, quat = data.xpos[self.bodies].tolist(), data.xquat[self.bodies].tolist()
-        for impl, p, q in zip(self._impls, pos, quat):  # the messages of `h.position = p; h.wxyz = q` (`move`)
-            impl.position[:] = p
-            impl.wxyz[:] = q
-            impl.api._queue_scene_message(_SetPosition(impl.name, tuple(p)))
-            impl.api._queue_scene_message(_SetOrientation(impl.name, tuple(q)))
+    def set(self, data, *, tolerance: float = 1e-6) -> int:
+        """Move the bodies to the pose of `data` (`xpos`, `xmat`, `xquat` after `mj_kinematics`); a body's
+        position and orientation in its parent's frame are sent when they changed by more than `tolerance` [m,
+        and about rad / 2 for the orientation] since last sent. Returns the number of poses sent."""
+        b, p = self.bodies, self.parents
+        R = data.xmat[p].reshape(-1, 3, 3)
+        pos = np.einsum("nji,nj->ni", R, data.xpos[b] - data.xpos[p])  # R_parent^T (x_body - x_parent)
+        conj = data.xquat[p] * [1.0, -1.0, -1.0, -1.0]
+        quat = _quat_mul(conj, data.xquat[b])
+        self.world_pos[:] = data.xpos[b]
+        send_pos = np.flatnonzero((np.abs(pos - self._sent_pos) > tolerance).any(axis=1))
+        send_quat = np.flatnonzero((np.abs(quat - self._sent_quat) > tolerance).any(axis=1))
+        self._sent_pos[send_pos], self._sent_quat[send_quat] = pos[send_pos], quat[send_quat]
+        impls = self._impls
+        for i, v in zip(send_pos, pos[send_pos].tolist()):  # the messages of `h.position = v` (see `move`)
+            impls[i].position[:] = v
+            impls[i].api._queue_scene_message(_SetPosition(impls[i].name, tuple(v)))
+        for i, v in zip(send_quat, quat[send_quat].tolist()):  # and of `h.wxyz = v`
+            impls[i].wxyz[:] = v
+            impls[i].api._queue_scene_message(_SetOrientation(impls[i].name, tuple(v)))
+        return len(send_pos) + len(send_quat)
 
     def style(self, opacity: float | None, tint: tuple[int, int, int] | None) -> None:
         """Change the meshes' opacity (None: opaque) and colour tint (e.g. ghosts)."""

@@ -150,7 +150,7 @@ class ReplayViewer:
             # along the image's horizontal, (1, 1, 0) from this camera
             aim = base + [0.45, 0.45, 0.0]
             cam.look_at = (aim[0], aim[1], 0.7)
-            cam.position = (aim[0] + 2.2 + 0.6 * spread, aim[1] - 2.2 - 0.9 * spread, 1.6)
+            cam.position = (aim[0] + 2.2 + 0.4 * spread, aim[1] - 2.2 - 0.6 * spread, 1.5)
 
     # ------------------------------------------------------------------ GUI
     def _build_gui(self, layout: str) -> None:
