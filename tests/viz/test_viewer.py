@@ -55,6 +55,11 @@ def test_plot_cursor_follows_the_timeline(viewer):
     assert now[cursor][0] < now[cursor][1]  # from the bottom of the plot to its top
     assert np.all(np.diff(x) >= 0)
     assert len(series) - 1 == 4  # CoM y and its reference, for each of the two runs
+    assert viewer.slider.value == 1.234
+    viewer.plots[0]["menu"].value = "log: q.z"  # any log column, chosen in the page
+    x, *series = viewer.plots[0]["handle"].data
+    assert len(series) == 3 and np.isclose(series[0][0], viewer.replays[0].q[0, 2])
+    viewer.plots[0]["menu"].value = "CoM y and reference [m]"
 
 
 def test_layouts(viewer):

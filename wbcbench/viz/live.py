@@ -65,8 +65,6 @@ class LiveView:
         self._model, self._data = model, mujoco.MjData(model)
         self._bridge = StateBridge(sim.robot, model)
         scene = self.server.scene
-        scene.add_light_directional("/light", color=(255, 255, 255), intensity=1.5, wxyz=(0.92, 0.2, 0.32, 0.0),
-                                    cast_shadow=False)
         add_terrain(scene, "/terrain", model)
         self.robot = RobotNodes(scene, "/robot", model)
         self._targets = {}

@@ -50,6 +50,13 @@ def start_server(host: str, port: int, label: str, *, key: str = "--port"):
         raise ConfigError(f"cannot serve on {host}:{port}: the port is in use (give another with {key})",
                           key=key)
     server.scene.set_up_direction("+z")
+    # Plain lights: no shadow maps (each draws TALOS' 159,000 faces again per frame) and no environment map (its
+    # filtering took 20 s before the first frame): software WebGL (a headless browser, a machine without a GPU)
+    # pays both in seconds
+    scene = server.scene
+    scene.configure_default_lights(enabled=True, cast_shadow=False)
+    scene.configure_environment_map(hdri=None)
+    scene.add_light_ambient("/lights/ambient", color=(255, 255, 255), intensity=1.2)
     return server
 
 
@@ -171,8 +178,8 @@ def add_terrain(scene, root: str, model, *, floor_size: float = 30.0) -> list:
             out.append(scene.add_box(f"{root}/floor", dimensions=(floor_size, floor_size, 0.01),
                                      color=(205, 205, 196), position=(0.0, 0.0, z - 0.0051), cast_shadow=False))
             out.append(scene.add_grid(f"{root}/grid", floor_size, floor_size, cell_size=0.25, section_size=1.0,
-                                      position=(0.0, 0.0, z + 0.0005), cell_color=(180, 180, 172),
-                                      section_color=(140, 140, 132)))
+                                      position=(0.0, 0.0, z + 0.001), cell_color=(150, 150, 142),
+                                      section_color=(110, 110, 100)))
         elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
             out.append(scene.add_box(f"{root}/box{g}", dimensions=tuple(2 * model.geom_size[g]),
                                      color=(166, 140, 115), position=model.geom_pos[g], wxyz=model.geom_quat[g]))

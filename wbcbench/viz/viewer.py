@@ -94,8 +94,6 @@ class ReplayViewer:
     # ------------------------------------------------------------------ scene
     def _build_scene(self) -> None:
         scene = self.server.scene
-        scene.add_light_directional("/light", color=(255, 255, 255), intensity=1.5, wxyz=(0.92, 0.2, 0.32, 0.0),
-                                    cast_shadow=False)
         self.roots, self.robots, self.terrains, self.marks = [], [], [], []
         disc_v, disc_f = disc_mesh(0.06)
         for i, rp in enumerate(self.replays):
@@ -284,8 +282,12 @@ class ReplayViewer:
     def show(self, t: float) -> None:
         """Every run at time t [s] (the last logged state at or before t), the overlays and the plot cursors."""
         mj = self._mj
+        t = float(np.clip(t, 0.0, self.duration))
+        if abs(float(self.slider.value) - t) > 1e-9:  # called from code: the slider moves, and its callback shows
+            self.slider.value = t
+            return
         with self._lock, self.server.atomic():
-            self.time = t = float(np.clip(t, 0.0, self.duration))
+            self.time = t
             on = {name: box.value for name, box in self.toggles.items()}
             for rp, data, robot, m in zip(self.replays, self._datas, self.robots, self.marks):
                 k = rp.tick_at(t)
