@@ -1,5 +1,6 @@
 """The live view (wbcbench/viz/live.py): a run with it is bit-identical to one without (it only reads the
-simulator), it publishes frames at its display rate, and a teleoperation session shows the operator's targets."""
+simulator), it publishes frames at its display rate, and a teleoperation session shows the operator's targets,
+live and in the replay."""
 
 import socket
 
@@ -44,3 +45,17 @@ def test_teleop_shows_the_targets(tmp_path):
     right = view._targets["right_hand"].position
     logged = np.array([result.log[f"target_right_hand.{a}"] for a in "xyz"]).T
     assert np.min(np.linalg.norm(logged - right, axis=1)) < 1e-9  # a logged target, at one of the ticks shown
+
+
+def test_the_replay_shows_the_logged_targets(tmp_path):
+    from wbcbench.teleop.commands import run_session
+    from wbcbench.viz.viewer import ReplayViewer
+
+    res = run_session("reach_forward", duration=0.2, out=tmp_path / "t")
+    with ReplayViewer([res.run_dir], port=_free_port()) as viewer:
+        viewer.show(0.1)
+        k = viewer.replays[0].tick_at(0.1)
+        frame, _ = viewer.marks[0]["targets"]["right_hand"]
+        logged = [res.log[f"target_right_hand.{a}"][k] for a in "xyz"]
+        np.testing.assert_allclose(frame.position, logged, atol=1e-12)
+        assert frame.visible

@@ -5,7 +5,7 @@ and the terrain are sent to the browser once; a frame only moves each robot's bo
 markers. Several runs share one timeline and are shown overlaid (the first opaque, the others as tinted ghosts)
 or side by side (offset in y). Overlays, each a toggle: planned footholds, CoM and its reference, planned and
 measured ZMP, contact forces (arrows, 1 m per 1000 N, from each foot's centre of pressure), support polygon,
-caption (a label over each robot and the time in the panel). Two time plots of a chosen log channel per run,
+frame-task targets (teleoperation: the operator's retargeted hands and head, as axes), caption (a label over each robot and the time in the panel). Two time plots of a chosen log channel per run,
 with a vertical cursor at the timeline's time.
 
 The server binds 127.0.0.1 unless another host is given; the port must be free (no silent move to the next).
@@ -93,6 +93,8 @@ class ReplayViewer:
 
     # ------------------------------------------------------------------ scene
     def _build_scene(self) -> None:
+        from ..recorder import channel
+
         scene = self.server.scene
         self.roots, self.robots, self.terrains, self.marks = [], [], [], []
         disc_v, disc_f = disc_mesh(0.06)
@@ -121,6 +123,10 @@ class ReplayViewer:
                                                       head_radius=0.02, head_length=0.05)
             m["support"] = scene.add_line_segments(f"{root}/support", np.zeros((_MAX_POLYGON, 2, 3)),
                                                    (0, 170, 255), thickness=0.01)
+            m["targets"] = {}  # frame-task targets (teleoperation: the operator's hands and head), as axes
+            for name in sorted({c[len("target_"):].split(".")[0] for c in rp.log if c.startswith("target_")}):
+                m["targets"][name] = (scene.add_frame(f"{root}/targets/{name}", axes_length=0.12, axes_radius=0.008),
+                                      channel(rp.log, f"target_{name}"))
             m["label"] = scene.add_label(f"{root}/label", rp.config.get("controller", f"run {i}"),
                                          anchor="bottom-center")
             m["color"] = color
@@ -176,7 +182,8 @@ class ReplayViewer:
 
         with gui.add_folder("overlays"):
             self.toggles = {name: gui.add_checkbox(name, True) for name in
-                            ("robots", "footholds", "CoM", "ZMP", "contact forces", "support polygon", "caption")}
+                            ("robots", "footholds", "CoM", "ZMP", "contact forces", "support polygon", "targets",
+                             "caption")}
         for box in self.toggles.values():
             box.on_update(lambda _event: self.show(self.time))
         self._columns = sorted({c for r in self.replays for c in r.log if c != "t"})
@@ -337,6 +344,15 @@ class ReplayViewer:
             pts[:n, 0], pts[:n, 1] = ring, np.roll(ring, -1, axis=0)
             pts[n:] = ring[-1]  # unused segments: zero length
             m["support"].points = pts
+        for frame, T in m["targets"].values():  # position (3), rotation matrix row-major (9)
+            ok = on["targets"] and np.isfinite(T[k, :3]).all()
+            frame.visible = ok
+            if ok:
+                move(frame, T[k, :3])
+                if np.isfinite(T[k, 3:]).all():
+                    wxyz = np.zeros(4)
+                    self._mj.mju_mat2Quat(wxyz, T[k, 3:])
+                    frame.wxyz = wxyz
         m["label"].visible = on["caption"]
         if on["caption"]:
             move(m["label"], rp.q[k, :3] + [0, 0, 0.75])
