@@ -1,12 +1,12 @@
 """Browser replay of run directories with viser: `wbcbench view RUN_DIR [RUN_DIR ...]`.
 
-Each run is read by `replay.Replay` (only its directory: config.json + log.parquet). The robots' visual meshes
-and the terrain are sent to the browser once; a frame only moves each robot's body frames and the overlay
-markers. Several runs share one timeline and are shown overlaid (the first opaque, the others as tinted ghosts)
-or side by side (offset in y). Overlays, each a toggle: planned footholds, CoM and its reference, planned and
-measured ZMP, contact forces (arrows, 1 m per 1000 N, from each foot's centre of pressure), support polygon,
-frame-task targets (teleoperation: the operator's retargeted hands and head, as axes), caption (a label over each robot and the time in the panel). Two time plots of a chosen log channel per run,
-with a vertical cursor at the timeline's time.
+Each run is read by `replay.Replay` (only its directory: config.json + log.parquet). The robots' visual meshes and
+the terrain are sent to the browser once; a frame only moves each robot's body frames and the overlay markers.
+Several runs share one timeline and are shown overlaid (the first opaque, the others as tinted ghosts) or side by
+side (offset in y). Overlays, each a toggle: planned footholds, CoM and its reference, planned and measured ZMP,
+contact forces (arrows, 1 m per 1000 N, from each foot's centre of pressure), support polygon, frame-task targets
+(teleoperation: the operator's retargeted hands and head, as axes), caption (a label over each robot and the time
+in the panel). Two time plots of a chosen log channel per run, with a vertical cursor at the timeline's time.
 
 The server binds 127.0.0.1 unless another host is given; the port must be free (no silent move to the next).
 """
