@@ -55,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "`lateness_ms`)")
     r.add_argument("--video", action="store_true",
                    help="render the run to RUN_DIR/video.mp4 when it ends (see `wbcbench render`)")
+    from .viz.commands import add_view_options
+    add_view_options(r)
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -67,8 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_robustness(sub)
     from .study.commands import add_subcommands as add_study
     add_study(sub)
-    from .viz.commands import add_subcommand as add_render
+    from .viz.commands import add_subcommand as add_render, add_view_subcommand
     add_render(sub)
+    add_view_subcommand(sub)
     return p
 
 
@@ -89,20 +92,24 @@ def _cmd_run(args) -> int:
 
         joints = load_robot(args.robot).joint_names
         faults = [parse_fault_option(f, joints) for f in args.fault]
-    if args.quiet:
-        result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                     taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite,
-                     realtime=args.realtime)
-    else:
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                      TimeElapsedColumn(), console=console, transient=True) as prog:
-            task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
-            result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
-                         progress=lambda f: prog.update(task, completed=f), taskset=args.taskset,
-                         sensors=args.sensors, seed=args.seed, model_error=args.model_error, faults=faults,
-                     predict_falls=args.predict_falls, safe_stop=args.safe_stop, overwrite=args.overwrite,
-                     realtime=args.realtime)
+    from .viz.commands import live_view_from
+
+    view = live_view_from(args)
+    kwargs = dict(taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error,
+                  faults=faults, predict_falls=args.predict_falls, safe_stop=args.safe_stop,
+                  overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [])
+    try:
+        if args.quiet:
+            result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out, **kwargs)
+        else:
+            with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                          TimeElapsedColumn(), console=console, transient=True) as prog:
+                task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
+                result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
+                             progress=lambda f: prog.update(task, completed=f), **kwargs)
+    finally:
+        if view is not None:
+            view.close()
     render_summary(console, result.summary, result.run_dir)
     if args.video:
         from .viz.render import render_run
@@ -174,6 +181,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "render":
             from .viz.commands import run_command as run_render
             return run_render(args)
+        if args.command == "view":
+            from .viz.commands import run_view
+            return run_view(args)
     except WbcError as exc:
         from .errors import one_line
 

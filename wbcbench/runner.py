@@ -65,7 +65,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     control_dt (its `mode` is used; `mode` must then be None or the same). `probes` observe the simulator:
     each has `attach(sim) -> {channel: components}` (called once), `values() -> list` (after every tick,
     logged in those channels) and `metrics(log) -> dict` (merged into the summary's metrics); e.g.
-    `wbcbench.sim.self_collision.SelfCollisionProbe`.
+    `wbcbench.sim.self_collision.SelfCollisionProbe`. A probe may also have `observe(t, refs)`, called with the
+    references handed to the controller every tick (e.g. the live view, `wbcbench.viz.live.LiveView`).
     """
     robot = load_robot(robot) if isinstance(robot, str) else robot
     scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
@@ -157,6 +158,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     scen_channels = scen.log_channels() if hasattr(scen, "log_channels") else {}
     s_scen = [rec.add_channel(name, comps) for name, comps in scen_channels.items()]
     s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
+    observers = [p for p in probes if hasattr(p, "observe")]
     s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
              if sensing.estimator is not None else None)
     s_fault = rec.add_channel("faults", list(injector.LOG_LABELS)) if injector.enabled else None
@@ -202,6 +204,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     if -ahead > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
                         wall_start -= ahead
             refs = scen.references(t)
+            for p in observers:
+                p.observe(t, refs)
             c0 = time.perf_counter()
             cmd = ctrl.step(meas, refs)
             ctrl_us[tick] = (time.perf_counter() - c0) * 1e6

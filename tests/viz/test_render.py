@@ -11,7 +11,8 @@ import pytest
 
 from wbcbench.runner import run
 from wbcbench.sim.model import VISUAL_GROUP, SimOptions
-from wbcbench.viz.render import Overlays, _Renderer, _Replay, keyframe_strip, render_run
+from wbcbench.viz.render import Overlays, _Renderer, keyframe_strip, render_run
+from wbcbench.viz.replay import Replay
 
 
 def _decode(path):
@@ -21,7 +22,7 @@ def _decode(path):
 
 def _robot_mask(run_dir, frame, time_s, camera, size):
     """Pixels of a decoded frame that differ from the same view rendered without the robot (H.264 tolerant)."""
-    replay = _Replay(run_dir)
+    replay = Replay(run_dir)
     r = _Renderer(replay, size[0], size[1], camera, Overlays.none())
     r.options.geomgroup[VISUAL_GROUP] = 0
     empty = r.frame(time_s)

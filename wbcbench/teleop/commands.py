@@ -86,6 +86,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "age (e.g. half the round trip) [s] (default 0)")
     p.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    from ..viz.commands import add_view_options
+
+    add_view_options(p)  # --view: the robot and the operator's hand / head targets in the browser as it runs
 
 
 def list_text() -> str:
@@ -112,8 +115,11 @@ def _check_controller(name: str) -> None:
 def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, mode: str | None = None,
                 speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
-                quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, **params):
+                quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, view=None,
+                **params):
     """Run one teleoperation session; returns the runner's `RunResult`.
+
+    `view`: a live view (`wbcbench.viz.live.LiveView`) to show the robot and the retargeted targets in, or None.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
     Other keyword arguments are `teleop` scenario params (e.g. `proportion`, `engage_time`, `feedforward`).
@@ -148,6 +154,8 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
                                       name=f"teleop-{_label(mocap)}", **params)
     ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer)
     probes = [SelfCollisionProbe()] if self_collision != "off" else []
+    if view is not None:
+        probes.append(view)
     if out is None:
         stamp = _time.strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
@@ -201,15 +209,22 @@ def run_command(args: argparse.Namespace) -> int:
         if not (np.isfinite(value) and value >= 0):
             raise ConfigError(f"must be a duration >= 0 s, got {value}", key=key)
     kwargs.update(predict=args.predict, predict_horizon=args.predict_horizon, predict_latency=args.predict_latency)
-    if args.quiet:
-        result = run_session(args.mocap, **kwargs)
-    else:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from ..viz.commands import live_view_from
 
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                      TimeElapsedColumn(), console=console, transient=True) as prog:
-            task = prog.add_task(f"teleop {args.mocap}", total=1.0)
-            result = run_session(args.mocap, progress=lambda f: prog.update(task, completed=f), **kwargs)
+    kwargs["view"] = live_view_from(args)
+    try:
+        if args.quiet:
+            result = run_session(args.mocap, **kwargs)
+        else:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                          TimeElapsedColumn(), console=console, transient=True) as prog:
+                task = prog.add_task(f"teleop {args.mocap}", total=1.0)
+                result = run_session(args.mocap, progress=lambda f: prog.update(task, completed=f), **kwargs)
+    finally:
+        if kwargs["view"] is not None:
+            kwargs["view"].close()
     render(console, result.summary, result.run_dir)
     return 1 if result.summary["fell"] else 0
 

@@ -1,4 +1,5 @@
-"""`wbcbench render RUN_DIR`: a run's video (MP4) or key-frame strip (PNG)."""
+"""`wbcbench render RUN_DIR`: a run's video (MP4) or key-frame strip (PNG); `wbcbench view RUN_DIR [RUN_DIR ...]`:
+the browser 3-D replay (viewer.py); the `--view` options of `run` and `teleop` (live.py)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,65 @@ def add_subcommand(sub) -> None:
     p.add_argument("--keyframes", type=int, default=0, metavar="N",
                    help="write a PNG strip of N key frames instead of a video")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+
+def add_view_subcommand(sub) -> None:
+    p = sub.add_parser("view", help="replay run directories in the browser: 3-D, timeline, overlays, plots",
+                       description="Serve a 3-D replay of one or more run directories (viser): the robots' meshes "
+                                   "and the terrain, a timeline with play/pause/speed, several runs overlaid as "
+                                   "ghosts or side by side, overlay toggles (footholds, CoM, ZMP, contact forces, "
+                                   "support polygon, caption) and time plots of log channels. Open the printed "
+                                   "address in a browser; Ctrl-C stops.")
+    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories (log.parquet + config.json)")
+    p.add_argument("--port", "-p", type=int, default=8080, help="port to serve on (default 8080)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to bind (default 127.0.0.1, this machine only; 0.0.0.0 for every interface)")
+    p.add_argument("--layout", default="ghost", help="ghost (overlaid, default) or side (side by side in y)")
+
+
+def add_view_options(p) -> None:
+    """`--view`, `--view-port`, `--view-host` of `wbcbench run` and `wbcbench teleop`."""
+    p.add_argument("--view", action="store_true",
+                   help="show the robot in the browser while it runs (live view, published at 30 frames/s)")
+    p.add_argument("--view-port", type=int, default=8080, help="port of the live view (default 8080)")
+    p.add_argument("--view-host", default="127.0.0.1", help="address the live view binds (default 127.0.0.1)")
+
+
+def live_view_from(args: argparse.Namespace, console=None):
+    """The live-view probe the options ask for (None without --view); prints its address."""
+    if not getattr(args, "view", False):
+        return None
+    from .live import LiveView
+
+    view = LiveView(args.view_host, args.view_port, key="--view-port")
+    print(f"live view: {view.url}", flush=True)
+    return view
+
+
+def run_view(args: argparse.Namespace) -> int:
+    """Serve the replay until Ctrl-C (or SIGTERM); bad input is raised before anything is served."""
+    import signal
+    import time
+
+    from .viewer import ReplayViewer
+
+    viewer = ReplayViewer(args.run_dirs, host=args.host, port=args.port, layout=args.layout)
+
+    def stop(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        print(f"wbcbench view: {viewer.url} ({len(viewer.replays)} run(s), {viewer.duration:.2f} s); Ctrl-C stops",
+              flush=True)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        viewer.close()
+        signal.signal(signal.SIGTERM, previous)
+    return 0
 
 
 def overlays_from(args: argparse.Namespace):

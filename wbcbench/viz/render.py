@@ -1,9 +1,9 @@
 """Video of a run: the logged states replayed through MuJoCo's offscreen renderer, with overlays, encoded as H.264
 MP4 with PyAV; and key-frame strips (PNG) of a run.
 
-Only the run directory is read (`config.json` for the robot and the scene, `log.parquet` for the states and
-the overlays), so a run made on another machine renders the same. The model is the simulation's, with the URDF's
-visual meshes added as visual-only geoms (`SimOptions(visuals=True)`); only its kinematics are evaluated.
+The run directory is read by `replay.Replay` (shared with the browser viewer, viewer.py): only `config.json`
+and `log.parquet`, so a run made on another machine renders the same; its model is the simulation's with the
+URDF's visual meshes as visual-only geoms (`SimOptions(visuals=True)`), of which only the kinematics are evaluated.
 
 Overlays (each switchable, `Overlays`): the planned footholds (the feet references, where they rest), the CoM
 and its reference projected on the ground, the planned ZMP and the measured one (from the ground-truth contact
@@ -18,7 +18,6 @@ OpenGL they tripled the time of a frame.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, WbcError
+from .replay import FORCE_THRESHOLD, Replay, cop
 
 __all__ = ["CAMERAS", "Overlays", "RenderError", "keyframe_strip", "render_run"]
 
@@ -55,94 +55,28 @@ class Overlays:
         return cls(False, False, False, False, False)
 
 
-class _Replay:
-    """A run directory made ready to render: robot, visual model, states per tick, overlay channels."""
-
-    def __init__(self, run_dir: Path):
-        from ..recorder import channel, read_log
-        from ..robots import load_robot
-        from ..scene import Box, Terrain
-        from ..sim.bridge import StateBridge
-        from ..sim.model import SimOptions, build_mujoco_model
-        from ..types import ActuationMode
-
-        run_dir = Path(run_dir)
-        cfg_path, log_path = run_dir / "config.json", run_dir / "log.parquet"
-        if not log_path.is_file():
-            raise ConfigError("not a run directory: no log.parquet", file=str(run_dir))
-        try:
-            cfg = json.loads(cfg_path.read_text())
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"cannot read the run's config.json ({exc})", file=str(cfg_path)) from None
-        try:
-            log = read_log(log_path)
-        except Exception as exc:  # pyarrow raises several kinds on a damaged file
-            raise ConfigError(f"cannot read the log ({type(exc).__name__}: {str(exc).splitlines()[0]})",
-                              file=str(log_path)) from None
-        profile = cfg.get("robot_profile")
-        self.robot = load_robot(profile if profile and Path(profile).is_file() else cfg.get("robot", "talos"))
-        scene = cfg.get("scene")
-        if scene is not None:
-            terrain = Terrain(kind=scene.get("kind", "flat"), floor=scene.get("floor", True),
-                              boxes=tuple(Box(tuple(b["center"]), tuple(b["size"]), tuple(b.get("rpy", (0, 0, 0))),
-                                              b.get("name", "")) for b in scene.get("boxes", ())),
-                              friction=scene.get("friction", 1.0))
-        else:  # runs from before the scene was recorded: the scenario file, if it is still there
-            terrain = Terrain()
-            file = cfg.get("scenario_file")
-            if file and Path(file).is_file():
-                from ..config import Section, load_yaml
-                from ..scene import parse_terrain
-
-                terrain = parse_terrain(Section(load_yaml(file), file).section("terrain", {}))
-        self.config = cfg
-        self.model = build_mujoco_model(self.robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True))
-        # software OpenGL (Mesa) pays for multisampling, shadows and reflections per pixel: none of them
-        self.model.vis.quality.offsamples = 0
-        light = self.model.vis.headlight  # brighter than MuJoCo's default for the robot's dark meshes
-        light.ambient[:] = (0.35, 0.35, 0.35)
-        light.diffuse[:] = (0.75, 0.75, 0.75)
-        light.specular[:] = (0.2, 0.2, 0.2)
-        floor = [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0]
-        for g in floor:  # a lighter ground, so that the overlays and the robot stand out
-            self.model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if self.model.geom_type[g] == 0 else (0.65, 0.55, 0.45, 1.0)
-        self.bridge = StateBridge(self.robot, self.model)
-        try:
-            self.t = np.asarray(log["t"], dtype=float)
-            self.q = channel(log, "q")
-        except KeyError as exc:
-            raise ConfigError(f"the log lacks {exc}", file=str(log_path)) from None
-        if len(self.t) == 0 or self.q.shape[1] != self.robot.model.nq:
-            raise ConfigError(f"the log has {len(self.t)} ticks of a {self.q.shape[1]}-dof configuration; the "
-                              f"robot '{self.robot.name}' has nq = {self.robot.model.nq}", file=str(log_path))
-        self.log = log
-        self.channels = {name: _maybe(channel, log, name) for name in
-                         ("com", "com_ref", "zmp_ref", "foot_ref_left", "foot_ref_right", "contact_left",
-                          "contact_right")}
-
-    @property
-    def duration(self) -> float:
-        return float(self.t[-1])
-
-    def tick_at(self, time_s: float) -> int:
-        return int(min(np.searchsorted(self.t, time_s - 1e-9), len(self.t) - 1))
-
-
-def _maybe(fn, log, name):
-    try:
-        return fn(log, name)
-    except KeyError:
-        return None
+def _prepare_for_render(model) -> None:
+    """Software OpenGL (Mesa) pays for multisampling, shadows and reflections per pixel: none of them; a brighter
+    headlight for the robot's dark meshes; a lighter ground, so that the overlays and the robot stand out."""
+    model.vis.quality.offsamples = 0
+    light = model.vis.headlight
+    light.ambient[:] = (0.35, 0.35, 0.35)
+    light.diffuse[:] = (0.75, 0.75, 0.75)
+    light.specular[:] = (0.2, 0.2, 0.2)
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == 0:
+            model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if model.geom_type[g] == 0 else (0.65, 0.55, 0.45, 1.0)
 
 
 class _Renderer:
     """MuJoCo's offscreen renderer for a replay, with a camera and the overlays."""
 
-    def __init__(self, replay: _Replay, width: int, height: int, camera: str, overlays: Overlays):
+    def __init__(self, replay: Replay, width: int, height: int, camera: str, overlays: Overlays):
         import mujoco
 
         self.mj = mujoco
         self.replay = replay
+        _prepare_for_render(replay.model)
         self.data = mujoco.MjData(replay.model)
         model = replay.model
         model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
@@ -174,27 +108,8 @@ class _Renderer:
         self.follow = camera != "top"
         self.overlays = overlays
         self._lookat = None
-        self._footholds = self._planned_footholds() if overlays.footholds else np.zeros((0, 3))
+        self._footholds = replay.footholds if overlays.footholds else np.zeros((0, 3))
         self.size = (width, height)
-
-    def _planned_footholds(self) -> np.ndarray:
-        """Where the feet references rest (consecutive distinct resting positions of each foot)."""
-        out = []
-        for name in ("foot_ref_left", "foot_ref_right"):
-            P = self.replay.channels.get(name)
-            if P is None:
-                continue
-            P = P[np.isfinite(P).all(axis=1)]
-            if len(P) < 2:
-                continue
-            still = np.r_[True, np.linalg.norm(np.diff(P, axis=0), axis=1) < 1e-6]
-            rests = P[still]
-            keep = [rests[0]]
-            for p in rests[1:]:
-                if np.linalg.norm(p - keep[-1]) > 0.02:
-                    keep.append(p)
-            out += keep
-        return np.array(out) if out else np.zeros((0, 3))
 
     def frame(self, time_s: float) -> np.ndarray:
         mj, rp = self.mj, self.replay
@@ -254,36 +169,18 @@ class _Renderer:
             if z is not None and np.isfinite(z[k]).all():
                 self._add(mj.mjtGeom.mjGEOM_BOX, [0.02, 0.02, 0.004], [z[k, 0], z[k, 1], z[k, 2] + ground],
                           [0.2, 0.4, 1.0, 0.9])
-            zm = self._measured_zmp(k)
-            if zm is not None:
+            zm = self.replay.measured_zmp[k] if self.replay.measured_zmp is not None else None
+            if zm is not None and np.isfinite(zm).all():
                 self._add(mj.mjtGeom.mjGEOM_BOX, [0.02, 0.02, 0.004], [zm[0], zm[1], zm[2] + ground],
                           [1.0, 0.1, 0.1, 0.9])
         if ov.forces:
             for name in ("contact_left", "contact_right"):
                 w = ch.get(name)
-                if w is None or not np.isfinite(w[k]).all() or w[k, 2] < 5.0:
+                if w is None or not np.isfinite(w[k]).all() or w[k, 2] < FORCE_THRESHOLD:
                     continue
                 f, m = w[k, :3], w[k, 3:]
-                cop = self._cop(f, m)
-                self._arrow(cop, cop + f / 1000.0, 0.015, [1.0, 0.9, 0.1, 0.9])  # 1 m per 1000 N
-
-    @staticmethod
-    def _cop(f: np.ndarray, m: np.ndarray, height: float | None = None) -> np.ndarray:
-        """The point of the plane z = height (default 0) about which the wrench (force f, moment m about the world
-        origin) has no horizontal moment: the centre of pressure / ZMP on that plane."""
-        z = 0.0 if height is None else height
-        return np.array([(-m[1] + z * f[0]) / f[2], (m[0] + z * f[1]) / f[2], z])
-
-    def _measured_zmp(self, k: int) -> np.ndarray | None:
-        ch = self.replay.channels
-        ws = [ch[n][k] for n in ("contact_left", "contact_right") if ch.get(n) is not None]
-        if not ws:
-            return None
-        w = np.sum(ws, axis=0)
-        if not np.isfinite(w).all() or w[2] < 5.0:
-            return None
-        z = ch["zmp_ref"][k, 2] if ch.get("zmp_ref") is not None and np.isfinite(ch["zmp_ref"][k, 2]) else 0.0
-        return self._cop(w[:3], w[3:], z)
+                p = cop(f, m)
+                self._arrow(p, p + f / 1000.0, 0.015, [1.0, 0.9, 0.1, 0.9])  # 1 m per 1000 N
 
     def _caption(self, img: np.ndarray, t: float) -> np.ndarray:
         from PIL import Image, ImageDraw
@@ -336,7 +233,7 @@ def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str 
         raise ConfigError(f"speed must be within 0.05..20, got {speed}", key="--speed")
     if camera not in CAMERAS:
         raise ConfigError(f"unknown camera '{camera}'; allowed: {', '.join(CAMERAS)}", key="--camera")
-    replay = _Replay(run_dir)
+    replay = Replay(run_dir)
     out = Path(out) if out is not None else run_dir / "video.mp4"
     n = int(np.floor(replay.duration / speed * fps + 1e-9)) + 1
     renderer = _Renderer(replay, w, h, camera, overlays)
@@ -374,7 +271,7 @@ def keyframe_strip(run_dir: str | Path, out: str | Path | None = None, *, frames
 
     run_dir = Path(run_dir)
     w, h = _size(size)
-    replay = _Replay(run_dir)
+    replay = Replay(run_dir)
     renderer = _Renderer(replay, w, h, camera, overlays)
     try:
         times = np.linspace(0.0, replay.duration, frames)
