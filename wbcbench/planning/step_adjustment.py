@@ -72,7 +72,7 @@ class StepAdjustmentConfig:
     max_lateral: float = 0.12
     min_clearance: float = 0.02
     adapt_timing: bool = True
-    min_single_support: float = 0.6
+    min_single_support: float = 0.45
     max_single_support: float = 1.2
     min_remaining: float = 0.15
     w_step: float = 1.0

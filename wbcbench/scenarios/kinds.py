@@ -212,9 +212,10 @@ class WalkScenario(Scenario):
             self.walk = new
 
     def log_channels(self) -> dict:
-        if self.adjuster is None:
+        if self.step_adjustment is None:    # asked before `setup`: the switch, not the adjuster, decides
             return {}
-        return {"step_adjustment": list(self.adjuster.LOG_LABELS)}
+        from ..planning.step_adjustment import StepAdjuster
+        return {"step_adjustment": list(StepAdjuster.LOG_LABELS)}
 
     def log_values(self) -> list:
         return [self.adjuster.log] if self.adjuster is not None else []
