@@ -81,3 +81,12 @@ def test_off_by_default_and_the_switch_is_validated(talos):
                                              "step_adjustment": {"min_single_support": 2.0}})
     with pytest.raises(ConfigError, match="kind 'walk-command'"):
         load_scenario("turn-90-quick", talos).enable_step_adjustment()
+
+
+def test_the_command_line_switch_refuses_other_kinds(tmp_path, capsys):
+    from wbcbench.cli import main
+
+    code = main(["run", "turn-90-quick", "-c", "tsid-torque", "--step-adjustment", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert "--step-adjustment" in err and "walk" in err and len(err.strip().splitlines()) == 1
