@@ -166,3 +166,17 @@ def test_adjuster_replans_a_continuous_walk_onto_the_new_foothold():
     old_end = np.linalg.norm(walk.p_world_com[-1, :2] - walk.p_world_zmp_ref[-1, :2])
     assert np.linalg.norm(new.p_world_com[-1, :2] - final[:2]) < old_end + 0.01
     assert new.n_ticks == walk.n_ticks + (td - int(round(walk.plan.touch_down_time(step) / walk.dt)))
+
+
+def test_replan_from_the_plan_keeps_the_com_reference_continuous():
+    walk, cfg = _walk()
+    adj = StepAdjuster(walk, StepAdjustmentConfig(replan_from="planned"), cfg, SEP)
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))
+    dcm = walk.p_world_dcm[k, :2] + [0.06, 0.0]
+    new = adj.update(k, dcm, np.zeros((3, 2)))        # the measured CoM state is not used
+    assert new is not None
+    for a in ("p_world_com", "v_world_com", "a_world_com"):
+        np.testing.assert_allclose(getattr(new, a)[k], getattr(walk, a)[k], atol=1e-12)
+    assert adj.history[0][2].p_world_foothold[0] > walk.plan.steps[1].p_world_sole[0] + 0.05
+    with pytest.raises(PlanningError, match="replan_from"):
+        StepAdjustmentConfig(replan_from="guess")

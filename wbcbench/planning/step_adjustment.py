@@ -46,6 +46,9 @@ from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTra
 __all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk", "StepAdjuster"]
 
 
+REPLAN_FROM = ("measured", "planned")
+
+
 @dataclass(frozen=True)
 class StepAdjustmentConfig:
     """Settings of the step adjustment.
@@ -63,6 +66,9 @@ class StepAdjustmentConfig:
         w_step, w_time, w_offset: QP weights on the foothold [1/m^2], tau [-] and DCM offset [1/m^2] changes.
         min_change: a solution moving the foothold by less than this [m] and the touch-down by less than one
             check period is not applied (no re-plan for nothing).
+        replan_from: the CoM state the re-planned CoM starts from: "measured" (the push's momentum becomes
+            part of the plan) or "planned" (the reference stays continuous; only the footholds and timing
+            change, the controller's own feedback handles the error).
     """
 
     threshold: float = 0.02
@@ -79,8 +85,12 @@ class StepAdjustmentConfig:
     w_time: float = 0.1
     w_offset: float = 100.0
     min_change: float = 0.005
+    replan_from: str = "measured"
 
     def __post_init__(self) -> None:
+        if self.replan_from not in REPLAN_FROM:
+            raise PlanningError(f"StepAdjustmentConfig.replan_from: unknown {self.replan_from!r}; allowed: "
+                                f"{', '.join(REPLAN_FROM)}")
         for name in ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
                      "max_single_support", "min_remaining", "w_step", "w_time", "w_offset"):
             v = getattr(self, name)
@@ -395,6 +405,9 @@ class StepAdjuster:
             return None
         move = sol.p_world_foothold - u_now
         new_plan = _translated_plan(plan, i, move)
+        if cfg.replan_from == "planned":
+            w = self.walk
+            com_state = np.vstack([w.p_world_com[k, :2], w.v_world_com[k, :2], w.a_world_com[k, :2]])
         self.walk = replan_walk(self.walk, new_plan, self.pg_config, tick, i, before, td_new, com_state)
         self.plan = new_plan
         self.step_delta[i] = own + move

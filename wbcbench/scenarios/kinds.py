@@ -122,8 +122,8 @@ class WalkScenario(Scenario):
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
-    `stepping`), w_step, w_time, w_offset, min_change [m]. Each tick the scenario gets the Measurement (`observe`),
-    and the re-planned references replace the walk's.
+    `stepping`), w_step, w_time, w_offset, min_change [m], replan_from (measured|planned). Each tick the
+    scenario gets the Measurement (`observe`), and the re-planned references replace the walk's.
     The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
     walk; metrics then compare with where the plan is at that time).
     """
@@ -274,6 +274,7 @@ def _parse_step_adjustment(sec, robot):
     for name in ("min_clearance", "min_change"):
         kw[name] = sec.float(name, getattr(d, name), min=0.0)
     kw["adapt_timing"] = sec.bool("adapt_timing", d.adapt_timing)
+    kw["replan_from"] = sec.str("replan_from", d.replan_from, choices=["measured", "planned"])
     sec.finish()
     try:
         return StepAdjustmentConfig(**kw)
