@@ -17,7 +17,7 @@ from wbcbench.sim.push import Push
 
 # measured with `wbcbench robustness push walk-20cm --quick --directions 4 --phases ss-mid` (README, Step
 # adjustment): backwards, tsid-torque survives 30 N s without adjustment and falls at 37.5; with it it survives
-# 52.5 N s. 45 N s lies between, with a margin on both sides.
+# 67.5 N s and falls at 75. 45 N s lies between, with a margin on both sides.
 IMPULSE, DIRECTION = 45.0, 180.0
 
 
