@@ -60,6 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", "-o", default=None, help="run directory (default: runs/<scenario>-<controller>-...)")
     r.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    r.add_argument("--step-adjustment", action="store_true",
+                   help="walks: re-plan the next foothold and step time when the measured DCM leaves its region")
     sub.add_parser("list", help="list scenarios, controllers, robots and modes")
     from .report.commands import add_subcommands
     add_subcommands(sub)
@@ -92,6 +94,18 @@ def _cmd_run(args) -> int:
 
         joints = load_robot(args.robot).joint_names
         faults = [parse_fault_option(f, joints) for f in args.fault]
+    if args.step_adjustment:  # the scenario loaded here so that its step adjustment can be switched on
+        from .robots import load_robot
+        from .scenarios import load_scenario
+
+        robot = load_robot(args.robot)
+        scen = load_scenario(args.scenario, robot, args.duration)
+        enable = getattr(scen, "enable_step_adjustment", None)
+        if enable is None:
+            raise WbcError(f"--step-adjustment: scenario '{args.scenario}' (kind {scen.kind}) has no step "
+                           "adjustment; allowed: kind walk")
+        enable()
+        args.scenario, args.robot, args.duration = scen, robot, None
     from .viz.commands import live_view_from
 
     view = live_view_from(args)
@@ -104,7 +118,8 @@ def _cmd_run(args) -> int:
         else:
             with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                           TimeElapsedColumn(), console=console, transient=True) as prog:
-                task = prog.add_task(f"{args.scenario} / {args.controller}", total=1.0)
+                name = args.scenario if isinstance(args.scenario, str) else args.scenario.spec.name
+                task = prog.add_task(f"{name} / {args.controller}", total=1.0)
                 result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out,
                              progress=lambda f: prog.update(task, completed=f), **kwargs)
     finally:

@@ -179,6 +179,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     lateness = np.zeros(n_ticks) if realtime else None
     wall0 = time.perf_counter()
     tick = 0
+    observe = getattr(scen, "observe", None)
     try:
         if injector.enabled:
             injector.update(0.0, sim, ctrl)
@@ -203,6 +204,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     lateness[tick] = -ahead * 1e3
                     if -ahead > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
                         wall_start -= ahead
+            if observe is not None:  # a scenario that re-plans from the measurement (e.g. step adjustment)
+                observe(t, meas)
             refs = scen.references(t)
             for p in observers:
                 p.observe(t, refs)

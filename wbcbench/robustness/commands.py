@@ -29,6 +29,8 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help="3 bisection steps from half the top (7.5 N s resolution at 60 N s), the scenario's "
                         "-quick variant when there is one")
+    p.add_argument("--step-adjustment", action="store_true",
+                   help="walks: re-plan the next foothold and step time when the measured DCM leaves its region")
     p.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
     p.add_argument("--out", "-o", required=True, help="output directory (report, polar plot, raw runs)")
     p.add_argument("--quiet", "-q", action="store_true")
@@ -73,7 +75,8 @@ def run_command(args: argparse.Namespace) -> int:
     study = PushStudy(scenario, controllers, directions=args.directions, phases=phases,
                       seeds=args.seeds or (3 if noisy else 1), push_duration=args.push_duration,
                       max_impulse=args.max_impulse, iterations=args.iterations or (3 if args.quick else 5),
-                      tolerance=args.tolerance, robot=args.robot, sensors=args.sensors, probe_max=not args.quick)
+                      tolerance=args.tolerance, robot=args.robot, sensors=args.sensors, probe_max=not args.quick,
+                      step_adjustment=args.step_adjustment)
     console = Console()
     jobs = args.jobs or os.cpu_count() or 1
     if args.quiet:

@@ -50,6 +50,8 @@ class PushStudy:
     sensors: str | None = None
     probe_max: bool = True
     """First try `max_impulse` itself (to report '>= max'); off, the bisection starts at half of it."""
+    step_adjustment: bool = False
+    """Switch the walk's DCM-based step adjustment on (wbcbench.planning.step_adjustment, default settings)."""
 
 
 @dataclass(frozen=True)
@@ -116,6 +118,12 @@ def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple
                 duration=study.push_duration)
     end = cell.push_time + study.push_duration + study.settle
     scen.spec = replace(scen.spec, pushes=(push,), duration=end)
+    if study.step_adjustment:
+        enable = getattr(scen, "enable_step_adjustment", None)
+        if enable is None:
+            raise ConfigError(f"scenario '{study.scenario}' (kind {scen.kind}) has no step adjustment",
+                              key="--step-adjustment")
+        enable()
     res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
               predict_falls=True, overwrite=True)
     s = res.summary
@@ -210,7 +218,8 @@ def write_report(study: PushStudy, results: list[PushResult], out_dir: str | Pat
              f"{study.max_impulse / 2 ** study.iterations:.2f} N s; survived = no fall for {study.settle} s and the "
              f"CoM back within {study.tolerance} m of the plan; '>=' when the largest impulse tried, "
              f"{study.max_impulse} N s, was survived). Directions in the world frame, the robot facing 0 deg, 90 deg "
-             f"its left. Sensors: {study.sensors or 'ideal'}; seeds: {study.seeds}.", ""]
+             f"its left. Sensors: {study.sensors or 'ideal'}; seeds: {study.seeds}; step adjustment: "
+             f"{'on' if study.step_adjustment else 'off'}.", ""]
     for phase in study.phases:
         lines += [f"## Phase {phase}", "",
                   "| controller | " + " | ".join(f"{d:.0f} deg" for d in dirs) + " | min |",

@@ -119,11 +119,20 @@ class WalkScenario(Scenario):
     double_support [s], initial_double_support / final_double_support [s], apex [m] (swing apex height),
     first_side (left|right), step_width (default: the feet's initial separation), max_step_length [m] (the
     reach limit the plan is checked against, default 0.65).
+    step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
+    enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
+    min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
+    `stepping`), w_step, w_time, w_offset, min_change [m], replan_from (measured|planned). Each tick the
+    scenario gets the Measurement (`observe`), and the re-planned references replace the walk's.
     The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
     walk; metrics then compare with where the plan is at that time).
     """
 
     kind = "walk"
+    #: the online step adjuster (None: off)
+    adjuster = None
+    step_adjustment = None
+    supports_step_adjustment = True
 
     def parse(self, params):
         self.n_steps = params.int("steps", min=0)
@@ -137,6 +146,17 @@ class WalkScenario(Scenario):
         self.width = params.float("step_width", 0.0, min=0.0)
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
+        if params.has("step_adjustment"):
+            self.step_adjustment = _parse_step_adjustment(params.section("step_adjustment"), self.robot)
+
+    def enable_step_adjustment(self, config=None) -> None:
+        """Switch the step adjustment on (before `setup`), with `config` or the defaults and the robot's limits."""
+        from ..errors import ConfigError
+        from ..planning.step_adjustment import StepAdjustmentConfig
+        if not self.supports_step_adjustment:
+            raise ConfigError(f"step adjustment works on flat `walk` scenarios, not kind '{self.kind}'",
+                              file=self.spec.file, key="--step-adjustment")
+        self.step_adjustment = config or StepAdjustmentConfig.from_stepping(self.robot.profile.stepping)
 
     def setup(self, q0, com0):
         import pinocchio as pin
@@ -157,13 +177,48 @@ class WalkScenario(Scenario):
                                  sole=SoleRectangle(sole.length, sole.width, *sole.center),
                                  first_side=Side(self.first), start=(mid[0], mid[1], mid[2], 0.0),
                                  limits=ReachLimits(max_length=self.max_step_length))
-            self.walk = generate_walk(plan, PatternGeneratorConfig(
+            self.pg_config = PatternGeneratorConfig(
                 com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
-                preview_horizon=self.preview_horizon), p_world_com_init=com0)
+                preview_horizon=self.preview_horizon)
+            self.walk = generate_walk(plan, self.pg_config, p_world_com_init=com0)
         except PlanningError as exc:  # the one point where a plan's error gets the scenario's file and key
             raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
         self.plan = plan
         self.base_offset = q0[:3] - com0
+        self.adjuster = None
+        if self.step_adjustment is not None:
+            from ..planning.step_adjustment import StepAdjuster
+            self.adjuster = StepAdjuster(self.walk, self.step_adjustment, self.pg_config, sep)
+            self._data = self.robot.model.createData()
+
+    def observe(self, t: float, meas) -> None:
+        """The measurement of this tick (what the controller sees): with step adjustment on, the DCM from the
+        measured configuration and velocity (wbcbench.estimation.dcm) against the plan's; a re-plan replaces the
+        walk's references from this tick on."""
+        if self.adjuster is None:
+            return
+        import pinocchio as pin
+
+        from ..estimation import dcm
+        w = self.walk
+        k = min(int(round(t / w.dt)), w.n_ticks - 1)
+        pin.centerOfMass(self.robot.model, self._data, meas.q, meas.v)
+        com, vcom = self._data.com[0], self._data.vcom[0]
+        xi = dcm(com, vcom, w.omega)
+        # the LIPM acceleration about this tick's planned ZMP (the stance sole in single support)
+        acc = w.omega ** 2 * (com[:2] - w.p_world_zmp_ref[k, :2])
+        new = self.adjuster.update(int(round(t / w.dt)), xi[:2], np.vstack([com[:2], vcom[:2], acc]))
+        if new is not None:
+            self.walk = new
+
+    def log_channels(self) -> dict:
+        if self.step_adjustment is None:    # asked before `setup`: the switch, not the adjuster, decides
+            return {}
+        from ..planning.step_adjustment import StepAdjuster
+        return {"step_adjustment": list(StepAdjuster.LOG_LABELS)}
+
+    def log_values(self) -> list:
+        return [self.adjuster.log] if self.adjuster is not None else []
 
     @property
     def planned_duration(self) -> float:
@@ -194,10 +249,37 @@ class WalkScenario(Scenario):
         planned_base = self.walk.p_world_com[k] + self.base_offset
         base = np.array([log["q.x"][-1], log["q.y"][-1]])
         start = np.array([log["q.x"][0], log["q.y"][0]])
-        return {"com_rms_error_m": float(np.sqrt(np.mean(err ** 2))), "com_max_error_m": float(err.max()),
-                "final_position_error_m": float(np.linalg.norm(base - planned_base[:2])),
-                "distance_m": float(np.linalg.norm(base - start)),
-                "planned_distance_m": float(np.linalg.norm(planned_base[:2] - start))}
+        out = {"com_rms_error_m": float(np.sqrt(np.mean(err ** 2))), "com_max_error_m": float(err.max()),
+               "final_position_error_m": float(np.linalg.norm(base - planned_base[:2])),
+               "distance_m": float(np.linalg.norm(base - start)),
+               "planned_distance_m": float(np.linalg.norm(planned_base[:2] - start))}
+        if self.adjuster is not None:  # the plan above is the re-planned one
+            out["step_adjustments"] = self.adjuster.count
+            out["step_adjustment_foothold_shift_m"] = [float(x) for x in self.adjuster.delta]
+        return out
+
+
+def _parse_step_adjustment(sec, robot):
+    """The walk's `step_adjustment:` section -> StepAdjustmentConfig, or None when `enabled: false`."""
+    from ..planning.step_adjustment import StepAdjustmentConfig
+    if not sec.bool("enabled", True):
+        for k in list(sec.data):
+            sec.raw(k)
+        return None
+    d = StepAdjustmentConfig.from_stepping(robot.profile.stepping)
+    kw = {}
+    for name in ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
+                 "max_single_support", "min_remaining", "w_step", "w_time", "w_offset"):
+        kw[name] = sec.float(name, getattr(d, name), positive=True)
+    for name in ("min_clearance", "min_change"):
+        kw[name] = sec.float(name, getattr(d, name), min=0.0)
+    kw["adapt_timing"] = sec.bool("adapt_timing", d.adapt_timing)
+    kw["replan_from"] = sec.str("replan_from", d.replan_from, choices=["measured", "planned"])
+    sec.finish()
+    try:
+        return StepAdjustmentConfig(**kw)
+    except PlanningError as exc:
+        raise sec.error(None, str(exc)) from None
 
 
 @register_kind
@@ -214,6 +296,7 @@ class TerrainWalkScenario(WalkScenario):
     """
 
     kind = "terrain-walk"
+    supports_step_adjustment = False
 
     def parse(self, params):
         self.goal = params.vector("goal", length=2) if params.has("goal") else None
@@ -325,6 +408,7 @@ class CommandWalkScenario(WalkScenario):
     """
 
     kind = "walk-command"
+    supports_step_adjustment = False
 
     def parse(self, params):
         given = [k for k in ("command", "command_csv", "path") if params.has(k)]
