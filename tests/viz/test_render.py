@@ -11,7 +11,7 @@ import pytest
 
 from wbcbench.runner import run
 from wbcbench.sim.model import VISUAL_GROUP, SimOptions
-from wbcbench.viz.render import Overlays, _Renderer, _Replay, keyframe_strip, render_run
+from wbcbench.viz.render import Overlays, _Frames, _plan, _Renderer, _Replay, keyframe_strip, render_run
 
 
 def _decode(path):
@@ -65,6 +65,44 @@ def test_keyframe_strip(stand_run, tmp_path):
 
     out = keyframe_strip(stand_run, tmp_path / "k.png", frames=3, size="80x100")
     assert Image.open(out).size == (240, 100)
+
+
+def test_two_render_processes_give_the_frames_of_one(stand_run):
+    """Frames rendered by 2 worker processes (interleaved, each its own model copy and OpenGL context) arrive in
+    order and equal those rendered in this process, overlays and caption included."""
+    replay = _Replay(stand_run)
+    plan = _plan(replay, np.linspace(0.0, 1.0, 7), "follow")
+    frames = {}
+    for workers in (1, 2):
+        f = _Frames(replay, plan, (160, 120), "follow", Overlays(), workers)
+        try:
+            frames[workers] = [img.copy() for img in f]
+        finally:
+            f.close()
+    assert len(frames[1]) == len(frames[2]) == 7
+    for a, b in zip(frames[1], frames[2], strict=True):
+        assert np.abs(a.astype(int) - b.astype(int)).max() <= 2
+    assert np.abs(frames[1][0].astype(int) - frames[1][-1].astype(int)).max() > 0  # the caption's time changed
+
+
+def test_simplified_meshes_keep_the_robot_s_outline(stand_run):
+    """The visual meshes drawn from their vertex clustering (about half the faces) give the image of the full
+    meshes but for a thin border: few of the robot's pixels change."""
+    images, faces = [], []
+    for cell in (0.0, 0.015):
+        replay = _Replay(stand_run, mesh_cell=cell)
+        faces.append(int(replay.model.mesh_facenum.sum()))
+        r = _Renderer(replay, 320, 400, "side", Overlays.none())
+        r.camera.distance = 2.2
+        images.append(r.frame(0.5).astype(int))
+        if cell == 0.0:
+            r.options.geomgroup[VISUAL_GROUP] = 0
+            robot = np.abs(images[0] - r.frame(0.5)).max(axis=2) > 40
+        r.close()
+    assert faces[1] < 0.6 * faces[0]
+    assert robot.mean() > 0.08
+    changed = np.abs(images[0] - images[1]).max(axis=2) > 40
+    assert changed.sum() < 0.06 * robot.sum()
 
 
 def test_visual_meshes_leave_the_run_bit_identical(tmp_path):
