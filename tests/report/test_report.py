@@ -143,7 +143,8 @@ def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
     monkeypatch.setattr(matrix, "PAPER_MATRIX", (("tsid-torque", "walk-20cm"),))
     monkeypatch.setattr(matrix, "FAST_MATRIX", ())
     monkeypatch.setattr(matrix, "SENSING_MATRIX", (("tsid-torque", "walk-20cm"),))
-    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, sensors="talos-like")
+    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, sensors="talos-like",
+                    keyframes=False)
     sec = res.results["sensing"]
     cell = sec["values"]["tsid-torque"]["walk-20cm"]
     assert sec["profile"] == "talos-like" and cell["status"] == "ok" and cell["ideal_status"] == "ok"

@@ -76,8 +76,6 @@ class _Replay:
         from ..robots import load_robot
         from ..scene import Box, Terrain
         from ..sim.bridge import StateBridge
-        from ..sim.model import SimOptions, build_mujoco_model
-        from ..types import ActuationMode
 
         run_dir = Path(run_dir)
         cfg_path, log_path = run_dir / "config.json", run_dir / "log.parquet"
@@ -109,20 +107,7 @@ class _Replay:
 
                 terrain = parse_terrain(Section(load_yaml(file), file).section("terrain", {}))
         self.config = cfg
-        self.model = build_mujoco_model(self.robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True))
-        # software OpenGL (Mesa) pays for multisampling, shadows and reflections per pixel: none of them
-        self.model.vis.quality.offsamples = 0
-        light = self.model.vis.headlight  # brighter than MuJoCo's default for the robot's dark meshes
-        light.ambient[:] = (0.35, 0.35, 0.35)
-        light.diffuse[:] = (0.75, 0.75, 0.75)
-        light.specular[:] = (0.2, 0.2, 0.2)
-        floor = [g for g in range(self.model.ngeom) if self.model.geom_bodyid[g] == 0]
-        for g in floor:  # a lighter ground, so that the overlays and the robot stand out
-            self.model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if self.model.geom_type[g] == 0 else (0.65, 0.55, 0.45, 1.0)
-            if self.model.geom_type[g] == 0 and not self.model.geom_size[g, :2].all():  # infinite plane: a square
-                self.model.geom_size[g] = (_FLOOR_HALF_SIZE_M, _FLOOR_HALF_SIZE_M, 10.0)
-        if mesh_cell > 0:
-            simplify_meshes(self.model, mesh_cell)
+        self.model = _visual_model(self.robot, terrain, mesh_cell)
         self.bridge = StateBridge(self.robot, self.model)
         try:
             self.t = np.asarray(log["t"], dtype=float)
@@ -147,6 +132,91 @@ class _Replay:
 
     def tick_at(self, time_s: float) -> int:
         return int(min(np.searchsorted(self.t, time_s - 1e-9), len(self.t) - 1))
+
+
+_MODEL_FORMAT = 1
+"""Version of `_visual_model`'s changes to the simulation model: bump it when they change (cache key)."""
+_MODELS: dict[str, bytes] = {}
+"""Visual models built in this process (MJB bytes) by cache key."""
+
+
+def _cache_dir() -> Path | None:
+    """Where visual models are kept between runs: $WBCBENCH_CACHE_DIR, else $XDG_CACHE_HOME/wbcbench or
+    ~/.cache/wbcbench (an empty WBCBENCH_CACHE_DIR: no disk cache)."""
+    root = os.environ.get("WBCBENCH_CACHE_DIR")
+    if root is None:
+        root = str(Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wbcbench")
+    return Path(root) / "render-models" if root else None
+
+
+def _visual_model(robot, terrain, mesh_cell: float):
+    """The simulation's model of `robot` on `terrain` with the URDF's visual meshes, made for drawing: no
+    multisampling, a brighter headlight, a lighter ground drawn as one square, meshes simplified (`mesh_cell`).
+
+    Building it (reading the meshes, compiling) takes seconds, drawing a frame milliseconds: the model is kept as
+    MJB, in this process and on disk (`_cache_dir`), under a key made of everything it is built from (URDF and
+    profile text, the model-building code, the terrain, the cell, MuJoCo's version).
+    """
+    import hashlib
+    import tempfile
+
+    import mujoco
+
+    from ..sim import model as sim_model
+    from ..sim.model import SimOptions, build_mujoco_model
+    from ..types import ActuationMode
+
+    h = hashlib.sha256()
+    for part in (robot.files.urdf.read_bytes(), Path(robot.profile.file).read_bytes() if robot.profile.file else b"",
+                 Path(sim_model.__file__).read_bytes(), repr(terrain).encode(),
+                 f"{mesh_cell}|{mujoco.__version__}|{_MODEL_FORMAT}".encode()):
+        h.update(hashlib.sha256(part).digest())
+    key = h.hexdigest()[:32]
+    cache = _cache_dir()
+    blob = _MODELS.get(key)
+    if blob is None and cache is not None and (cache / f"{key}.mjb").is_file():
+        try:
+            blob = (cache / f"{key}.mjb").read_bytes()
+        except OSError:
+            blob = None
+    if blob is not None:
+        with tempfile.NamedTemporaryFile(suffix=".mjb") as f:
+            f.write(blob)
+            f.flush()
+            try:
+                _MODELS[key] = blob
+                return mujoco.MjModel.from_binary_path(f.name)
+            except Exception:  # a damaged cache file: build again
+                _MODELS.pop(key, None)
+    model = build_mujoco_model(robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True))
+    # software OpenGL (Mesa) pays for multisampling, shadows and reflections per pixel: none of them
+    model.vis.quality.offsamples = 0
+    light = model.vis.headlight  # brighter than MuJoCo's default for the robot's dark meshes
+    light.ambient[:] = (0.35, 0.35, 0.35)
+    light.diffuse[:] = (0.75, 0.75, 0.75)
+    light.specular[:] = (0.2, 0.2, 0.2)
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] != 0:
+            continue
+        plane = model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
+        # a lighter ground, so that the overlays and the robot stand out
+        model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if plane else (0.65, 0.55, 0.45, 1.0)
+        if plane and not model.geom_size[g, :2].all():  # infinite: MuJoCo draws a fine grid out to the far plane
+            model.geom_size[g] = (_FLOOR_HALF_SIZE_M, _FLOOR_HALF_SIZE_M, 10.0)
+    if mesh_cell > 0:
+        simplify_meshes(model, mesh_cell)
+    with tempfile.TemporaryDirectory() as tmp:
+        mujoco.mj_saveModel(model, str(Path(tmp) / "m.mjb"), None)
+        blob = _MODELS[key] = (Path(tmp) / "m.mjb").read_bytes()
+    if cache is not None:
+        try:  # written whole then renamed: processes building the same model at once do not clash
+            cache.mkdir(parents=True, exist_ok=True)
+            part = cache / f"{key}.{os.getpid()}.part"
+            part.write_bytes(blob)
+            os.replace(part, cache / f"{key}.mjb")
+        except OSError:  # no writable cache: built each time
+            pass
+    return model
 
 
 def simplify_meshes(model, cell: float) -> int:
