@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -29,6 +30,12 @@ CONFIGS = {  # name: (size, render_run keywords, cores)
     "2 processes, 2 cores": ("1280x720", dict(workers=2), 2),
     "640x480, 2 processes, 2 cores": ("640x480", dict(workers=2), 2),
 }
+
+
+def _cpu_seconds() -> float:
+    """User + system CPU time of this process and of its finished children (the render processes) [s]."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def main() -> None:
@@ -58,22 +65,26 @@ def main() -> None:
               f"the model: {load:.2f} s (first time, caches cold)")
         render_run(run_dir, Path(tmp) / "warm.mp4", size="320x240", fps=5, workers=1)
         walls: dict[str, list[float]] = {k: [] for k in configs}
+        cpus: dict[str, list[float]] = {k: [] for k in configs}
         for r in range(args.rounds):
             for name, (size, kwargs, ncores) in configs.items():
                 os.sched_setaffinity(0, cores[-ncores:])
+                c0 = _cpu_seconds()
                 t0 = time.perf_counter()
                 render_run(run_dir, Path(tmp) / "v.mp4", size=size, fps=30, **kwargs)
                 walls[name].append(time.perf_counter() - t0)
+                cpus[name].append(_cpu_seconds() - c0)
                 os.sched_setaffinity(0, cores)
             print(f"  round {r + 1}/{args.rounds}, load average {os.getloadavg()[0]:.2f}", flush=True)
         size_mb = (Path(tmp) / "v.mp4").stat().st_size / 1e6
-        print(f"whole video, wall time median of {args.rounds} (min, max); last video {size_mb:.1f} MB")
+        print(f"whole video, wall time median of {args.rounds} (min, max), CPU time of all its processes; last "
+              f"video {size_mb:.1f} MB")
         for name, w in walls.items():
             wall = float(np.median(w))
             fps = n / wall
-            print(f"  {configs[name][0]:9s} {name:32s} {wall:6.2f} s ({min(w):.2f}, {max(w):.2f}): {fps:5.1f} "
-                  f"frames/s, {1e3 / fps:5.1f} ms per frame, {'faster' if fps > 30 else 'slower'} than real time "
-                  f"(x{fps / 30:.2f})")
+            print(f"  {configs[name][0]:9s} {name:30s} {wall:6.2f} s ({min(w):.2f}, {max(w):.2f}): {fps:5.1f} "
+                  f"frames/s, {'faster' if fps > 30 else 'slower'} than real time (x{fps / 30:.2f}); CPU "
+                  f"{1e3 * float(np.median(cpus[name])) / n:5.1f} ms per frame")
 
 
 if __name__ == "__main__":

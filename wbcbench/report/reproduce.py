@@ -126,6 +126,7 @@ def render_media(outcome: RunOutcome, *, keyframes: bool = True, video: bool = F
     from ..viz.render import keyframe_strip, render_run
 
     run_dir = Path(outcome.run_dir)
+    t0 = time.perf_counter()
     try:
         if keyframes:
             outcome.keyframes = str(keyframe_strip(run_dir, run_dir / "keyframes.png", frames=KEYFRAMES,
@@ -136,6 +137,7 @@ def render_media(outcome: RunOutcome, *, keyframes: bool = True, video: bool = F
         msg = str(exc) if isinstance(exc, WbcError) else f"{type(exc).__name__}: {exc}"
         what = "key frames" if keyframes and outcome.keyframes is None else "video"
         outcome.media_error = f"{what} not rendered: {msg.splitlines()[0] if msg else type(exc).__name__}"
+    outcome.media_wall_s = time.perf_counter() - t0
 
 
 # ------------------------------------------------------------------------------------------- execution

@@ -45,6 +45,7 @@ class RunOutcome:
         keyframes: its key-frame strip (PNG), if one was rendered.
         video: its video (MP4), if one was rendered.
         media_error: why a strip or video asked for was not rendered (one line).
+        media_wall_s: wall time spent rendering the strip and video [s].
     """
 
     section: str
@@ -60,6 +61,7 @@ class RunOutcome:
     keyframes: str | None = None
     video: str | None = None
     media_error: str | None = None
+    media_wall_s: float | None = None
 
     @property
     def has_metrics(self) -> bool:
@@ -73,7 +75,8 @@ class RunOutcome:
                 "duration_cap_s": self.duration_cap_s, "run_dir": self.run_dir,
                 "mode": s.get("mode"), "fell": s.get("fell"), "sim_time_s": s.get("sim_time_s"),
                 "duration_s": s.get("duration_s"), "wall_time_s": s.get("wall_time_s"),
-                "keyframes": self.keyframes, "video": self.video, "media_error": self.media_error}
+                "keyframes": self.keyframes, "video": self.video, "media_error": self.media_error,
+                "media_wall_s": self.media_wall_s}
 
 
 def scenario_key(name: str) -> str:

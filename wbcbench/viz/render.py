@@ -136,8 +136,8 @@ class _Replay:
 
 _MODEL_FORMAT = 1
 """Version of `_visual_model`'s changes to the simulation model: bump it when they change (cache key)."""
-_MODELS: dict[str, bytes] = {}
-"""Visual models built in this process (MJB bytes) by cache key."""
+_MODELS: dict = {}
+"""Visual models built or read in this process, by cache key (`_visual_model` hands out copies)."""
 
 
 def _cache_dir() -> Path | None:
@@ -157,8 +157,8 @@ def _visual_model(robot, terrain, mesh_cell: float):
     MJB, in this process and on disk (`_cache_dir`), under a key made of everything it is built from (URDF and
     profile text, the model-building code, the terrain, the cell, MuJoCo's version).
     """
+    import copy
     import hashlib
-    import tempfile
 
     import mujoco
 
@@ -172,22 +172,15 @@ def _visual_model(robot, terrain, mesh_cell: float):
                  f"{mesh_cell}|{mujoco.__version__}|{_MODEL_FORMAT}".encode()):
         h.update(hashlib.sha256(part).digest())
     key = h.hexdigest()[:32]
+    if key in _MODELS:
+        return copy.deepcopy(_MODELS[key])
     cache = _cache_dir()
-    blob = _MODELS.get(key)
-    if blob is None and cache is not None and (cache / f"{key}.mjb").is_file():
+    if cache is not None and (cache / f"{key}.mjb").is_file():
         try:
-            blob = (cache / f"{key}.mjb").read_bytes()
-        except OSError:
-            blob = None
-    if blob is not None:
-        with tempfile.NamedTemporaryFile(suffix=".mjb") as f:
-            f.write(blob)
-            f.flush()
-            try:
-                _MODELS[key] = blob
-                return mujoco.MjModel.from_binary_path(f.name)
-            except Exception:  # a damaged cache file: build again
-                _MODELS.pop(key, None)
+            _MODELS[key] = mujoco.MjModel.from_binary_path(str(cache / f"{key}.mjb"))
+            return copy.deepcopy(_MODELS[key])
+        except Exception:  # a damaged cache file: build it again
+            pass
     model = build_mujoco_model(robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True))
     # software OpenGL (Mesa) pays for multisampling, shadows and reflections per pixel: none of them
     model.vis.quality.offsamples = 0
@@ -205,18 +198,16 @@ def _visual_model(robot, terrain, mesh_cell: float):
             model.geom_size[g] = (_FLOOR_HALF_SIZE_M, _FLOOR_HALF_SIZE_M, 10.0)
     if mesh_cell > 0:
         simplify_meshes(model, mesh_cell)
-    with tempfile.TemporaryDirectory() as tmp:
-        mujoco.mj_saveModel(model, str(Path(tmp) / "m.mjb"), None)
-        blob = _MODELS[key] = (Path(tmp) / "m.mjb").read_bytes()
     if cache is not None:
         try:  # written whole then renamed: processes building the same model at once do not clash
             cache.mkdir(parents=True, exist_ok=True)
             part = cache / f"{key}.{os.getpid()}.part"
-            part.write_bytes(blob)
+            mujoco.mj_saveModel(model, str(part), None)
             os.replace(part, cache / f"{key}.mjb")
-        except OSError:  # no writable cache: built each time
+        except Exception:  # no writable cache: built each time
             pass
-    return model
+    _MODELS[key] = model
+    return copy.deepcopy(model)
 
 
 def simplify_meshes(model, cell: float) -> int:
@@ -350,6 +341,7 @@ class _Renderer:
         self.follow = camera != "top"
         self.overlays = overlays
         self._lookat = None
+        self._font = None
         self._footholds = self._planned_footholds() if overlays.footholds else np.zeros((0, 3))
         self.size = (width, height)
 
@@ -470,8 +462,12 @@ class _Renderer:
         cfg = self.replay.config
         text = (f"{cfg.get('scenario', '?')} | {cfg.get('controller', '?')} ({cfg.get('mode', '?')}) | "
                 f"t = {t:6.2f} s")
+        if self._font is None:  # PIL's bitmap font: a tenth of the time of its default FreeType one per frame
+            from PIL import ImageFont
+
+            self._font = ImageFont.load_default_imagefont()
         band = Image.new("RGB", (img.shape[1], _CAPTION_ROWS))
-        ImageDraw.Draw(band).text((6, 3), text, fill=(255, 255, 255))
+        ImageDraw.Draw(band).text((6, 3), text, fill=(255, 255, 255), font=self._font)
         img[:_CAPTION_ROWS] = np.asarray(band)
 
     def close(self) -> None:
