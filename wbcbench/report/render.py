@@ -290,9 +290,9 @@ def _key_frame_groups(res: dict) -> list[tuple[str, list[dict]]]:
     """results["key_frames"] grouped by scenario (first-seen order): [(scenario label, cells)]."""
     groups: dict[str, list[dict]] = {}
     for k in res.get("key_frames") or []:
-        label = SCENARIO_LABELS.get(k["scenario"], k["scenario"])
-        if k["section"] == "fast" and k["scenario"] not in SCENARIO_LABELS:
-            label += " (fast)"
+        label = k["scenario"]
+        if k["scenario"] in SCENARIO_LABELS:
+            label = f"{SCENARIO_LABELS[k['scenario']]} ({label})"
         groups.setdefault(label, []).append(k)
     return list(groups.items())
 
