@@ -131,6 +131,7 @@ def test_bad_input_is_one_line(stand_run, tmp_path):
     cases = [((str(empty),), {}, "no log.parquet"), ((str(corrupt),), {}, "cannot read the log"),
              ((str(stand_run), "--size", "100x"), {}, "--size"),
              ((str(stand_run), "--camera", "drone"), {}, "drone"),
+             ((str(stand_run), "--workers", "0"), {}, "--workers"),
              ((str(stand_run), "--out", str(tmp_path / "x.mp4")), {"MUJOCO_GL": "glx"}, "MUJOCO_GL")]
     for args, env, needle in cases:
         proc = _cli(*args, env=env)
