@@ -9,6 +9,7 @@ machine hit all alike; the script sets its own CPU affinity (inherited by the re
   full meshes, 1 process, 1 core    the renderer before this benchmark's optimisations: meshes as loaded, one
                                     process, x264 preset veryfast, pinned to one core
   1 process, 1 core                 simplified meshes, one process, pinned to one core
+  1 process, 2 cores                the same on both cores (llvmpipe rasterizes and x264 encodes in threads)
   2 processes, 2 cores              simplified meshes, 2 render processes + the encoder, both cores
 Software rendering (Mesa's llvmpipe through EGL) runs on the CPU: the machine's load matters, the script prints it.
 """
@@ -27,6 +28,7 @@ import numpy as np
 CONFIGS = {  # name: (size, render_run keywords, cores)
     "full meshes, 1 process, 1 core": ("1280x720", dict(workers=1, mesh_cell=0.0, preset="veryfast"), 1),
     "1 process, 1 core": ("1280x720", dict(workers=1), 1),
+    "1 process, 2 cores": ("1280x720", dict(workers=1), 2),
     "2 processes, 2 cores": ("1280x720", dict(workers=2), 2),
     "640x480, 2 processes, 2 cores": ("640x480", dict(workers=2), 2),
 }

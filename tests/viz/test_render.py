@@ -41,7 +41,7 @@ def test_one_second_of_stand_to_mp4(stand_run, tmp_path):
     assert frames[0].shape == (240, 320, 3)
     robot = _robot_mask(stand_run, frames[0], 0.0, "follow", (320, 240))
     assert robot.mean() > 0.02  # the robot covers a real part of the image, not a blank frame
-    slow = _decode(render_run(stand_run, tmp_path / "slow.mp4", size="160x120", fps=10, speed=0.5))
+    slow = _decode(render_run(stand_run, tmp_path / "slow.mp4", size="160x120", fps=10, speed=0.5, workers=2))
     assert abs(len(slow) - 21) <= 1  # 2 s of video for 1 s at half speed
 
 

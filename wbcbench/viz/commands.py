@@ -22,8 +22,8 @@ def add_subcommand(sub) -> None:
         p.add_argument(f"--no-{name}", action="store_true", help=f"leave out the {name} overlay")
     p.add_argument("--keyframes", type=int, default=0, metavar="N",
                    help="write a PNG strip of N key frames instead of a video")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="render processes feeding the encoder (default: see README, Watch a run)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="render processes feeding the encoder (default 1: one process already uses every core)")
     p.add_argument("--full-meshes", action="store_true",
                    help="draw the visual meshes as loaded (default: simplified copies, 1.5 cm clustering)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")

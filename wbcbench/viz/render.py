@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import ConfigError, WbcError
 
-__all__ = ["CAMERAS", "Overlays", "RenderError", "default_workers", "keyframe_strip", "render_run", "simplify_meshes"]
+__all__ = ["CAMERAS", "Overlays", "RenderError", "keyframe_strip", "render_run", "simplify_meshes"]
 
 CAMERAS = ("follow", "side", "front", "top")
 #: camera azimuth / elevation [deg] and distance [m] per view (MuJoCo's free camera)
@@ -487,14 +487,6 @@ def _size(size: str | tuple[int, int]) -> tuple[int, int]:
     return w, h
 
 
-def default_workers() -> int:
-    """Render processes for a video: the cores this process may use, at most 2 (one encoder keeps up with 2)."""
-    try:
-        return max(1, min(2, len(os.sched_getaffinity(0))))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, min(2, os.cpu_count() or 1))
-
-
 def _render_worker(state: dict, model_file: str, plan: _FramePlan, first: int, step: int, size: tuple[int, int],
                    camera: str, overlays: Overlays, conn) -> None:
     """A render process: frames first, first + step, ... of `plan`, each sent as raw RGB bytes on `conn`; an error
@@ -593,14 +585,16 @@ class _Frames:
 
 def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str | tuple[int, int] = "1280x720",
                fps: float = 30.0, speed: float = 1.0, camera: str = "follow", overlays: Overlays = Overlays(),
-               progress: Callable[[float], None] | None = None, workers: int | None = None,
+               progress: Callable[[float], None] | None = None, workers: int = 1,
                mesh_cell: float = MESH_CELL_M, preset: str = "superfast") -> Path:
     """Render a run directory to an H.264 MP4 (default RUN_DIR/video.mp4); returns its path.
 
     `speed`: playback speed (0.5: slow motion); `fps`: frames per second of the video; a frame shows the last
-    logged state at or before its time. `workers`: render processes (default `default_workers()`; 1 renders in
-    this process), feeding one H.264 encoder here (x264 `preset`). `mesh_cell`: grid cell [m] of the visual
-    meshes' simplification, 0 for the full meshes.
+    logged state at or before its time. `workers`: render processes feeding one H.264 encoder here (x264
+    `preset`); 1 (default) renders in this process, which already uses every core (Mesa's llvmpipe rasterizes and
+    x264 encodes in threads): on 2 shared cores, 2 processes cost 40 % more CPU per frame and were not faster
+    (benchmarks/bench_render.py). `mesh_cell`: grid cell [m] of the visual meshes' simplification, 0 for the full
+    meshes.
 
     Raises:
         ConfigError: not a run directory, an unreadable log, bad size / fps / speed / camera / workers.
@@ -616,7 +610,7 @@ def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str 
         raise ConfigError(f"speed must be within 0.05..20, got {speed}", key="--speed")
     if camera not in CAMERAS:
         raise ConfigError(f"unknown camera '{camera}'; allowed: {', '.join(CAMERAS)}", key="--camera")
-    workers = default_workers() if workers is None else int(workers)
+    workers = int(workers)
     if workers < 1:
         raise ConfigError(f"workers must be >= 1, got {workers}", key="--workers")
     replay = _Replay(run_dir, mesh_cell)
