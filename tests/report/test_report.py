@@ -153,7 +153,7 @@ def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
     assert zmp["sensed"] != zmp["ideal"] and zmp["ideal"] == res.results["metrics"]["tsid-torque"]["walk-20cm"][
         "zmp_error_m"]["x"]["mean"]
     assert "Under 'talos-like' sensing" in (tmp_path / "report.md").read_text()
-    assert res.results["command"] == "reproduce --quick --sensors talos-like"
+    assert res.results["command"] == "reproduce --quick --sensors talos-like --no-keyframes"
 
 
 def test_sanity_section_pairs_controllers_with_the_scenarios_they_are_meant_for():
