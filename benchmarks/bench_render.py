@@ -46,12 +46,16 @@ def main() -> None:
     p.add_argument("--controller", default="tsid-torque")
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--run-dir", default=None, help="render this run directory instead of running the scenario")
-    p.add_argument("--only", default=None, help="comma-separated configuration names (default: all)")
+    p.add_argument("--only", default=None, help="';'-separated configuration names (default: all)")
     args = p.parse_args()
     from wbcbench.viz.render import _Replay, render_run
 
     cores = sorted(os.sched_getaffinity(0))
-    configs = {k: v for k, v in CONFIGS.items() if args.only is None or k in args.only.split(",")}
+    only = None if args.only is None else [name.strip() for name in args.only.split(";")]
+    unknown = sorted(set(only or ()) - set(CONFIGS))
+    if unknown:
+        p.error(f"unknown configuration(s) {unknown}; known: {list(CONFIGS)}")
+    configs = {k: v for k, v in CONFIGS.items() if only is None or k in only}
     with tempfile.TemporaryDirectory() as tmp:
         if args.run_dir:
             run_dir = Path(args.run_dir)
