@@ -1,5 +1,6 @@
 """Reports: the paper's numbers as data, report/compare from run directories, reproduce on a tiny matrix."""
 
+import importlib
 import io
 import json
 import shutil
@@ -11,6 +12,8 @@ from wbcbench.cli import main
 from wbcbench.report import PAPER_TABLES, compare, compare_rows, paper_value, report, reproduce
 from wbcbench.report import matrix
 from wbcbench.report.paper import CONTROLLERS, SCENARIOS
+
+reproduce_module = importlib.import_module("wbcbench.report.reproduce")  # (the package exports the function)
 
 
 def strict_json(path):
@@ -140,7 +143,8 @@ def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
     monkeypatch.setattr(matrix, "PAPER_MATRIX", (("tsid-torque", "walk-20cm"),))
     monkeypatch.setattr(matrix, "FAST_MATRIX", ())
     monkeypatch.setattr(matrix, "SENSING_MATRIX", (("tsid-torque", "walk-20cm"),))
-    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, sensors="talos-like")
+    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, sensors="talos-like",
+                    keyframes=False)
     sec = res.results["sensing"]
     cell = sec["values"]["tsid-torque"]["walk-20cm"]
     assert sec["profile"] == "talos-like" and cell["status"] == "ok" and cell["ideal_status"] == "ok"
@@ -149,7 +153,7 @@ def test_reproduce_sensing_section_beside_the_ideal_runs(monkeypatch, tmp_path):
     assert zmp["sensed"] != zmp["ideal"] and zmp["ideal"] == res.results["metrics"]["tsid-torque"]["walk-20cm"][
         "zmp_error_m"]["x"]["mean"]
     assert "Under 'talos-like' sensing" in (tmp_path / "report.md").read_text()
-    assert res.results["command"] == "reproduce --quick --sensors talos-like"
+    assert res.results["command"] == "reproduce --quick --sensors talos-like --no-keyframes"
 
 
 def test_sanity_section_pairs_controllers_with_the_scenarios_they_are_meant_for():
@@ -159,3 +163,58 @@ def test_sanity_section_pairs_controllers_with_the_scenarios_they_are_meant_for(
         assert pair not in sanity and matrix.SANITY_NOT_PAIRED[pair]
     assert {("joint-pd", "stand"), ("joint-pd", "push"), ("tsid-teleop", "stand"), ("tsid-torque", "one-foot"),
             ("ik", "sway")} <= sanity
+
+
+# ------------------------------------------------------------------------------------------ key frames
+def _tiny_paper_matrix(monkeypatch):
+    monkeypatch.setattr(matrix, "PAPER_MATRIX", (("joint-pd", "stand"),))
+    monkeypatch.setattr(matrix, "FAST_MATRIX", ())
+    monkeypatch.setattr(matrix, "QUICK_WALK_CAP_S", 0.6)
+
+
+def test_reproduce_shows_key_frames_and_links_videos(monkeypatch, tmp_path):
+    """Each table cell gets a key-frame strip in report.md / report.html, rendered where the cell ran, showing
+    the robot; --video adds the clip, linked."""
+    import av
+    import numpy as np
+    from PIL import Image
+
+    from wbcbench.sim.model import VISUAL_GROUP
+    from wbcbench.viz.render import Overlays, _Renderer, _render_replay
+
+    _tiny_paper_matrix(monkeypatch)
+    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, video=True)
+    (cell,) = res.results["key_frames"]
+    assert cell["keyframes"] == "runs/paper-stand-joint-pd/keyframes.png" and cell["error"] is None
+    md, page = (tmp_path / "report.md").read_text(), (tmp_path / "report.html").read_text()
+    assert "## Key frames" in md and f"]({cell['keyframes']})" in md and "[video](runs/paper-stand-joint-pd/video.mp4)" in md
+    assert f"<img src='{cell['keyframes']}'" in page and "href='runs/paper-stand-joint-pd/video.mp4'" in page
+    strip = np.asarray(Image.open(tmp_path / cell["keyframes"]).convert("RGB"))
+    w, h = (int(v) for v in reproduce_module.KEYFRAME_SIZE.split("x"))
+    assert strip.shape == (h, reproduce_module.KEYFRAMES * w, 3)
+    # the first key frame against the same view without the robot
+    r = _Renderer(_render_replay(tmp_path / "runs" / "paper-stand-joint-pd"), w, h, "follow", Overlays.none())
+    r.options.geomgroup[VISUAL_GROUP] = 0
+    empty = r.frame(0.0)
+    r.close()
+    robot = np.abs(strip[:, :w].astype(int) - empty.astype(int)).max(axis=2) > 40
+    assert robot.mean() > 0.05
+    with av.open(str(tmp_path / "runs" / "paper-stand-joint-pd" / "video.mp4")) as c:
+        assert sum(1 for _ in c.decode(video=0)) == 19  # 0.6 s at 30 frames/s
+
+
+def test_a_cell_whose_rendering_fails_keeps_its_report(monkeypatch, tmp_path):
+    from wbcbench.viz import render as viz_render
+
+    def no_gl(*args, **kwargs):
+        raise viz_render.RenderError("cannot create an OpenGL context with MUJOCO_GL='egl' (no EGL device)")
+
+    _tiny_paper_matrix(monkeypatch)
+    monkeypatch.setattr(viz_render, "keyframe_strip", no_gl)
+    res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False)
+    (o,) = res.outcomes
+    assert o.status == "ok" and o.keyframes is None
+    assert o.media_error == "key frames not rendered: cannot create an OpenGL context with MUJOCO_GL='egl' (no EGL device)"
+    md = (tmp_path / "report.md").read_text()
+    assert o.media_error in md and "Table 2" in md
+    assert res.results["runs"][0]["media_error"] == o.media_error

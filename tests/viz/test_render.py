@@ -11,8 +11,7 @@ import pytest
 
 from wbcbench.runner import run
 from wbcbench.sim.model import VISUAL_GROUP, SimOptions
-from wbcbench.viz.render import Overlays, _Renderer, keyframe_strip, render_run
-from wbcbench.viz.replay import Replay
+from wbcbench.viz.render import Overlays, _Frames, _plan, _Renderer, _render_replay, keyframe_strip, render_run
 
 
 def _decode(path):
@@ -22,7 +21,7 @@ def _decode(path):
 
 def _robot_mask(run_dir, frame, time_s, camera, size):
     """Pixels of a decoded frame that differ from the same view rendered without the robot (H.264 tolerant)."""
-    replay = Replay(run_dir)
+    replay = _render_replay(run_dir)
     r = _Renderer(replay, size[0], size[1], camera, Overlays.none())
     r.options.geomgroup[VISUAL_GROUP] = 0
     empty = r.frame(time_s)
@@ -42,7 +41,7 @@ def test_one_second_of_stand_to_mp4(stand_run, tmp_path):
     assert frames[0].shape == (240, 320, 3)
     robot = _robot_mask(stand_run, frames[0], 0.0, "follow", (320, 240))
     assert robot.mean() > 0.02  # the robot covers a real part of the image, not a blank frame
-    slow = _decode(render_run(stand_run, tmp_path / "slow.mp4", size="160x120", fps=10, speed=0.5))
+    slow = _decode(render_run(stand_run, tmp_path / "slow.mp4", size="160x120", fps=10, speed=0.5, workers=2))
     assert abs(len(slow) - 21) <= 1  # 2 s of video for 1 s at half speed
 
 
@@ -66,6 +65,44 @@ def test_keyframe_strip(stand_run, tmp_path):
 
     out = keyframe_strip(stand_run, tmp_path / "k.png", frames=3, size="80x100")
     assert Image.open(out).size == (240, 100)
+
+
+def test_two_render_processes_give_the_frames_of_one(stand_run):
+    """Frames rendered by 2 worker processes (interleaved, each its own model copy and OpenGL context) arrive in
+    order and equal those rendered in this process, overlays and caption included."""
+    replay = _render_replay(stand_run)
+    plan = _plan(replay, np.linspace(0.0, 1.0, 7), "follow")
+    frames = {}
+    for workers in (1, 2):
+        f = _Frames(replay, plan, (160, 120), "follow", Overlays(), workers)
+        try:
+            frames[workers] = [img.copy() for img in f]
+        finally:
+            f.close()
+    assert len(frames[1]) == len(frames[2]) == 7
+    for a, b in zip(frames[1], frames[2], strict=True):
+        assert np.abs(a.astype(int) - b.astype(int)).max() <= 2
+    assert np.abs(frames[1][0].astype(int) - frames[1][-1].astype(int)).max() > 0  # the caption's time changed
+
+
+def test_simplified_meshes_keep_the_robot_s_outline(stand_run):
+    """The visual meshes drawn from their vertex clustering (about half the faces) give the image of the full
+    meshes but for a thin border: few of the robot's pixels change."""
+    images, faces = [], []
+    for cell in (0.0, 0.015):
+        replay = _render_replay(stand_run, mesh_cell=cell)
+        faces.append(int(replay.model.mesh_facenum.sum()))
+        r = _Renderer(replay, 320, 400, "side", Overlays.none())
+        r.camera.distance = 2.2
+        images.append(r.frame(0.5).astype(int))
+        if cell == 0.0:
+            r.options.geomgroup[VISUAL_GROUP] = 0
+            robot = np.abs(images[0] - r.frame(0.5)).max(axis=2) > 40
+        r.close()
+    assert faces[1] < 0.6 * faces[0]
+    assert robot.mean() > 0.08
+    changed = np.abs(images[0] - images[1]).max(axis=2) > 40
+    assert changed.sum() < 0.06 * robot.sum()
 
 
 def test_visual_meshes_leave_the_run_bit_identical(tmp_path):
@@ -94,6 +131,7 @@ def test_bad_input_is_one_line(stand_run, tmp_path):
     cases = [((str(empty),), {}, "no log.parquet"), ((str(corrupt),), {}, "cannot read the log"),
              ((str(stand_run), "--size", "100x"), {}, "--size"),
              ((str(stand_run), "--camera", "drone"), {}, "drone"),
+             ((str(stand_run), "--workers", "0"), {}, "--workers"),
              ((str(stand_run), "--out", str(tmp_path / "x.mp4")), {"MUJOCO_GL": "glx"}, "MUJOCO_GL")]
     for args, env, needle in cases:
         proc = _cli(*args, env=env)

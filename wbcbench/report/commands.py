@@ -1,6 +1,6 @@
 """The report subcommands of the command line: `reproduce`, `report` and `compare`.
 
-    wbcbench reproduce [--quick] [--jobs N] --out DIR
+    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] --out DIR
     wbcbench report RUN_DIR... --out DIR
     wbcbench compare RUN_A RUN_B
 """
@@ -28,6 +28,10 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
                    help="comma-separated controllers (default: the paper's three, every one in the sanity section); "
                         "a controller of yours is run on the paper's scenarios and joins the tables")
     r.add_argument("--scenarios", default=None, help="comma-separated scenarios to keep (default: all)")
+    r.add_argument("--no-keyframes", action="store_true",
+                   help="no key-frame strip per table cell in the report (they are rendered where the cell ran)")
+    r.add_argument("--video", action="store_true",
+                   help="also render each table cell's video (RUN_DIR/video.mp4), linked from the report")
     r.add_argument("--sensors", default=None,
                    help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
@@ -53,11 +57,15 @@ def run_command(args: argparse.Namespace) -> int:
         res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
                         sanity=not args.no_sanity, sensors=args.sensors,
                         controllers=args.controllers.split(",") if args.controllers else None,
-                        scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray)
+                        scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
+                        keyframes=not args.no_keyframes, video=args.video)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1
         console.print(f"{len(res.outcomes)} cells: " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items())))
+        for o in res.outcomes:
+            if o.media_error:
+                console.print(f"  {o.section}-{o.scenario}-{o.controller}: {o.media_error}")
         console.print(f"wall time {res.wall_time_s:.1f} s; report: {res.out_dir / 'report.md'}, "
                       f"{res.out_dir / 'report.html'}, {res.out_dir / 'results.json'}")
         return 0

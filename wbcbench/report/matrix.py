@@ -60,6 +60,8 @@ class Job:
         duration_cap_s: duration override [s], None = the scenario's own duration.
         missing: why it cannot run (unknown scenario or controller), None if it can.
         sensors: the sensor profile of the run (None: ideal).
+        keyframes: also render the run's key-frame strip (RUN_DIR/keyframes.png) where it ran.
+        video: also render the run's video (RUN_DIR/video.mp4) where it ran.
     """
 
     section: str
@@ -69,10 +71,16 @@ class Job:
     duration_cap_s: float | None
     missing: str | None
     sensors: str | None = None
+    keyframes: bool = False
+    video: bool = False
 
     @property
     def name(self) -> str:
         return f"{self.section}-{self.scenario}-{self.controller}"
+
+
+MEDIA_SECTIONS: tuple[str, ...] = ("paper", "fast")
+"""Sections whose cells get a key-frame strip (and with --video a clip) in the report: the tables' cells."""
 
 
 def available_scenarios() -> list[str]:

@@ -281,6 +281,27 @@ def _preamble(res: dict) -> list[str]:
     return lines
 
 
+KEY_FRAMES_NOTE = ("Six frames per run at equal times from its start to its end (follow camera; green: planned "
+                   "footholds, orange / white: CoM and its reference, blue / red: planned and measured ZMP, yellow: "
+                   "contact forces).")
+
+
+def _key_frame_groups(res: dict) -> list[tuple[str, list[dict]]]:
+    """results["key_frames"] grouped by scenario (first-seen order): [(scenario label, cells)]."""
+    groups: dict[str, list[dict]] = {}
+    for k in res.get("key_frames") or []:
+        label = k["scenario"]
+        if k["scenario"] in SCENARIO_LABELS:
+            label = f"{SCENARIO_LABELS[k['scenario']]} ({label})"
+        groups.setdefault(label, []).append(k)
+    return list(groups.items())
+
+
+def _key_frame_caption(k: dict) -> str:
+    name = CONTROLLER_LABELS.get(k["controller"], k["controller"])
+    return name if k["status"] == "ok" else f"{name} [{k['status']}]"
+
+
 def to_markdown(res: dict, figures: list[FigureInfo]) -> str:
     def esc(s: str) -> str:
         return s.replace("|", "\\|").replace("\n", " ")
@@ -297,6 +318,19 @@ def to_markdown(res: dict, figures: list[FigureInfo]) -> str:
         else:
             out.append("(no runs)")
         out += [""] + [f"_{esc(n)}_" for n in t.notes] + ([""] if t.notes else [])
+    groups = _key_frame_groups(res)
+    if groups:
+        out += ["## Key frames", "", f"_{KEY_FRAMES_NOTE}_", ""]
+        for label, cells in groups:
+            out += [f"### {label}", ""]
+            for k in cells:
+                video = f" ([video]({k['video']}))" if k.get("video") else ""
+                out.append(f"**{esc(_key_frame_caption(k))}**{video}")
+                out.append("")
+                if k.get("keyframes"):
+                    out += [f"![{esc(_key_frame_caption(k))}, {label}]({k['keyframes']})", ""]
+                if k.get("error"):
+                    out += [esc(k["error"]), ""]
     out += ["## Figures", ""]
     if not figures:
         out += ["(no figure: none of their runs exist yet)", ""]
@@ -340,6 +374,18 @@ def to_html(res: dict, figures: list[FigureInfo]) -> str:
                 out.append("</tr>")
             out.append("</table>")
         out += [f"<p class='note'>{e(n)}</p>" for n in t.notes]
+    groups = _key_frame_groups(res)
+    if groups:
+        out += ["<h2>Key frames</h2>", f"<p class='note'>{e(KEY_FRAMES_NOTE)}</p>"]
+        for label, cells in groups:
+            out.append(f"<h3>{e(label)}</h3>")
+            for k in cells:
+                video = f" (<a href='{e(k['video'])}'>video</a>)" if k.get("video") else ""
+                out.append(f"<p><b>{e(_key_frame_caption(k))}</b>{video}</p>")
+                if k.get("keyframes"):
+                    out.append(f"<img src='{e(k['keyframes'])}' alt='{e(_key_frame_caption(k))}, {e(label)}'>")
+                if k.get("error"):
+                    out.append(f"<p class='note'>{e(k['error'])}</p>")
     out.append("<h2>Figures</h2>")
     if not figures:
         out.append("<p>(no figure: none of their runs exist yet)</p>")

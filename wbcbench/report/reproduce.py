@@ -5,7 +5,9 @@ Output directory:
     report.md, report.html   the paper's tables (ours beside the paper's), fast walk, sanity, figures, runs
     results.json             every number, ours and the paper's (see wbcbench.report.tables)
     figures/*.png            the paper's figures redrawn from our logs
-    runs/<section>-<scenario>-<controller>/   the run directories (reproduce only)
+    runs/<section>-<scenario>-<controller>/   the run directories (reproduce only); the tables' cells (paper
+                             and fast walk) also hold keyframes.png (a key-frame strip, shown in the report) and,
+                             with --video, video.mp4 (linked), rendered in the worker that ran the cell
 """
 
 from __future__ import annotations
@@ -105,7 +107,37 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     except Exception as exc:
         return RunOutcome(status=ERROR, reason=f"metrics failed: {type(exc).__name__}: {exc}",
                           run_dir=str(run_dir), summary=summary, **base)
-    return RunOutcome(status=status, reason=reason, run_dir=str(run_dir), summary=summary, metrics=metrics, **base)
+    outcome = RunOutcome(status=status, reason=reason, run_dir=str(run_dir), summary=summary, metrics=metrics,
+                         **base)
+    if job.keyframes or job.video:
+        render_media(outcome, keyframes=job.keyframes, video=job.video)
+    return outcome
+
+
+KEYFRAMES = 6
+"""Key frames per strip in the report."""
+KEYFRAME_SIZE = "240x300"
+"""Size of one key frame in the report's strips (small: a strip costs little beside its run)."""
+
+
+def render_media(outcome: RunOutcome, *, keyframes: bool = True, video: bool = False) -> None:
+    """Render the run's key-frame strip (RUN_DIR/keyframes.png) and / or video (RUN_DIR/video.mp4, in this
+    process) into `outcome`; a failure (e.g. no OpenGL) goes to `outcome.media_error` as one line, never raises."""
+    from ..viz.render import keyframe_strip, render_run
+
+    run_dir = Path(outcome.run_dir)
+    t0 = time.perf_counter()
+    try:
+        if keyframes:
+            outcome.keyframes = str(keyframe_strip(run_dir, run_dir / "keyframes.png", frames=KEYFRAMES,
+                                                   size=KEYFRAME_SIZE))
+        if video:
+            outcome.video = str(render_run(run_dir, run_dir / "video.mp4", workers=1))
+    except Exception as exc:  # the report goes on without the pictures
+        msg = str(exc) if isinstance(exc, WbcError) else f"{type(exc).__name__}: {exc}"
+        what = "key frames" if keyframes and outcome.keyframes is None else "video"
+        outcome.media_error = f"{what} not rendered: {msg.splitlines()[0] if msg else type(exc).__name__}"
+    outcome.media_wall_s = time.perf_counter() - t0
 
 
 # ------------------------------------------------------------------------------------------- execution
@@ -204,15 +236,38 @@ def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: st
     wall = None if started_at is None else time.perf_counter() - started_at
     results = build_results(outcomes, command=command, quick=quick, jobs=jobs, wall_time_s=wall, errors=errors)
     results["figures"] = [f.file for f in figures]
+    results["key_frames"] = key_frames(outcomes, out)
     (out / "results.json").write_text(json.dumps(results, indent=1, allow_nan=False))
     (out / "report.md").write_text(to_markdown(results, figures))
     (out / "report.html").write_text(to_html(results, figures))
     return results, figures
 
 
+def key_frames(outcomes: list[RunOutcome], out_dir: Path) -> list[dict]:
+    """The tables' cells with their key-frame strip and video paths relative to the report directory (a run
+    directory given to `report` that holds keyframes.png / video.mp4 counts too), or why they are absent."""
+    import os
+
+    out = []
+    for o in outcomes:
+        if o.section not in matrix.MEDIA_SECTIONS or o.run_dir is None:
+            continue
+        d = Path(o.run_dir)
+        strip = o.keyframes or (str(d / "keyframes.png") if (d / "keyframes.png").is_file() else None)
+        video = o.video or (str(d / "video.mp4") if (d / "video.mp4").is_file() else None)
+        if strip is None and video is None and o.media_error is None:
+            continue
+        rel = [None if p is None else Path(os.path.relpath(Path(p).resolve(), out_dir.resolve())).as_posix()
+               for p in (strip, video)]
+        out.append({"section": o.section, "scenario": o.scenario, "controller": o.controller, "status": o.status,
+                    "keyframes": rel[0], "video": rel[1], "error": o.media_error})
+    return out
+
+
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
-              scenarios: list[str] | None = None, ray: str | None = None) -> ReportResult:
+              scenarios: list[str] | None = None, ray: str | None = None, keyframes: bool = True,
+              video: bool = False) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -227,6 +282,9 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         controllers, scenarios: restrict the matrix to these (`matrix.plan_jobs`); a user's controller is run on
             the paper's scenarios and joins the tables.
         ray: run the cells on Ray ('auto': a local instance with `jobs` CPUs; HOST:PORT: a cluster).
+        keyframes: render a key-frame strip of each table cell (paper and fast sections) in the worker that ran
+            it, shown in the report; a cell whose rendering fails says why in one line.
+        video: also render each table cell's video (RUN_DIR/video.mp4, 1280x720), linked from the report.
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -255,6 +313,11 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
                 raise UnknownNameError("controller", c, known, key="--controllers")
     plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
                             scenarios=scenarios)
+    if keyframes or video:
+        from dataclasses import replace
+
+        plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
+                for j in plan]
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     command = "reproduce --quick" if quick else "reproduce"
     if sensors:
@@ -263,6 +326,10 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         command += f" --controllers {','.join(controllers)}"
     if scenarios:
         command += f" --scenarios {','.join(scenarios)}"
+    if video:
+        command += " --video"
+    elif not keyframes:
+        command += " --no-keyframes"
     results, figures = write_report(outcomes, out, command=command,
                                     quick=quick, jobs=n_jobs, started_at=t0)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
@@ -290,4 +357,5 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
     return ReportResult(Path(out_dir), results, outcomes, figures, errors, results["wall_time_s"])
 
 
-__all__ = ["ReportResult", "default_jobs", "execute", "read_run_log", "report", "reproduce", "write_report"]
+__all__ = ["ReportResult", "default_jobs", "execute", "key_frames", "read_run_log", "render_media", "report",
+           "reproduce", "write_report"]

@@ -42,6 +42,10 @@ class RunOutcome:
         run_dir: the run directory, if a run happened.
         summary: the run's summary.json.
         metrics: `compute_run_metrics` of its log (JSON-ready).
+        keyframes: its key-frame strip (PNG), if one was rendered.
+        video: its video (MP4), if one was rendered.
+        media_error: why a strip or video asked for was not rendered (one line).
+        media_wall_s: wall time spent rendering the strip and video [s].
     """
 
     section: str
@@ -54,6 +58,10 @@ class RunOutcome:
     run_dir: str | None = None
     summary: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
+    keyframes: str | None = None
+    video: str | None = None
+    media_error: str | None = None
+    media_wall_s: float | None = None
 
     @property
     def has_metrics(self) -> bool:
@@ -66,7 +74,9 @@ class RunOutcome:
                 "scenario_run": self.scenario_run, "status": self.status, "reason": self.reason,
                 "duration_cap_s": self.duration_cap_s, "run_dir": self.run_dir,
                 "mode": s.get("mode"), "fell": s.get("fell"), "sim_time_s": s.get("sim_time_s"),
-                "duration_s": s.get("duration_s"), "wall_time_s": s.get("wall_time_s")}
+                "duration_s": s.get("duration_s"), "wall_time_s": s.get("wall_time_s"),
+                "keyframes": self.keyframes, "video": self.video, "media_error": self.media_error,
+                "media_wall_s": self.media_wall_s}
 
 
 def scenario_key(name: str) -> str:

@@ -23,6 +23,10 @@ def add_subcommand(sub) -> None:
         p.add_argument(f"--no-{name}", action="store_true", help=f"leave out the {name} overlay")
     p.add_argument("--keyframes", type=int, default=0, metavar="N",
                    help="write a PNG strip of N key frames instead of a video")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="render processes feeding the encoder (default 1: one process already uses every core)")
+    p.add_argument("--full-meshes", action="store_true",
+                   help="draw the visual meshes as loaded (default: simplified copies, 1.5 cm clustering)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
 
@@ -101,13 +105,14 @@ def run_command(args: argparse.Namespace) -> int:
 
     console = Console(stderr=True)
     overlays = overlays_from(args)
+    cell = {"mesh_cell": 0.0} if args.full_meshes else {}
     if args.keyframes:
         out = keyframe_strip(args.run_dir, args.out, frames=args.keyframes, size=args.size or "320x400",
-                             camera=args.camera, overlays=overlays)
+                             camera=args.camera, overlays=overlays, **cell)
         print(out)
         return 0
     kwargs = dict(size=args.size or "1280x720", fps=args.fps, speed=args.speed, camera=args.camera,
-                  overlays=overlays)
+                  overlays=overlays, workers=args.workers, **cell)
     if args.quiet:
         out = render_run(args.run_dir, args.out, **kwargs)
     else:

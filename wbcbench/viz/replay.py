@@ -12,6 +12,7 @@ carry weight).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,14 @@ _OVERLAY_CHANNELS = ("com", "com_ref", "zmp_ref", "foot_ref_left", "foot_ref_rig
 class Replay:
     """A run directory: its robot, its visual MuJoCo model, the states per tick (`t`, `q`), the overlay channels.
 
+    `model_builder(robot, terrain) -> MjModel` makes the model (default: the simulation's with the visual meshes).
+
     Raises:
         ConfigError: no log.parquet, an unreadable config.json or log, a log that lacks the states or does not
             fit the robot.
     """
 
-    def __init__(self, run_dir: str | Path):
+    def __init__(self, run_dir: str | Path, model_builder: Callable | None = None):
         from ..recorder import channel, read_log
         from ..robots import load_robot
         from ..scene import Box, Terrain
@@ -74,7 +77,9 @@ class Replay:
                 terrain = parse_terrain(Section(load_yaml(file), file).section("terrain", {}))
         self.config = cfg
         self.terrain = terrain
-        self.model = build_mujoco_model(self.robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True))
+        # the simulation's model with the visual meshes, or one made for drawing (`render._visual_model`)
+        self.model = (model_builder(self.robot, terrain) if model_builder is not None else
+                      build_mujoco_model(self.robot, terrain, ActuationMode.TORQUE, SimOptions(visuals=True)))
         self.bridge = StateBridge(self.robot, self.model)
         try:
             self.t = np.asarray(log["t"], dtype=float)
@@ -88,6 +93,12 @@ class Replay:
         self.channels = {name: _maybe(channel, log, name) for name in _OVERLAY_CHANNELS}
         self.footholds = planned_footholds(self.channels)
         self.measured_zmp = measured_zmp(self.channels)
+
+    def worker_state(self) -> dict:
+        """What a render worker process needs besides the model (which it reads from a file): config, times,
+        channels and overlay data; not the robot, the log or the states (the frame plan carries those)."""
+        return {k: v for k, v in self.__dict__.items()
+                if k not in ("robot", "bridge", "log", "q", "model", "_pin_data")}
 
     @property
     def duration(self) -> float:
