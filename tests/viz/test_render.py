@@ -85,6 +85,37 @@ def test_two_render_processes_give_the_frames_of_one(stand_run):
     assert np.abs(frames[1][0].astype(int) - frames[1][-1].astype(int)).max() > 0  # the caption's time changed
 
 
+def test_bgr_frames_and_the_encoding_thread_give_the_same_video(stand_run, tmp_path, monkeypatch):
+    """Frames read as BGR into a reused buffer are the RGB frames with the channels swapped, pixel for pixel; a
+    video encoded in a thread while the next frames are drawn decodes to the frames of one encoded in turn; a
+    drawing error in the middle of a threaded video is raised, not lost in the thread."""
+    replay = _render_replay(stand_run)
+    r = _Renderer(replay, 160, 120, "follow", Overlays())
+    buf = np.zeros((120, 160, 3), np.uint8)
+    plan = _plan(replay, np.array([0.0, 0.7]), "follow")
+    for i in range(2):
+        rgb = r.draw(int(plan.ticks[i]), plan.qpos[i], plan.lookat[i]).copy()
+        bgr = r.draw(int(plan.ticks[i]), plan.qpos[i], plan.lookat[i], out=buf, bgr=True)
+        assert np.shares_memory(bgr, buf) and rgb.std() > 10
+        assert np.array_equal(bgr[..., ::-1], rgb)
+    r.close()
+    videos = [_decode(render_run(stand_run, tmp_path / f"{threaded}.mp4", size="160x120", fps=15, threaded=threaded))
+              for threaded in (True, False)]
+    assert len(videos[0]) == len(videos[1]) == 16
+    for a, b in zip(*videos, strict=True):
+        assert np.array_equal(a, b)
+    draw = _Renderer.draw
+
+    def failing(self, k, *args, **kwargs):
+        if k > replay.tick_at(0.5):
+            raise RuntimeError("frame failed")
+        return draw(self, k, *args, **kwargs)
+
+    monkeypatch.setattr(_Renderer, "draw", failing)
+    with pytest.raises(RuntimeError, match="frame failed"):
+        render_run(stand_run, tmp_path / "fail.mp4", size="160x120", fps=15)
+
+
 def test_simplified_meshes_keep_the_robot_s_outline(stand_run):
     """The visual meshes drawn from their vertex clustering (about half the faces) give the image of the full
     meshes but for a thin border: few of the robot's pixels change."""

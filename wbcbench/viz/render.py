@@ -22,7 +22,9 @@ Speed (software OpenGL draws every triangle on the CPU): the visual meshes are d
 draws as a fine grid out to the far clipping plane, is drawn as one 200 m square; the camera path is computed
 before rendering (`_FramePlan`), so that frames can be rendered out of order by several worker processes (each
 its own model copy and OpenGL context, interleaved frames) feeding one encoder in order, pixel-identical to one
-process.
+process. A video's frames are read from OpenGL as BGR, the order FFmpeg converts to YUV fastest, into reused
+buffers whose rows are flipped by a view, not a copy, and encoded (x264 preset ultrafast) in a thread of its own
+while the next frame is drawn (`_Encoder`).
 """
 
 from __future__ import annotations
@@ -249,14 +251,30 @@ class _Renderer:
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
         import warnings
 
+        self.gl, self.context = None, None
         try:
+            from mujoco import gl_context
+
             with warnings.catch_warnings():  # a failing GLFW backend warns before it fails: one line is enough
                 warnings.simplefilter("ignore")
-                self.renderer = mujoco.Renderer(model, height, width)
+                if getattr(gl_context, "GLContext", None) is None:
+                    raise RuntimeError("no OpenGL backend")
+                self.gl = gl_context.GLContext(width, height)
+                self.gl.make_current()
+                self.context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         except Exception as exc:  # no display, no EGL/OSMesa library, a context that cannot be made
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    self.close()
+                except Exception:  # a half-made context: nothing more to free
+                    pass
             raise RenderError(f"cannot create an OpenGL context with MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} "
                               f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
                               "try MUJOCO_GL=egl or MUJOCO_GL=osmesa") from None
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
+        self.scene = mujoco.MjvScene(model, maxgeom=10000)
+        self.rect = mujoco.MjrRect(0, 0, width, height)
         self.options = mujoco.MjvOption()
         for g in range(len(self.options.geomgroup)):
             self.options.geomgroup[g] = 0
@@ -264,7 +282,7 @@ class _Renderer:
 
         self.options.geomgroup[0] = 1  # terrain, soles
         self.options.geomgroup[VISUAL_GROUP] = 1
-        flags = self.renderer.scene.flags
+        flags = self.scene.flags
         for f in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX):
             flags[f] = 0
         self.camera = mujoco.MjvCamera()
@@ -287,22 +305,42 @@ class _Renderer:
         self._lookat = _camera_step(self._lookat, rp.q[k, :3], self.follow)
         return self.draw(k, qpos, self._lookat)
 
-    def draw(self, k: int, qpos: np.ndarray, lookat: np.ndarray) -> np.ndarray:
-        """The frame of tick `k`: the robot at MuJoCo configuration `qpos`, the camera looking at `lookat`."""
+    def draw(self, k: int, qpos: np.ndarray, lookat: np.ndarray, out: np.ndarray | None = None,
+             bgr: bool = False) -> np.ndarray:
+        """The frame of tick `k`: the robot at MuJoCo configuration `qpos`, the camera looking at `lookat`; an RGB
+        image (BGR with `bgr`: what the video encoder converts fastest).
+
+        The pixels are read into `out` (a (height, width, 3) uint8 array, bottom row first as OpenGL gives them),
+        or a new array, and the image returned is a view of it with the rows flipped (no copy).
+        """
         mj, rp = self.mj, self.replay
         self.data.qpos[:] = qpos
         mj.mj_kinematics(rp.model, self.data)
         self.camera.lookat[:] = lookat
-        self.renderer.update_scene(self.data, camera=self.camera, scene_option=self.options)
+        mj.mjv_updateScene(rp.model, self.data, self.options, None, self.camera, mj.mjtCatBit.mjCAT_ALL, self.scene)
         self._draw_overlays(k)
-        img = self.renderer.render()
+        self.gl.make_current()
+        mj.mjr_render(self.rect, self.scene, self.context)
+        w, h = self.size
+        buf = out if out is not None else np.empty((h, w, 3), np.uint8)
+        if bgr and self.context.offSamples == 0:  # straight from the framebuffer in the order asked
+            from OpenGL import GL
+
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.context.offFBO)
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            GL.glReadPixels(0, 0, w, h, GL.GL_BGR, GL.GL_UNSIGNED_BYTE, buf)
+        else:
+            mj.mjr_readPixels(buf, None, self.rect, self.context)
+            if bgr:
+                buf[:] = buf[:, :, ::-1]
+        img = buf[::-1]
         if self.overlays.caption:
             self._caption(img, rp.t[k])
         return img
 
     # ------------------------------------------------------------------ overlays
     def _add(self, gtype, size, pos, rgba, mat=None):
-        scene = self.renderer.scene
+        scene = self.scene
         if scene.ngeom >= scene.maxgeom:
             return
         g = scene.geoms[scene.ngeom]
@@ -311,7 +349,7 @@ class _Renderer:
         scene.ngeom += 1
 
     def _arrow(self, start, end, width, rgba):
-        scene = self.renderer.scene
+        scene = self.scene
         if scene.ngeom >= scene.maxgeom:
             return
         g = scene.geoms[scene.ngeom]
@@ -352,7 +390,8 @@ class _Renderer:
                 self._arrow(p, p + f / 1000.0, 0.015, [1.0, 0.9, 0.1, 0.9])  # 1 m per 1000 N
 
     def _caption(self, img: np.ndarray, t: float) -> None:
-        """The caption drawn in place on the image's top band (only that band goes through PIL)."""
+        """The caption drawn in place on the image's top band (only that band goes through PIL; white on black:
+        the same in RGB and BGR)."""
         from PIL import Image, ImageDraw
 
         cfg = self.replay.config
@@ -367,7 +406,15 @@ class _Renderer:
         img[:_CAPTION_ROWS] = np.asarray(band)
 
     def close(self) -> None:
-        self.renderer.close()
+        """Free the OpenGL context (the MuJoCo context first, while current)."""
+        if self.gl is not None:
+            self.gl.make_current()
+        if self.context is not None:
+            self.context.free()
+            self.context = None
+        if self.gl is not None:
+            self.gl.free()
+            self.gl = None
 
 
 def _size(size: str | tuple[int, int]) -> tuple[int, int]:
@@ -384,10 +431,11 @@ def _size(size: str | tuple[int, int]) -> tuple[int, int]:
 
 
 def _render_worker(state: dict, model_file: str, plan: _FramePlan, first: int, step: int, size: tuple[int, int],
-                   camera: str, overlays: Overlays, conn) -> None:
-    """A render process: frames first, first + step, ... of `plan`, each sent as raw RGB bytes on `conn`; an error
-    is sent as one message starting with b"E" (shorter than a frame) instead. The replay is rebuilt from its
-    `worker_state` and the model saved by the parent (MJB)."""
+                   camera: str, overlays: Overlays, bgr: bool, conn) -> None:
+    """A render process: frames first, first + step, ... of `plan`, each sent as the raw bytes of its pixels
+    (`_Renderer.draw`'s buffer: bottom row first) on `conn`; an error is sent as one message starting with b"E"
+    (shorter than a frame) instead. The replay is rebuilt from its `worker_state` and the model saved by the parent
+    (MJB)."""
     try:
         import mujoco
 
@@ -395,10 +443,11 @@ def _render_worker(state: dict, model_file: str, plan: _FramePlan, first: int, s
         replay.__dict__.update(state)
         replay.model = mujoco.MjModel.from_binary_path(model_file)
         renderer = _Renderer(replay, size[0], size[1], camera, overlays)
+        buf = np.empty((size[1], size[0], 3), np.uint8)
         try:
             for i in range(first, len(plan.ticks), step):
-                img = renderer.draw(int(plan.ticks[i]), plan.qpos[i], plan.lookat[i])
-                conn.send_bytes(img.reshape(-1))  # flat: a Connection counts the first dimension only
+                renderer.draw(int(plan.ticks[i]), plan.qpos[i], plan.lookat[i], out=buf, bgr=bgr)
+                conn.send_bytes(buf.reshape(-1))  # flat: a Connection counts the first dimension only
         finally:
             renderer.close()
     except (BrokenPipeError, KeyboardInterrupt):  # the encoder stopped
@@ -414,13 +463,25 @@ def _render_worker(state: dict, model_file: str, plan: _FramePlan, first: int, s
 
 
 class _Frames:
-    """The frames of a plan, in order: rendered inline (1 worker) or by worker processes with interleaved frames."""
+    """The frames of a plan, in order: rendered inline (1 worker) or by worker processes with interleaved frames.
+
+    Each frame is a view of one of `buffers` pixel buffers (`_Renderer.draw`), handed out again once given back
+    with `release`: a consumer in another thread holds at most `buffers` frames, and iterating waits for one to
+    be given back; with 1 buffer and no `release`, each frame is overwritten by the next.
+    """
 
     def __init__(self, replay: Replay, plan: _FramePlan, size: tuple[int, int], camera: str, overlays: Overlays,
-                 workers: int):
+                 workers: int, bgr: bool = False, buffers: int = 1):
+        import queue
+
         self.n = len(plan.ticks)
         self.workers = max(1, min(int(workers), self.n))
         self.size = size
+        self.bgr = bgr
+        self.free: queue.Queue = queue.Queue()
+        for _ in range(max(1, buffers)):
+            self.free.put(np.empty((size[1], size[0], 3), np.uint8))
+        self.pooled = buffers > 1
         self.procs, self.conns, self.renderer, self.tmp = [], [], None, None
         if self.workers == 1:
             self.renderer = _Renderer(replay, size[0], size[1], camera, overlays)
@@ -440,30 +501,39 @@ class _Frames:
         for w in range(self.workers):
             recv, send = ctx.Pipe(duplex=False)
             p = ctx.Process(target=_render_worker, daemon=True,
-                            args=(state, model_file, plan, w, self.workers, size, camera, overlays, send))
+                            args=(state, model_file, plan, w, self.workers, size, camera, overlays, bgr, send))
             p.start()
             send.close()
             self.procs.append(p)
             self.conns.append(recv)
-        self.buffers = [np.empty(size[1] * size[0] * 3, np.uint8) for _ in range(self.workers)]  # flat: see recv
+
+    def release(self, img: np.ndarray) -> None:
+        """Give back a frame's buffer (the frame must not be used after)."""
+        self.free.put(img.base if img.base is not None else img)
+
+    def _buffer(self) -> np.ndarray:
+        buf = self.free.get()
+        if not self.pooled:
+            self.free.put(buf)
+        return buf
 
     def __iter__(self):
         if self.renderer is not None:
             p = self.plan
             for i in range(self.n):
-                yield self.renderer.draw(int(p.ticks[i]), p.qpos[i], p.lookat[i])
+                yield self.renderer.draw(int(p.ticks[i]), p.qpos[i], p.lookat[i], out=self._buffer(), bgr=self.bgr)
             return
         for i in range(self.n):
             w = i % self.workers
-            buf = self.buffers[w]
+            buf = self._buffer()
             try:
-                got = self.conns[w].recv_bytes_into(buf)
+                got = self.conns[w].recv_bytes_into(buf.reshape(-1))
             except EOFError:
                 raise RenderError(f"render process {w} ended before frame {i} "
                                   f"(exit code {self.procs[w].exitcode})") from None
             if got != buf.nbytes:
-                raise RenderError(bytes(buf[1:got]).decode(errors="replace"))
-            yield buf.reshape(self.size[1], self.size[0], 3)
+                raise RenderError(bytes(buf.reshape(-1)[1:got]).decode(errors="replace"))
+            yield buf[::-1]
 
     def close(self) -> None:
         if self.renderer is not None:
@@ -479,18 +549,87 @@ class _Frames:
             self.tmp.cleanup()
 
 
+class _Encoder:
+    """H.264 encoding of frames in a thread of its own, so that drawing the next frame (in MuJoCo and Mesa, which
+    release Python's lock) and encoding this one (PyAV's BGR to YUV conversion and x264, which release it too)
+    run at once on two cores. Each frame's buffer is given back to `frames` once encoded."""
+
+    def __init__(self, stream, container, frames: _Frames, threaded: bool):
+        import queue
+        import threading
+
+        self.stream, self.container, self.frames = stream, container, frames
+        self.error: BaseException | None = None
+        self.thread = None
+        if threaded:
+            self.todo: queue.Queue = queue.Queue()
+            self.thread = threading.Thread(target=self._run, name="wbcbench-encoder", daemon=True)
+            self.thread.start()
+
+    def _encode(self, img: np.ndarray | None) -> None:
+        import av
+
+        frame = None if img is None else av.VideoFrame.from_ndarray(img, format="bgr24" if self.frames.bgr
+                                                                    else "rgb24")
+        if img is not None:
+            self.frames.release(img)
+        for packet in self.stream.encode(frame):
+            self.container.mux(packet)
+
+    def _run(self) -> None:
+        while True:
+            img = self.todo.get()
+            try:
+                if self.error is None:
+                    self._encode(img)
+            except BaseException as exc:  # kept for the drawing thread, which raises it
+                self.error = exc
+            if img is None:
+                return
+            if self.error is not None:
+                self.frames.release(img)  # the drawing thread may be waiting for a buffer
+
+    def put(self, img: np.ndarray) -> None:
+        """Encode `img` (a frame of `frames`), now or in the thread."""
+        if self.error is not None:
+            raise self.error
+        if self.thread is None:
+            self._encode(img)
+        else:
+            self.todo.put(img)
+
+    def stop(self) -> None:
+        """End the thread without encoding what is left (drawing failed or was interrupted)."""
+        if self.thread is not None:
+            if self.error is None:
+                self.error = RenderError("stopped")
+            self.todo.put(None)
+            self.thread.join()
+
+    def finish(self) -> None:
+        """Flush the encoder (waits for the thread): raises the thread's error, if any."""
+        if self.thread is None:
+            self._encode(None)
+            return
+        self.todo.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
 def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str | tuple[int, int] = "1280x720",
                fps: float = 30.0, speed: float = 1.0, camera: str = "follow", overlays: Overlays = Overlays(),
                progress: Callable[[float], None] | None = None, workers: int = 1,
-               mesh_cell: float = MESH_CELL_M, preset: str = "superfast") -> Path:
+               mesh_cell: float = MESH_CELL_M, preset: str = "ultrafast", threaded: bool = True) -> Path:
     """Render a run directory to an H.264 MP4 (default RUN_DIR/video.mp4); returns its path.
 
     `speed`: playback speed (0.5: slow motion); `fps`: frames per second of the video; a frame shows the last
     logged state at or before its time. `workers`: render processes feeding one H.264 encoder here (x264
     `preset`); 1 (default) renders in this process, which already uses every core (Mesa's llvmpipe rasterizes and
     x264 encodes in threads): on 2 shared cores, 2 processes cost 40 % more CPU per frame and were not faster
-    (benchmarks/bench_render.py). `mesh_cell`: grid cell [m] of the visual meshes' simplification, 0 for the full
-    meshes.
+    (benchmarks/bench_render.py). `threaded`: encode in a thread of its own while the next frame is drawn
+    (`_Encoder`); False encodes each frame before drawing the next. `mesh_cell`: grid cell [m] of the visual meshes'
+    simplification, 0 for the full meshes.
 
     Raises:
         ConfigError: not a run directory, an unreadable log, bad size / fps / speed / camera / workers.
@@ -513,7 +652,8 @@ def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str 
     out = Path(out) if out is not None else run_dir / "video.mp4"
     n = int(np.floor(replay.duration / speed * fps + 1e-9)) + 1
     plan = _plan(replay, np.arange(n) * speed / fps, camera)
-    frames = _Frames(replay, plan, (w, h), camera, overlays, workers)
+    # 3 buffers: the frame being drawn, the one being encoded, one waiting between them
+    frames = _Frames(replay, plan, (w, h), camera, overlays, workers, bgr=True, buffers=3 if threaded else 1)
     try:
         try:
             container = av.open(str(out), mode="w")
@@ -524,13 +664,16 @@ def render_run(run_dir: str | Path, out: str | Path | None = None, *, size: str 
                                           rate=int(round(fps)))
             stream.width, stream.height, stream.pix_fmt = w, h, "yuv420p"
             stream.options = {"crf": "23", "preset": preset}
-            for i, img in enumerate(frames):
-                for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="rgb24")):
-                    container.mux(packet)
-                if progress is not None and i % 10 == 0:
-                    progress((i + 1) / n)
-            for packet in stream.encode():
-                container.mux(packet)
+            encoder = _Encoder(stream, container, frames, threaded)
+            try:
+                for i, img in enumerate(frames):
+                    encoder.put(img)
+                    if progress is not None and i % 10 == 0:
+                        progress((i + 1) / n)
+            except BaseException:
+                encoder.stop()
+                raise
+            encoder.finish()
         finally:
             container.close()
     finally:
