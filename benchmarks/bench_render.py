@@ -6,11 +6,13 @@ whether a video at 30 frames/s renders faster than real time (more than 30 frame
 
 Configurations, each timed `--rounds` times (median), alternating round by round so that slow phases of a shared
 machine hit all alike; the script sets its own CPU affinity (inherited by the render processes):
-  full meshes, 1 process, 1 core    the renderer before this benchmark's optimisations: meshes as loaded, one
-                                    process, x264 preset veryfast, pinned to one core
-  1 process, 1 core                 simplified meshes, one process, pinned to one core
-  1 process, 2 cores                the same on both cores (llvmpipe rasterizes and x264 encodes in threads)
-  2 processes, 2 cores              simplified meshes, 2 render processes + the encoder, both cores
+  in turn, superfast, 1 core        the renderer before the encoding thread: each frame encoded (x264 preset
+                                    superfast) before the next is drawn, pinned to one core
+  1 process, 1 core                 the default (`wbcbench render`): frames encoded (x264 ultrafast) in a thread
+                                    while the next is drawn, pinned to one core
+  in turn, superfast, 2 cores       as the first, on both cores
+  1 process, 2 cores                the default on both cores (llvmpipe rasterizes and x264 encodes in threads too)
+  2 processes, 2 cores              2 render processes + the encoder, both cores
 Software rendering (Mesa's llvmpipe through EGL) runs on the CPU: the machine's load matters, the script prints it.
 """
 
@@ -26,11 +28,11 @@ from pathlib import Path
 import numpy as np
 
 CONFIGS = {  # name: (size, render_run keywords, cores)
-    "full meshes, 1 process, 1 core": ("1280x720", dict(workers=1, mesh_cell=0.0, preset="veryfast"), 1),
-    "1 process, 1 core": ("1280x720", dict(workers=1), 1),
-    "1 process, 2 cores": ("1280x720", dict(workers=1), 2),
+    "in turn, superfast, 1 core": ("1280x720", dict(threaded=False, preset="superfast"), 1),
+    "1 process, 1 core": ("1280x720", dict(), 1),
+    "in turn, superfast, 2 cores": ("1280x720", dict(threaded=False, preset="superfast"), 2),
+    "1 process, 2 cores": ("1280x720", dict(), 2),
     "2 processes, 2 cores": ("1280x720", dict(workers=2), 2),
-    "640x480, 2 processes, 2 cores": ("640x480", dict(workers=2), 2),
 }
 
 
