@@ -48,6 +48,7 @@ from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
 from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
+from ._kernels import feet_measurement, reference_split
 from .base import Stabilizer, register_stabilizer
 
 __all__ = [
@@ -67,6 +68,7 @@ __all__ = [
 ]
 
 GRAVITY = 9.81
+_ZERO3 = np.zeros(3)
 
 
 # ---- specs ---------------------------------------------------------------------------------------------------
@@ -276,6 +278,22 @@ class _Measured:
     normal_force: dict = field(default_factory=dict)   # side -> N
 
 
+@dataclass
+class _FeetBuffers:
+    """The inputs and outputs of `_kernels.feet_measurement`, rows left, right."""
+
+    foot_mass: np.ndarray
+    foot_com: np.ndarray
+    R_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3, 3)))
+    p_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    f_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    m_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    R_sole: np.ndarray = field(default_factory=lambda: np.zeros((2, 3, 3)))
+    p_sole: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    out: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    zmp: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
 def measured_wrench(force_sensor: np.ndarray, torque_sensor: np.ndarray, R: np.ndarray, p: np.ndarray,
                     foot_mass: float, foot_com: np.ndarray, gravity: float = GRAVITY) -> tuple[np.ndarray, np.ndarray]:
     """The ground's wrench on a foot from its ankle F/T reading (the foot below the sensor removed), world axes,
@@ -314,12 +332,14 @@ def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: 
     """F of Eq. 7: the wrenches that realise the reference ZMP (the cart-table ZMP of the CoM reference) with
     the feet in `feet` (side -> sole pose, the active contacts): Eq. 6 with both feet, the whole weight on one
     foot (ZMP at its sole centre) otherwise. LOCAL sole frame about its origin, as the QP's wrench variables."""
+    if len(feet) == 2:  # zmp_distributor and split_to_local on _cart_table_zmp, compiled
+        out = np.empty((2, 6))
+        L, R = feet[Side.LEFT], feet[Side.RIGHT]
+        reference_split(com, _ZERO3 if com_acc is None else com_acc, L.rotation, L.translation, R.rotation,
+                        R.translation, sole_center, float(mass), GRAVITY, out)
+        return {Side.LEFT: out[0], Side.RIGHT: out[1]}
     centres = {s: M.act(sole_center) for s, M in feet.items()}
-    if len(feet) == 2:
-        p_ref = _cart_table_zmp(com, com_acc, centres)
-        F, _ = zmp_distributor(p_ref, centres[Side.LEFT], centres[Side.RIGHT], mass)
-    else:
-        F = {s: np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]) for s in feet}
+    F = {s: np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]) for s in feet}
     return split_to_local(F, feet, centres)
 
 
@@ -354,6 +374,7 @@ class TeleopStabilizer(Stabilizer):
         self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
         self.feet = {s: FootMass(*robot.foot_below_sensor(s)) for s in Side}
         self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
+        self._buf = _FeetBuffers(np.array([self._foot[s][0] for s in Side]), np.array([self._foot[s][1] for s in Side]))
         self.sole_center = np.array([*robot.profile.sole.center, 0.0])
         self.mass = robot.mass
         self.log = np.full(len(self.LOG_LABELS), np.nan)
@@ -381,38 +402,33 @@ class TeleopStabilizer(Stabilizer):
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
         """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
-        from the ankle F/T sensors on the measured configuration."""
+        from the ankle F/T sensors on the measured configuration (the arithmetic: `_kernels.feet_measurement`,
+        `measured_wrench` and `_moment_about` per foot)."""
         m, d = self.model, self.data
         pin.forwardKinematics(m, d, meas.q)
-        out = _Measured()
-        thr = self.spec.min_normal_force
-        parts = []
-        ground = math.inf
-        for s in Side:
+        buf = self._buf
+        for i, s in enumerate(Side):
             M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
-            mass, com = self._foot[s]
-            F, Ms = measured_wrench(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, mass, com)
             S = pin.updateFramePlacement(m, d, self.sole_ids[s])
-            h = float(S.translation[2])
-            ground = min(ground, h)
-            fz = float(F[2])
-            out.normal_force[s] = float(self._filters[f"f_{s.value}"]((max(fz, 0.0),))[0])
-            parts.append((F, Ms, M.translation, fz))
-            if fz >= thr and fz > 0.0:
-                mx, my = _moment_about(F, Ms, M.translation, h)
-                cop = np.array([-my / fz, mx / fz, h])
-                local = S.rotation.T @ (cop - S.translation)
-                out.cop_sole[s] = self._filters[f"cop_{s.value}"]((local[0] - self.sole_center[0],
-                                                                   local[1] - self.sole_center[1]))
-        fz_t = mx_t = my_t = 0.0
-        for F, Ms, p, fz in parts:
-            if fz >= thr:
-                mx, my = _moment_about(F, Ms, p, ground)
-                fz_t += fz
-                mx_t += mx
-                my_t += my
-        if fz_t > 0.0:
-            out.zmp = self._filters["zmp"]((-my_t / fz_t, mx_t / fz_t))
+            buf.R_sensor[i] = M.rotation
+            buf.p_sensor[i] = M.translation
+            buf.R_sole[i] = S.rotation
+            buf.p_sole[i] = S.translation
+            buf.f_sensor[i] = meas.ft_force[s]
+            buf.m_sensor[i] = meas.ft_torque[s]
+        feet_measurement(buf.R_sensor, buf.p_sensor, buf.f_sensor, buf.m_sensor, buf.foot_mass, buf.foot_com,
+                         buf.R_sole, buf.p_sole, self.sole_center, self.spec.min_normal_force, GRAVITY, buf.out,
+                         buf.zmp)
+        out = _Measured()
+        f = self._filters
+        for i, s in enumerate(Side):
+            fz, cx, cy = buf.out[i].tolist()
+            out.normal_force[s] = float(f[f"f_{s.value}"]((max(fz, 0.0),))[0])
+            if cx == cx:  # not NaN: loaded
+                out.cop_sole[s] = f[f"cop_{s.value}"]((cx, cy))
+        zx, zy = buf.zmp.tolist()
+        if zx == zx:
+            out.zmp = f["zmp"]((zx, zy))
         return out
 
     @staticmethod
