@@ -235,8 +235,8 @@ def test_feet_measurement_kernel_matches_the_laws(seed):
     R_sole = np.array([pin.rpy.rpyToMatrix(*rng.uniform(-0.1, 0.1, 3)) for _ in Side])
     p_sole = p_s - [0.0, 0.0, 0.1] + rng.uniform(-0.01, 0.01, (2, 3))
     centre, thr = np.array([0.01, -0.003, 0.0]), 10.0
-    out, zmp = np.empty((2, 3)), np.empty(2)
-    feet_measurement(R_s, p_s, f_s, m_s, mass, com, R_sole, p_sole, centre, thr, 9.81, out, zmp)
+    out, zmp = np.empty((2, 4)), np.empty(2)
+    assert feet_measurement(R_s, p_s, f_s, m_s, mass, com, R_sole, p_sole, centre, thr, 9.81, out, zmp)
     ground = p_sole[:, 2].min()
     tot = np.zeros(3)
     for i in range(2):
@@ -245,9 +245,9 @@ def test_feet_measurement_kernel_matches_the_laws(seed):
         if F[2] >= thr:
             mx, my = _moment_about(F, M, p_s[i], p_sole[i, 2])
             local = R_sole[i].T @ (np.array([-my / F[2], mx / F[2], p_sole[i, 2]]) - p_sole[i])
-            np.testing.assert_allclose(out[i, 1:], local[:2] - centre[:2], rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(out[i, 1:3], local[:2] - centre[:2], rtol=1e-10, atol=1e-12)
             tot += [F[2], *_moment_about(F, M, p_s[i], ground)]
         else:
-            assert np.isnan(out[i, 1:]).all()
-    assert np.isnan(out[1, 1:]).all() and not np.isnan(out[0, 1:]).any()
+            assert np.isnan(out[i, 1:3]).all() and out[i, 3] == 0.0
+    assert out[0, 3] == 1.0 and out[1, 3] == 0.0
     np.testing.assert_allclose(zmp, [-tot[2] / tot[0], tot[1] / tot[0]], rtol=1e-10, atol=1e-12)
