@@ -47,6 +47,7 @@ from ..config import Section
 from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
+from ..tasks.placements import ForwardKinematics
 from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
 from . import _kernels as _k
 from ._kernels import feet_measurement, filter_measurement, reference_split
@@ -392,7 +393,12 @@ class TeleopStabilizer(Stabilizer):
         self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
         self._cop_buf = _CopBuffers()
         self._com_gains = None if spec.com_admittance is None else _gain_arrays(spec.com_admittance)
-        self._buf = _FeetBuffers(np.array([self._foot[s][0] for s in Side]), np.array([self._foot[s][1] for s in Side]))
+        self._fk = ForwardKinematics(m)
+        self._fk_frames = self._fk.frame_arrays([*(self.sensor_ids[s] for s in Side), *(self.sole_ids[s] for s in Side)])
+        self._frames_R, self._frames_t = np.zeros((4, 3, 3)), np.zeros((4, 3))
+        self._buf = _FeetBuffers(np.array([self._foot[s][0] for s in Side]), np.array([self._foot[s][1] for s in Side]),
+                                 R_sensor=self._frames_R[:2], p_sensor=self._frames_t[:2], R_sole=self._frames_R[2:],
+                                 p_sole=self._frames_t[2:])
         self.sole_center = np.array([*robot.profile.sole.center, 0.0])
         self.mass = robot.mass
         self.log = np.full(len(self.LOG_LABELS), np.nan)
@@ -421,18 +427,23 @@ class TeleopStabilizer(Stabilizer):
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
         """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
-        from the ankle F/T sensors on the measured configuration (the arithmetic and the filters:
+        from the ankle F/T sensors on the measured configuration (the placements: `ForwardKinematics`, the
+        arithmetic and the filters:
         `_kernels.feet_measurement` and `filter_measurement`: `measured_wrench`, `_moment_about` and `_LowPass`)."""
-        m, d = self.model, self.data
-        pin.forwardKinematics(m, d, meas.q)
         buf = self._buf
+        if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views)
+            self._fk.frames(meas.q, self._fk_frames, self._frames_R, self._frames_t)
+        else:
+            m, d = self.model, self.data
+            pin.forwardKinematics(m, d, meas.q)
+            for i, s in enumerate(Side):
+                M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
+                S = pin.updateFramePlacement(m, d, self.sole_ids[s])
+                buf.R_sensor[i] = M.rotation
+                buf.p_sensor[i] = M.translation
+                buf.R_sole[i] = S.rotation
+                buf.p_sole[i] = S.translation
         for i, s in enumerate(Side):
-            M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
-            S = pin.updateFramePlacement(m, d, self.sole_ids[s])
-            buf.R_sensor[i] = M.rotation
-            buf.p_sensor[i] = M.translation
-            buf.R_sole[i] = S.rotation
-            buf.p_sole[i] = S.translation
             buf.f_sensor[i] = meas.ft_force[s]
             buf.m_sensor[i] = meas.ft_torque[s]
         zmp_ok = feet_measurement(buf.R_sensor, buf.p_sensor, buf.f_sensor, buf.m_sensor, buf.foot_mass,

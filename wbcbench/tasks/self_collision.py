@@ -48,6 +48,7 @@ import pinocchio as pin
 from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
+from wbcbench.tasks.placements import ForwardKinematics
 from wbcbench.tasks.task import Task
 from wbcbench.tasks.registry import register_task
 
@@ -463,6 +464,8 @@ class SelfCollisionTask(Task):
         self._masks = np.array([support(j) for j in self._rep_joint])
         self._act = np.zeros(self.dim, dtype=np.intp)
         self._acc = np.zeros((len(self._joints_needed), 6))
+        self._fk = ForwardKinematics(model)
+        self._joints_index = np.array(self._joints_needed, dtype=np.intp)
         self._geometry = RepulsorGeometry(self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
                                           float(self._exponent), float(self._negligible), self._masks, self._mask_x)
 
@@ -495,8 +498,9 @@ class SelfCollisionTask(Task):
     def _evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
         """Position-level quantities, cached per (data, q).
 
-        Every point is placed from its parent joint's placement (``data.oMi``, read once per configuration
-        for every task, ``_joint_placements``); ``C`` is computed for every repulsor, the gradient and the
+        Every point is placed from its parent joint's placement (computed from ``q`` by the compiled
+        `ForwardKinematics`, the same as pinocchio's ``data.oMi``; for other joint types ``data.oMi``, read once
+        per configuration for every task, ``_joint_placements``); ``C`` is computed for every repulsor, the gradient and the
         Jacobian row only for those whose ``C`` exceeds ``negligible`` (pinocchio's joint Jacobians, once per
         joint); the others' rows are zero (see ``NEGLIGIBLE``): usually every repulsor but one or two is that
         far. Per active repulsor, with ``r`` the vector from its joint's origin to it (world axes) and ``J6``
@@ -507,7 +511,13 @@ class SelfCollisionTask(Task):
         cache = self._cache
         if cache.key == key:
             return cache
-        R_all, t_all = _joint_placements(data, key, self._joints_needed)
+        fk = self._fk
+        if fk.supported and fk.model is model:
+            R, t = fk.joints(q)
+            joints = self._joints_index
+            R_all, t_all = R[joints], t[joints]
+        else:
+            R_all, t_all = _joint_placements(data, key, self._joints_needed)
         return self._evaluate_jit(model, data, key, R_all, t_all)
 
     def _evaluate_jit(self, model: pin.Model, data: pin.Data, key: tuple, R_all: FloatArray,
