@@ -36,3 +36,14 @@ def test_other_joint_types_are_not_supported():
     assert ForwardKinematics(model).supported
     model.addJoint(j, pin.JointModelSpherical(), pin.SE3.Identity(), "ball")
     assert not ForwardKinematics(model).supported
+
+
+def test_a_subset_of_joints(erd_talos):
+    model = erd_talos.model
+    q, _ = erd_talos.random_state(4)
+    fk = ForwardKinematics(model)
+    R_all, t_all = (x.copy() for x in fk.joints(q))
+    joints = np.array([5, 1, 22, 0], dtype=np.intp)
+    R, t = fk.joints(q, joints, np.empty((4, 3, 3)), np.empty((4, 3)))
+    np.testing.assert_array_equal(R, R_all[joints])
+    np.testing.assert_array_equal(t, t_all[joints])

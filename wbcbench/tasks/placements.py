@@ -55,11 +55,17 @@ class ForwardKinematics:
         self.R = np.zeros((n, 3, 3))
         self.t = np.zeros((n, 3))
 
-    def joints(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``oMi`` of every joint for ``q`` (nq,): rotations (njoints, 3, 3) and translations (njoints, 3), the
-        object's own buffers (overwritten by the next call)."""
-        _forward(q, self._kinds, self._parents, self._idx_q, self._R0, self._t0, self.R, self.t)
-        return self.R, self.t
+    def joints(self, q: FloatArray, joints=None, R_out: FloatArray | None = None,
+               t_out: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+        """``oMi`` for ``q`` (nq,): of every joint, rotations (njoints, 3, 3) and translations (njoints, 3) in the
+        object's own buffers (overwritten by the next call); or of the joints ``joints`` (k,) (an index array)
+        into ``R_out`` (k, 3, 3), ``t_out`` (k, 3)."""
+        if joints is None:
+            _forward(q, self._kinds, self._parents, self._idx_q, self._R0, self._t0, self.R, self.t)
+            return self.R, self.t
+        _forward_gather(q, self._kinds, self._parents, self._idx_q, self._R0, self._t0, self.R, self.t, joints, R_out,
+                        t_out)
+        return R_out, t_out
 
     def frame_arrays(self, frame_ids) -> tuple:
         """The constant inputs of `frames` for the frames ``frame_ids``: their parent joints and placements in
@@ -135,3 +141,21 @@ def _frames(R, t, parent, Rf, tf, R_out, t_out):
             for b in range(3):
                 R_out[i, a, b] = R[p, a, 0] * Rf[i, 0, b] + R[p, a, 1] * Rf[i, 1, b] + R[p, a, 2] * Rf[i, 2, b]
             t_out[i, a] = R[p, a, 0] * tf[i, 0] + R[p, a, 1] * tf[i, 1] + R[p, a, 2] * tf[i, 2] + t[p, a]
+
+
+@njit
+def _gather(R, t, joints, R_out, t_out):
+    """``R_out[k], t_out[k] = R[joints[k]], t[joints[k]]``."""
+    for k in range(joints.shape[0]):
+        j = joints[k]
+        for a in range(3):
+            for b in range(3):
+                R_out[k, a, b] = R[j, a, b]
+            t_out[k, a] = t[j, a]
+
+
+@njit
+def _forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out):
+    """`_forward`, then `_gather` (one call)."""
+    _forward(q, kinds, parents, idx_q, R0, t0, R, t)
+    _gather(R, t, joints, R_out, t_out)

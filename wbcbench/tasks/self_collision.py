@@ -307,24 +307,26 @@ class RepulsionPoint:
 
 @dataclass
 class _Cache:
+    """One configuration's quantities (``key``: data and q; ``vkey``: v), the arrays those of the kernels
+    (:class:`PositionOutputs`, ``x`` the protected point, ``act`` the active repulsors' indices); None before the
+    first evaluation."""
+
     key: tuple[int, bytes] | None = None
     vkey: bytes | None = None
-    C: FloatArray = field(default_factory=lambda: np.zeros(0))
-    distances: FloatArray = field(default_factory=lambda: np.zeros(0))
-    J: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
-    active: list = field(default_factory=list)     # repulsors with C > negligible
-    rows: dict = field(default_factory=dict)       # active repulsor -> (grad, C coeff, C k d^(p-2), x - p, r)
-    rx: FloatArray = field(default_factory=lambda: np.zeros(3))
-    # the velocity kernel's inputs (VelocityInputs without ACC and the masks)
-    x: FloatArray = field(default_factory=lambda: np.zeros(3))
-    act: npt.NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
-    G: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    HC: FloatArray = field(default_factory=lambda: np.zeros(0))
-    HK: FloatArray = field(default_factory=lambda: np.zeros(0))
-    REL: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    RW: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    velocity: FloatArray = field(default_factory=lambda: np.zeros(0))
-    drift: FloatArray = field(default_factory=lambda: np.zeros(0))
+    C: FloatArray | None = None
+    distances: FloatArray | None = None
+    J: FloatArray | None = None
+    active: list | None = None     # repulsors with C > negligible
+    rx: FloatArray | None = None
+    x: FloatArray | None = None
+    act: npt.NDArray[np.intp] | None = None
+    G: FloatArray | None = None
+    HC: FloatArray | None = None
+    HK: FloatArray | None = None
+    REL: FloatArray | None = None
+    RW: FloatArray | None = None
+    velocity: FloatArray | None = None
+    drift: FloatArray | None = None
 
 
 @register_task
@@ -464,8 +466,11 @@ class SelfCollisionTask(Task):
         self._masks = np.array([support(j) for j in self._rep_joint])
         self._act = np.zeros(self.dim, dtype=np.intp)
         self._acc = np.zeros((len(self._joints_needed), 6))
+        self._outputs: PositionOutputs | None = None
+        self._velocity_out = (np.empty(self.dim), np.empty(self.dim))
         self._fk = ForwardKinematics(model)
         self._joints_index = np.array(self._joints_needed, dtype=np.intp)
+        self._placements = (np.empty((len(self._joints_needed), 3, 3)), np.empty((len(self._joints_needed), 3)))
         self._geometry = RepulsorGeometry(self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
                                           float(self._exponent), float(self._negligible), self._masks, self._mask_x)
 
@@ -513,9 +518,8 @@ class SelfCollisionTask(Task):
             return cache
         fk = self._fk
         if fk.supported and fk.model is model:
-            R, t = fk.joints(q)
-            joints = self._joints_index
-            R_all, t_all = R[joints], t[joints]
+            R_all, t_all = self._placements
+            fk.joints(q, self._joints_index, R_all, t_all)
         else:
             R_all, t_all = _joint_placements(data, key, self._joints_needed)
         return self._evaluate_jit(model, data, key, R_all, t_all)
@@ -523,17 +527,19 @@ class SelfCollisionTask(Task):
     def _evaluate_jit(self, model: pin.Model, data: pin.Data, key: tuple, R_all: FloatArray,
                       t_all: FloatArray) -> _Cache:
         """The position-level quantities of :meth:`_evaluate` from the compiled kernel (``_position_kernel``); a
-        numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py)."""
-        n, nv = self.dim, model.nv
-        C, dist, J = np.empty(n), np.empty(n), np.empty((n, nv))
-        G, HC, HK, REL, RW, rx = (np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
-                                  np.empty(3))
-        act = self._act
-        k = _position_kernel(R_all, t_all, data.J, self._geometry,
-                             PositionOutputs(C, dist, J, G, HC, HK, REL, RW, rx, act))
+        numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py). The kernel's
+        buffers are the task's own, overwritten at the next configuration (the cache holds one configuration;
+        the public methods return copies)."""
+        out = self._outputs
+        if out is None or out.J.shape[1] != model.nv:
+            n, nv = self.dim, model.nv
+            out = self._outputs = PositionOutputs(np.empty(n), np.empty(n), np.empty((n, nv)), np.empty((n, 3)),
+                                                  np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
+                                                  np.empty(3), self._act)
+        C, dist, J, G, HC, HK, REL, RW, rx, act = out
+        k = _position_kernel(R_all, t_all, data.J, self._geometry, out)
         idx = act[:k].copy()
-        rows = {i: (G[i], HC[i], HK[i], REL[i], RW[i]) for i in idx.tolist()}
-        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=list(rows), rows=rows, rx=rx, x=t_all[0] + rx,
+        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=t_all[0] + rx,
                              act=idx, G=G, HC=HC, HK=HK, REL=REL, RW=RW)
         return self._cache
 
@@ -556,7 +562,7 @@ class SelfCollisionTask(Task):
                     acc[slot] = 0.0
                 else:
                     acc[slot] = pin.getClassicalAcceleration(model, data, j, _LWA).vector
-        velocity, drift = np.empty(self.dim), np.empty(self.dim)
+        velocity, drift = self._velocity_out
         _velocity_kernel(data.J, v, cache.J, VelocityInputs(cache.x, cache.rx, cache.act, self._slot_of, cache.G,
                                                             cache.HC, cache.HK, cache.REL, cache.RW, acc,
                                                             self._mask_x, self._masks), velocity, drift)
