@@ -251,3 +251,27 @@ def test_feet_measurement_kernel_matches_the_laws(seed):
             assert np.isnan(out[i, 1:3]).all() and out[i, 3] == 0.0
     assert out[0, 3] == 1.0 and out[1, 3] == 0.0
     np.testing.assert_allclose(zmp, [-tot[2] / tot[0], tot[1] / tot[0]], rtol=1e-10, atol=1e-12)
+
+
+def test_measurement_filters():
+    """`_kernels.filter_measurement`: the first input is taken as it is, then y += alpha (u - y); the normal
+    forces are clipped at 0 and filtered every tick, a CoP only while its foot is loaded, the ZMP while it exists;
+    a non-finite input is skipped, a non-finite state restarts from the input."""
+    from wbcbench.stabilizers._kernels import filter_measurement
+    from wbcbench.stabilizers.teleop import low_pass_gain
+
+    a = low_pass_gain(20.0, 1e-3)
+    assert a == pytest.approx(1 - np.exp(-2 * np.pi * 0.02)) and low_pass_gain(None, 1e-3) == 1.0
+    state, started = np.zeros(8), np.zeros(5, dtype=bool)
+    nan = np.nan
+    raw = np.array([[400.0, 0.01, -0.02, 1.0], [-5.0, nan, nan, 0.0]])
+    filter_measurement(raw, np.array([0.1, 0.2]), True, a, state, started)
+    np.testing.assert_array_equal(state, [0.1, 0.2, 0.01, -0.02, 0.0, 0.0, 400.0, 0.0])
+    np.testing.assert_array_equal(started, [True, True, False, True, True])
+    raw = np.array([[500.0, 0.03, nan, 1.0], [300.0, 0.05, 0.06, 1.0]])
+    filter_measurement(raw, np.array([nan, 0.0]), False, a, state, started)
+    np.testing.assert_allclose(state, [0.1, 0.2, 0.01, -0.02, 0.05, 0.06, 400.0 + a * 100.0, a * 300.0])
+    state[0] = np.inf  # a non-finite state restarts from the next input
+    filter_measurement(raw, np.array([0.3, 0.4]), True, a, state, started)
+    np.testing.assert_allclose(state[:2], [0.3, 0.4])
+    np.testing.assert_allclose(state[4:6], [0.05 + a * 0.0, 0.06 + a * 0.0])

@@ -122,8 +122,9 @@ def reference_split(com, com_acc, R_left, p_left, R_right, p_right, sole_center,
 
 @njit
 def _low_pass(state, start, n, u0, u1, alpha, started, k):
-    """`teleop._LowPass` on ``state[start:start + n]`` (n = 1 or 2, input ``u0[, u1]``), ``started[k]`` False
-    until the first input: a non-finite state restarts from the input, a non-finite input is skipped."""
+    """A first-order low-pass ``y += alpha (u - y)`` on ``y = state[start:start + n]`` (n = 1 or 2, input
+    ``u0[, u1]``), ``started[k]`` False until the first input (taken as it is): a non-finite state restarts from
+    the input, a non-finite input is skipped."""
     if not started[k]:
         state[start] = u0
         if n == 2:
@@ -144,7 +145,7 @@ def _low_pass(state, start, n, u0, u1, alpha, started, k):
 
 @njit
 def filter_measurement(raw, zmp, zmp_ok, alpha, state, started):
-    """The first-order low-pass filters of the stabilizer's measurement (`teleop._LowPass`, gain ``alpha``) on
+    """The first-order low-pass filters of the stabilizer's measurement (`_low_pass`, gain ``alpha``: `teleop.low_pass_gain`) on
     `feet_measurement`'s ``raw`` (2, 4), ``zmp`` (2,) and its return ``zmp_ok``: ``state`` (8,) holds the filtered [ZMP x y, left CoP x y,
     right CoP x y, left normal force, right normal force] and ``started`` (5,) which filter has had an input
     (ZMP, left CoP, right CoP, left, right force). The normal forces (clipped at 0) are filtered every tick, a CoP

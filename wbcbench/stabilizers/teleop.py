@@ -256,26 +256,10 @@ def wrench_admittance(F: np.ndarray, F_desired: np.ndarray, gains: ZmpDistributo
 
 
 # ---- the component ------------------------------------------------------------------------------------------
-class _LowPass:
-    """First-order low-pass on a small vector. A non-finite state restarts from the input; a non-finite input
-    is skipped."""
-
-    def __init__(self, cutoff_hz: float | None, dt: float):
-        self.alpha = 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
-        self.y = None
-
-    def __call__(self, u) -> np.ndarray:
-        y = self.y
-        if y is None:
-            self.y = np.array(u, dtype=float)
-            return self.y
-        if not math.isfinite(y.sum()):
-            y[:] = u
-        elif math.isfinite(sum(u)):
-            a = self.alpha
-            for i, x in enumerate(u):
-                y[i] += a * (x - y[i])
-        return y
+def low_pass_gain(cutoff_hz: float | None, dt: float) -> float:
+    """The gain ``alpha`` of a first-order low-pass ``y += alpha (u - y)`` at `cutoff_hz` [Hz] sampled every `dt`
+    [s] (1: no filter, for None). The stabilizer's filters are `_kernels.filter_measurement`."""
+    return 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
 
 
 @dataclass
@@ -405,7 +389,7 @@ class TeleopStabilizer(Stabilizer):
         self._clear()
 
     def _clear(self) -> None:
-        self._filter_alpha = _LowPass(self.spec.cop_cutoff_hz, self.dt).alpha
+        self._filter_alpha = low_pass_gain(self.spec.cop_cutoff_hz, self.dt)
         self._filter_state = np.zeros(8)        # ZMP x y, left CoP x y, right CoP x y, left, right normal force
         self._filter_started = np.zeros(5, dtype=bool)
         self._contact_nominal: dict[Side, pin.SE3] = {}
@@ -429,7 +413,7 @@ class TeleopStabilizer(Stabilizer):
         """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
         from the ankle F/T sensors on the measured configuration (the placements: `ForwardKinematics`, the
         arithmetic and the filters:
-        `_kernels.feet_measurement` and `filter_measurement`: `measured_wrench`, `_moment_about` and `_LowPass`)."""
+        `_kernels.feet_measurement` (`measured_wrench`, `_moment_about`) and `filter_measurement`)."""
         buf = self._buf
         if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views)
             self._fk.frames(meas.q, self._fk_frames, self._frames_R, self._frames_t)
