@@ -2,8 +2,8 @@
 
 A control tick of a Python whole-body controller is a hundred or so small array operations; on TALOS-sized
 problems (50 variables) each numpy or LAPACK call costs 1-8 us of interpreter and wrapper overhead, more than its
-arithmetic. The kernels (wbcbench/qp/kernels.py, wbcbench/controllers/_kernels.py, the self-collision task's) fuse
-such sequences into one call each. Each has one implementation: with ``WBCBENCH_JIT=0`` in the environment (or
+arithmetic. The kernels (wbcbench/qp/kernels.py, wbcbench/controllers/_kernels.py, wbcbench/stabilizers/_kernels.py,
+wbcbench/tasks/placements.py, the self-collision task's) fuse such sequences into one call each. Each has one implementation: with ``WBCBENCH_JIT=0`` in the environment (or
 numba missing) `njit` returns the function unchanged and the same code runs as plain Python (slow; for
 debugging). The tests check every kernel against plain numpy/LAPACK references written in the tests.
 

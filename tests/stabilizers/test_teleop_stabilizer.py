@@ -193,3 +193,85 @@ def test_reference_targets_carry_the_weight_at_the_reference_zmp():
     np.testing.assert_allclose(m_at[:2], 0.0, atol=1e-9)
     one = reference_wrench_targets(com, acc, {Side.LEFT: feet[Side.LEFT]}, np.zeros(3), mass)
     np.testing.assert_allclose(feet[Side.LEFT].rotation @ one[Side.LEFT][:3], [0, 0, mass * 9.81], atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reference_split_kernel_matches_the_laws(seed):
+    """The compiled split (`_kernels.reference_split`) is `zmp_distributor` on `_cart_table_zmp`, then
+    `split_to_local`, on tilted and yawed feet with an off-centre sole."""
+    from wbcbench.stabilizers._kernels import reference_split
+    from wbcbench.stabilizers.teleop import _cart_table_zmp, split_to_local, zmp_distributor
+
+    rng = np.random.default_rng(seed)
+    feet = {s: pin.SE3(pin.rpy.rpyToMatrix(*rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.5, 0.5)),
+                       FEET[s] + rng.uniform(-0.02, 0.02, 3)) for s in Side}
+    sole_center = np.array([0.012, -0.004, 0.0])
+    com, acc, mass = rng.uniform([-0.1, -0.1, 0.8], [0.1, 0.1, 0.9]), rng.uniform(-2, 2, 3), 93.0
+    centres = {s: M.act(sole_center) for s, M in feet.items()}
+    F, alpha = zmp_distributor(_cart_table_zmp(com, acc, centres), centres[Side.LEFT], centres[Side.RIGHT], mass)
+    expected = split_to_local(F, feet, centres)
+    out = np.empty((2, 6))
+    got_alpha = reference_split(com, acc, feet[Side.LEFT].rotation, feet[Side.LEFT].translation,
+                                feet[Side.RIGHT].rotation, feet[Side.RIGHT].translation, sole_center, mass, 9.81, out)
+    assert got_alpha == pytest.approx(alpha, abs=1e-12)
+    for i, s in enumerate(Side):
+        np.testing.assert_allclose(out[i], expected[s], rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_feet_measurement_kernel_matches_the_laws(seed):
+    """The compiled measurement (`_kernels.feet_measurement`) is `measured_wrench` and the moment about the sole
+    height / the ground per foot: normal forces, CoPs in the sole frame from its centre, the ZMP; a foot below
+    the threshold has no CoP and is left out of the ZMP."""
+    from wbcbench.stabilizers._kernels import feet_measurement
+    from wbcbench.stabilizers.teleop import _moment_about, measured_wrench
+
+    rng = np.random.default_rng(seed)
+    R_s = np.array([pin.rpy.rpyToMatrix(*rng.uniform(-0.2, 0.2, 3)) for _ in Side])
+    p_s = rng.uniform([-0.1, -0.2, 0.08], [0.1, 0.2, 0.12], (2, 3))
+    f_s = np.array([[rng.normal(0, 20), rng.normal(0, 20), -rng.uniform(300, 600)], [1.0, -2.0, 10.0 + 3.0 * seed]])
+    m_s = rng.normal(0, 10, (2, 3))
+    mass, com = np.array([1.4, 1.5]), rng.uniform(-0.02, 0.02, (2, 3))
+    R_sole = np.array([pin.rpy.rpyToMatrix(*rng.uniform(-0.1, 0.1, 3)) for _ in Side])
+    p_sole = p_s - [0.0, 0.0, 0.1] + rng.uniform(-0.01, 0.01, (2, 3))
+    centre, thr = np.array([0.01, -0.003, 0.0]), 10.0
+    out, zmp = np.empty((2, 4)), np.empty(2)
+    assert feet_measurement(R_s, p_s, f_s, m_s, mass, com, R_sole, p_sole, centre, thr, 9.81, out, zmp)
+    ground = p_sole[:, 2].min()
+    tot = np.zeros(3)
+    for i in range(2):
+        F, M = measured_wrench(f_s[i], m_s[i], R_s[i], p_s[i], mass[i], com[i])
+        assert out[i, 0] == pytest.approx(F[2], rel=1e-12)
+        if F[2] >= thr:
+            mx, my = _moment_about(F, M, p_s[i], p_sole[i, 2])
+            local = R_sole[i].T @ (np.array([-my / F[2], mx / F[2], p_sole[i, 2]]) - p_sole[i])
+            np.testing.assert_allclose(out[i, 1:3], local[:2] - centre[:2], rtol=1e-10, atol=1e-12)
+            tot += [F[2], *_moment_about(F, M, p_s[i], ground)]
+        else:
+            assert np.isnan(out[i, 1:3]).all() and out[i, 3] == 0.0
+    assert out[0, 3] == 1.0 and out[1, 3] == 0.0
+    np.testing.assert_allclose(zmp, [-tot[2] / tot[0], tot[1] / tot[0]], rtol=1e-10, atol=1e-12)
+
+
+def test_measurement_filters():
+    """`_kernels.filter_measurement`: the first input is taken as it is, then y += alpha (u - y); the normal
+    forces are clipped at 0 and filtered every tick, a CoP only while its foot is loaded, the ZMP while it exists;
+    a non-finite input is skipped, a non-finite state restarts from the input."""
+    from wbcbench.stabilizers._kernels import filter_measurement
+    from wbcbench.stabilizers.teleop import low_pass_gain
+
+    a = low_pass_gain(20.0, 1e-3)
+    assert a == pytest.approx(1 - np.exp(-2 * np.pi * 0.02)) and low_pass_gain(None, 1e-3) == 1.0
+    state, started = np.zeros(8), np.zeros(5, dtype=bool)
+    nan = np.nan
+    raw = np.array([[400.0, 0.01, -0.02, 1.0], [-5.0, nan, nan, 0.0]])
+    filter_measurement(raw, np.array([0.1, 0.2]), True, a, state, started)
+    np.testing.assert_array_equal(state, [0.1, 0.2, 0.01, -0.02, 0.0, 0.0, 400.0, 0.0])
+    np.testing.assert_array_equal(started, [True, True, False, True, True])
+    raw = np.array([[500.0, 0.03, nan, 1.0], [300.0, 0.05, 0.06, 1.0]])
+    filter_measurement(raw, np.array([nan, 0.0]), False, a, state, started)
+    np.testing.assert_allclose(state, [0.1, 0.2, 0.01, -0.02, 0.05, 0.06, 400.0 + a * 100.0, a * 300.0])
+    state[0] = np.inf  # a non-finite state restarts from the next input
+    filter_measurement(raw, np.array([0.3, 0.4]), True, a, state, started)
+    np.testing.assert_allclose(state[:2], [0.3, 0.4])
+    np.testing.assert_allclose(state[4:6], [0.05 + a * 0.0, 0.06 + a * 0.0])

@@ -11,8 +11,9 @@ from wbcbench.tasks.self_collision import _LWA, _Cache, _cross, _joint_placement
 FloatArray = np.ndarray
 
 
-def reference_evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
-    """The task's position cache (C, distances, Jacobian rows, the per-repulsor terms), computed with numpy."""
+def reference_evaluate(self, model: pin.Model, data: pin.Data) -> tuple[_Cache, dict]:
+    """The task's position cache (C, distances, Jacobian rows, the per-repulsor terms), computed with numpy and
+    set as the task's; and per active repulsor (gradient, C coeff, C k d^(p-2), x - p, joint origin -> p)."""
     q = data.q_in
     key = (id(data), q.tobytes())
     R_all, t_all = _joint_placements(data, key, self._joints_needed)
@@ -54,6 +55,39 @@ def reference_evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
                 Ji -= _cross(r[i], g) @ J6[3:]
             J[i] = Ji
             rows[i] = (g, c * coeff, c * k * dp2, rel_i, r[i])
-    self._cache = _Cache(key=key, C=C, distances=distances, J=J, active=active, rows=rows, rx=rx)
-    return self._cache
+    G, HC, HK, RW = np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros((n, 3))
+    for i, (g, hc, hk, _, r_i) in rows.items():
+        G[i], HC[i], HK[i], RW[i] = g, hc, hk, r_i
+    self._cache = _Cache(key=key, C=C, distances=distances, J=J, active=active, rx=rx, x=x,
+                         act=np.array(active, dtype=np.intp), G=G, HC=HC, HK=HK, REL=rel, RW=RW)
+    return self._cache, rows
+
+
+def reference_velocity(self, model: pin.Model, data: pin.Data) -> tuple[FloatArray, FloatArray]:
+    """``C_dot = J v`` and the drift ``r_dot^T H r_dot + g^T (a_x - a_p)`` of the active repulsors, with
+    pinocchio's joint velocities and classical accelerations and numpy (the velocity kernel's reference)."""
+    cache, rows = reference_evaluate(self, model, data)
+    v = data.v_in
+    drift = np.zeros(self.dim)
+    if cache.active:
+        vx, ax = _point_motion(model, data, self._joint_x, cache.rx)
+        for i in cache.active:
+            g, hc, hk, rel_i, r_i = rows[i]
+            vp, ap = _point_motion(model, data, self._rep_joint[i], r_i)
+            rd = vx - vp
+            # r_dot^T H r_dot with H = hc rel rel^T - hk I
+            drift[i] = hc * float(rel_i @ rd) ** 2 - hk * float(rd @ rd) + float(g @ (ax - ap))
+    return cache.J @ v, drift
+
+
+def _point_motion(model: pin.Model, data: pin.Data, joint: int, r: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Velocity and classical acceleration at zero joint acceleration (3,) each, world axes, of the point at
+    ``r`` (world axes) from the origin of ``joint``."""
+    if joint == 0:
+        return np.zeros(3), np.zeros(3)
+    vel = pin.getVelocity(model, data, joint, _LWA)
+    acc = pin.getClassicalAcceleration(model, data, joint, _LWA)
+    w = vel.angular
+    wr = _cross(w, r)
+    return vel.linear + wr, acc.linear + _cross(acc.angular, r) + _cross(w, wr)
 

@@ -271,3 +271,19 @@ def test_position_kernel_matches_the_numpy_reference(erd_talos, seed):
     for name in ("values", "distances", "jacobian", "velocity", "drift"):
         np.testing.assert_allclose(getattr(a, name)(model, data), getattr(b, name)(model, data), rtol=1e-10,
                                    atol=1e-12, err_msg=name)
+
+
+@pytest.mark.parametrize("seed", [5, 9])
+def test_velocity_kernel_matches_the_numpy_reference(erd_talos, seed):
+    """The compiled velocity kernel (point velocities from the world Jacobians) and a numpy reference with
+    pinocchio's joint velocities and accelerations give the same C_dot and drift, with several repulsors active."""
+    from .self_collision_reference import reference_velocity
+
+    model = erd_talos.model
+    q, v = erd_talos.random_state(seed)
+    data = erd_talos.at(model.createData(), q, v)
+    task = _task(model, normalized=True, radius=0.3, negligible=1e-6)
+    velocity, drift = reference_velocity(_task(model, normalized=True, radius=0.3, negligible=1e-6), model, data)
+    assert np.count_nonzero(drift) >= 2
+    np.testing.assert_allclose(task.velocity(model, data), velocity, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(task.drift(model, data), drift, rtol=1e-10, atol=1e-12)

@@ -47,7 +47,10 @@ from ..config import Section
 from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
+from ..tasks.placements import ForwardKinematics
 from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
+from . import _kernels as _k
+from ._kernels import feet_measurement, filter_measurement, reference_split
 from .base import Stabilizer, register_stabilizer
 
 __all__ = [
@@ -67,6 +70,7 @@ __all__ = [
 ]
 
 GRAVITY = 9.81
+_ZERO3 = np.zeros(3)
 
 
 # ---- specs ---------------------------------------------------------------------------------------------------
@@ -167,33 +171,36 @@ def _vector_or_scalar(sec: Section, key: str, n: int, names: str | None = None) 
 
 
 # ---- the laws ------------------------------------------------------------------------------------------------
-def _clamp(x: np.ndarray, limit: float | None) -> np.ndarray:
-    if limit is None:
-        return x
-    n = float(np.linalg.norm(x))
-    return x if n <= limit else x * (limit / n)
+def _limit(limit: float | None) -> float:
+    """A law's `limit` for the kernels: NaN for none."""
+    return math.nan if limit is None else float(limit)
+
+
+def _gain_arrays(gains: AdmittanceGains) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return tuple(np.array(x, dtype=float) for x in (gains.kd, gains.kv, gains.ka))
 
 
 def com_admittance(p_com: np.ndarray, v_com: np.ndarray, a_com: np.ndarray, cop_model: np.ndarray,
                    cop_measured: np.ndarray, gains: AdmittanceGains, dt: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Paper 004 Eq. 2: the CoM reference (3,) position [m], velocity [m/s], acceleration [m/s^2] corrected in
-    x-y by the CoP difference `cop_model - cop_measured` (2,) [m]; z passes through."""
-    e = np.asarray(cop_model, float)[:2] - np.asarray(cop_measured, float)[:2]
-    p, v, a = (np.array(x, float, copy=True) for x in (p_com, v_com, a_com))
-    p[:2] -= _clamp(np.asarray(gains.kd) * e, gains.limit)
-    v[:2] -= np.asarray(gains.kv) * e / dt
-    a[:2] -= np.asarray(gains.ka) * e / dt**2
-    return p, v, a
+    x-y by the CoP difference `cop_model - cop_measured` (2,) [m]; z passes through (`_kernels.com_admittance`)."""
+    out = np.empty((3, 3))
+    _k.com_admittance(*(np.asarray(x, float) for x in (p_com, v_com, a_com)),
+                      float(cop_model[0] - cop_measured[0]), float(cop_model[1] - cop_measured[1]),
+                      *_gain_arrays(gains), _limit(gains.limit), float(dt), out)
+    return out[0], out[1], out[2]
 
 
 def ankle_admittance(R_world_sole: np.ndarray, cop_sole: np.ndarray, gains: AdmittanceGains) -> np.ndarray:
     """Paper 004 Eq. 3 (position part): the sole orientation reference tilted so that the measured CoP
     `cop_sole` (2,) [m], in the sole frame relative to the sole centre, goes to the centre:
-    pitch = -kd_pitch c_x, roll = +kd_roll c_y (rad), applied about the sole's own axes."""
-    c = np.asarray(cop_sole, float)
-    tilt = _clamp(np.array([gains.kd[1] * c[1], -gains.kd[0] * c[0]]), gains.limit)
-    return np.asarray(R_world_sole, float) @ pin.rpy.rpyToMatrix(tilt[0], tilt[1], 0.0)
+    pitch = -kd_pitch c_x, roll = +kd_roll c_y (rad), applied about the sole's own axes
+    (`_kernels.ankle_admittance`)."""
+    out = np.empty((3, 3))
+    _k.ankle_admittance(np.asarray(R_world_sole, float), float(cop_sole[0]), float(cop_sole[1]), float(gains.kd[0]),
+                        float(gains.kd[1]), _limit(gains.limit), out)
+    return out
 
 
 def foot_force_difference(f_model: tuple[float, float], f_measured: tuple[float, float],
@@ -201,7 +208,9 @@ def foot_force_difference(f_model: tuple[float, float], f_measured: tuple[float,
     """Paper 004 Eq. 4-5 (signed difference, Kajita 2010): torso roll offset [rad], roll rate [rad/s] and roll
     acceleration [rad/s^2] references from the (left, right) normal forces [N] of the model and measured."""
     D = (f_model[0] - f_model[1]) - (f_measured[0] - f_measured[1])
-    roll = float(_clamp(np.array([-gains.kd[0] * D]), gains.limit)[0])
+    roll = -gains.kd[0] * D
+    if gains.limit is not None and abs(roll) > gains.limit:
+        roll = roll * (gains.limit / abs(roll))
     return roll, -gains.kv[0] * D / dt, -gains.ka[0] * D / dt**2
 
 
@@ -247,26 +256,10 @@ def wrench_admittance(F: np.ndarray, F_desired: np.ndarray, gains: ZmpDistributo
 
 
 # ---- the component ------------------------------------------------------------------------------------------
-class _LowPass:
-    """First-order low-pass on a small vector. A non-finite state restarts from the input; a non-finite input
-    is skipped."""
-
-    def __init__(self, cutoff_hz: float | None, dt: float):
-        self.alpha = 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
-        self.y = None
-
-    def __call__(self, u) -> np.ndarray:
-        y = self.y
-        if y is None:
-            self.y = np.array(u, dtype=float)
-            return self.y
-        if not math.isfinite(y.sum()):
-            y[:] = u
-        elif math.isfinite(sum(u)):
-            a = self.alpha
-            for i, x in enumerate(u):
-                y[i] += a * (x - y[i])
-        return y
+def low_pass_gain(cutoff_hz: float | None, dt: float) -> float:
+    """The gain ``alpha`` of a first-order low-pass ``y += alpha (u - y)`` at `cutoff_hz` [Hz] sampled every `dt`
+    [s] (1: no filter, for None). The stabilizer's filters are `_kernels.filter_measurement`."""
+    return 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
 
 
 @dataclass
@@ -274,6 +267,32 @@ class _Measured:
     zmp: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
     cop_sole: dict = field(default_factory=dict)       # side -> (2,) in the sole frame, from its centre
     normal_force: dict = field(default_factory=dict)   # side -> N
+
+
+@dataclass
+class _FeetBuffers:
+    """The inputs and outputs of `_kernels.feet_measurement`, rows left, right."""
+
+    foot_mass: np.ndarray
+    foot_com: np.ndarray
+    R_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3, 3)))
+    p_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    f_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    m_sensor: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    R_sole: np.ndarray = field(default_factory=lambda: np.zeros((2, 3, 3)))
+    p_sole: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    out: np.ndarray = field(default_factory=lambda: np.zeros((2, 4)))
+    zmp: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
+@dataclass
+class _CopBuffers:
+    """The inputs of `_kernels.model_cop`, rows left, right."""
+
+    R: np.ndarray = field(default_factory=lambda: np.zeros((2, 3, 3)))
+    p: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    w: np.ndarray = field(default_factory=lambda: np.zeros((2, 6)))
+    use: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=bool))
 
 
 def measured_wrench(force_sensor: np.ndarray, torque_sensor: np.ndarray, R: np.ndarray, p: np.ndarray,
@@ -314,12 +333,14 @@ def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: 
     """F of Eq. 7: the wrenches that realise the reference ZMP (the cart-table ZMP of the CoM reference) with
     the feet in `feet` (side -> sole pose, the active contacts): Eq. 6 with both feet, the whole weight on one
     foot (ZMP at its sole centre) otherwise. LOCAL sole frame about its origin, as the QP's wrench variables."""
+    if len(feet) == 2:  # zmp_distributor and split_to_local on _cart_table_zmp, compiled
+        out = np.empty((2, 6))
+        L, R = feet[Side.LEFT], feet[Side.RIGHT]
+        reference_split(com, _ZERO3 if com_acc is None else com_acc, L.rotation, L.translation, R.rotation,
+                        R.translation, sole_center, float(mass), GRAVITY, out)
+        return {Side.LEFT: out[0], Side.RIGHT: out[1]}
     centres = {s: M.act(sole_center) for s, M in feet.items()}
-    if len(feet) == 2:
-        p_ref = _cart_table_zmp(com, com_acc, centres)
-        F, _ = zmp_distributor(p_ref, centres[Side.LEFT], centres[Side.RIGHT], mass)
-    else:
-        F = {s: np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]) for s in feet}
+    F = {s: np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0]) for s in feet}
     return split_to_local(F, feet, centres)
 
 
@@ -354,14 +375,23 @@ class TeleopStabilizer(Stabilizer):
         self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
         self.feet = {s: FootMass(*robot.foot_below_sensor(s)) for s in Side}
         self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
+        self._cop_buf = _CopBuffers()
+        self._com_gains = None if spec.com_admittance is None else _gain_arrays(spec.com_admittance)
+        self._fk = ForwardKinematics(m)
+        self._fk_frames = self._fk.frame_arrays([*(self.sensor_ids[s] for s in Side), *(self.sole_ids[s] for s in Side)])
+        self._frames_R, self._frames_t = np.zeros((4, 3, 3)), np.zeros((4, 3))
+        self._buf = _FeetBuffers(np.array([self._foot[s][0] for s in Side]), np.array([self._foot[s][1] for s in Side]),
+                                 R_sensor=self._frames_R[:2], p_sensor=self._frames_t[:2], R_sole=self._frames_R[2:],
+                                 p_sole=self._frames_t[2:])
         self.sole_center = np.array([*robot.profile.sole.center, 0.0])
         self.mass = robot.mass
         self.log = np.full(len(self.LOG_LABELS), np.nan)
         self._clear()
 
     def _clear(self) -> None:
-        self._filters = {k: _LowPass(self.spec.cop_cutoff_hz, self.dt)
-                         for k in ("zmp", "cop_left", "cop_right", "f_left", "f_right")}
+        self._filter_alpha = low_pass_gain(self.spec.cop_cutoff_hz, self.dt)
+        self._filter_state = np.zeros(8)        # ZMP x y, left CoP x y, right CoP x y, left, right normal force
+        self._filter_started = np.zeros(5, dtype=bool)
         self._contact_nominal: dict[Side, pin.SE3] = {}
         self._torso_nominal: pin.SE3 | None = None
         self._tilt = {s: np.eye(3) for s in Side}
@@ -381,57 +411,55 @@ class TeleopStabilizer(Stabilizer):
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
         """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
-        from the ankle F/T sensors on the measured configuration."""
-        m, d = self.model, self.data
-        pin.forwardKinematics(m, d, meas.q)
+        from the ankle F/T sensors on the measured configuration (the placements: `ForwardKinematics`, the
+        arithmetic and the filters:
+        `_kernels.feet_measurement` (`measured_wrench`, `_moment_about`) and `filter_measurement`)."""
+        buf = self._buf
+        if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views)
+            self._fk.frames(meas.q, self._fk_frames, self._frames_R, self._frames_t)
+        else:
+            m, d = self.model, self.data
+            pin.forwardKinematics(m, d, meas.q)
+            for i, s in enumerate(Side):
+                M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
+                S = pin.updateFramePlacement(m, d, self.sole_ids[s])
+                buf.R_sensor[i] = M.rotation
+                buf.p_sensor[i] = M.translation
+                buf.R_sole[i] = S.rotation
+                buf.p_sole[i] = S.translation
+        for i, s in enumerate(Side):
+            buf.f_sensor[i] = meas.ft_force[s]
+            buf.m_sensor[i] = meas.ft_torque[s]
+        zmp_ok = feet_measurement(buf.R_sensor, buf.p_sensor, buf.f_sensor, buf.m_sensor, buf.foot_mass,
+                                  buf.foot_com, buf.R_sole, buf.p_sole, self.sole_center, self.spec.min_normal_force,
+                                  GRAVITY, buf.out, buf.zmp)
+        state = self._filter_state
+        filter_measurement(buf.out, buf.zmp, zmp_ok, self._filter_alpha, state, self._filter_started)
         out = _Measured()
-        thr = self.spec.min_normal_force
-        parts = []
-        ground = math.inf
-        for s in Side:
-            M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
-            mass, com = self._foot[s]
-            F, Ms = measured_wrench(meas.ft_force[s], meas.ft_torque[s], M.rotation, M.translation, mass, com)
-            S = pin.updateFramePlacement(m, d, self.sole_ids[s])
-            h = float(S.translation[2])
-            ground = min(ground, h)
-            fz = float(F[2])
-            out.normal_force[s] = float(self._filters[f"f_{s.value}"]((max(fz, 0.0),))[0])
-            parts.append((F, Ms, M.translation, fz))
-            if fz >= thr and fz > 0.0:
-                mx, my = _moment_about(F, Ms, M.translation, h)
-                cop = np.array([-my / fz, mx / fz, h])
-                local = S.rotation.T @ (cop - S.translation)
-                out.cop_sole[s] = self._filters[f"cop_{s.value}"]((local[0] - self.sole_center[0],
-                                                                   local[1] - self.sole_center[1]))
-        fz_t = mx_t = my_t = 0.0
-        for F, Ms, p, fz in parts:
-            if fz >= thr:
-                mx, my = _moment_about(F, Ms, p, ground)
-                fz_t += fz
-                mx_t += mx
-                my_t += my
-        if fz_t > 0.0:
-            out.zmp = self._filters["zmp"]((-my_t / fz_t, mx_t / fz_t))
+        f = state.tolist()
+        for i, s in enumerate(Side):
+            out.normal_force[s] = f[6 + i]
+            if buf.out[i, 3] != 0.0:
+                out.cop_sole[s] = state[2 + 2 * i:4 + 2 * i].copy()
+        if zmp_ok:
+            out.zmp = state[0:2].copy()
         return out
 
-    @staticmethod
-    def model_cop(feedback: ModelFeedback) -> np.ndarray | None:
-        """ZMP (x, y) of the model's QP wrenches of the last tick, world frame; None when unloaded."""
-        fz_t = mx_t = my_t = 0.0
-        for s in Side:
+    def model_cop(self, feedback: ModelFeedback) -> np.ndarray | None:
+        """ZMP (x, y) of the model's QP wrenches of the last tick, world frame; None when unloaded
+        (`_kernels.model_cop`)."""
+        buf = self._cop_buf
+        use = buf.use
+        for i, s in enumerate(Side):
             M = feedback.contact_poses.get(s)
             w = feedback.wrenches.get(s)
-            if M is None or w is None or s not in feedback.active or w[2] <= 0.0:
-                continue
-            f = M.rotation @ w[:3]
-            mx, my = _moment_about(f, M.rotation @ w[3:], M.translation, 0.0)
-            fz_t += f[2]
-            mx_t += mx
-            my_t += my
-        if fz_t <= 1.0:
-            return None
-        return np.array([-my_t / fz_t, mx_t / fz_t])
+            use[i] = M is not None and w is not None and s in feedback.active
+            if use[i]:
+                buf.R[i] = M.rotation
+                buf.p[i] = M.translation
+                buf.w[i] = w
+        out = np.empty(2)
+        return out if _k.model_cop(buf.R, buf.p, buf.w, use, out) else None
 
     # -------------------------------------------------------------- the corrections
     def correct(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> References:
@@ -451,9 +479,11 @@ class TeleopStabilizer(Stabilizer):
         g = spec.com_admittance
         if g is not None and com_ref is not None and cop_model is not None and zmp_ok:
             com = com_ref.position
-            p1, v1, a1 = com_admittance(com, com_ref.velocity, com_ref.acceleration, cop_model, meas_.zmp, g, dt)
-            log[4:6] = (p1 - com)[:2]
-            com_ref = PointReference(p1, v1, a1)
+            out = np.empty((3, 3))
+            _k.com_admittance(com, com_ref.velocity, com_ref.acceleration, float(cop_model[0] - meas_.zmp[0]),
+                              float(cop_model[1] - meas_.zmp[1]), *self._com_gains, _limit(g.limit), dt, out)
+            log[4:6] = (out[0] - com)[:2]
+            com_ref = PointReference(out[0], out[1], out[2])
         active = feedback.active
         both = Side.LEFT in active and Side.RIGHT in active
         # Eq. 4-5
@@ -503,9 +533,9 @@ class TeleopStabilizer(Stabilizer):
                 if cop is None:
                     contact_poses[s] = nominal
                     continue
-                R = ankle_admittance(nominal.rotation, cop, g)
+                R = np.empty((3, 3))
+                log[7 + i] = _k.ankle_admittance(nominal.rotation, cop[0], cop[1], g.kd[0], g.kd[1], _limit(g.limit), R)
                 contact_poses[s] = pin.SE3(R, nominal.translation)
-                log[7 + i] = float(np.linalg.norm(pin.log3(nominal.rotation.T @ R)))
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs

@@ -48,6 +48,7 @@ import pinocchio as pin
 from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
+from wbcbench.tasks.placements import ForwardKinematics
 from wbcbench.tasks.task import Task
 from wbcbench.tasks.registry import register_task
 
@@ -189,6 +190,82 @@ def _position_flat(R_all, t_all, JW, slot_of, offsets, offset_x, scales, p, negl
     return nact
 
 
+VelocityInputs = namedtuple("VelocityInputs", ["x", "rx", "act", "slot_of", "G", "HC", "HK", "REL", "RW", "ACC",
+                                               "mask_x", "masks"])
+VelocityInputs.__doc__ = """The inputs of :func:`_velocity_kernel` besides pinocchio's ``data.J`` and ``v``: the protected
+point ``x`` and ``rx`` (its joint origin -> it) (3,), world [m]; the active repulsors ``act``; the position kernel's
+``slot_of``, ``G``, ``HC``, ``HK``, ``REL``, ``RW`` (:class:`PositionOutputs`); ``ACC`` (k, 6) the classical
+accelerations at zero joint acceleration of the joints' origins (linear, angular; world axes) per slot, read for
+slot 0 and the active repulsors' slots (zero for a point fixed in the world); ``mask_x`` / ``masks`` the supports
+(:class:`RepulsorGeometry`)."""
+
+
+def _velocity_kernel(JW, v, J, inp, velocity, drift):
+    """The compiled velocity-level quantities of ``SelfCollisionTask._evaluate_velocity``: ``velocity = J v``
+    (n,) and, for the active repulsors, ``drift_i = r_dot^T H_i r_dot + g_i^T (a_x - a_p,i)`` (the others 0),
+    with the point velocities from the world Jacobians ``JW`` (``v_X = J_lin v + w x X`` on the support of the
+    point's joint, ``w = J_ang v``) and the point accelerations ``a = a_origin + alpha x r + w x (w x r)``
+    (``inp``: :class:`VelocityInputs`)."""
+    _velocity_flat(JW, v, J, *inp, velocity, drift)
+
+
+@njit
+def _point_velocity(JW, v, mask, X):
+    """Velocity (3,) of the world point ``X`` moving with the joint of support ``mask``, and that joint's angular
+    velocity (3,), world axes."""
+    lin = np.zeros(3)
+    w = np.zeros(3)
+    for col in range(JW.shape[1]):
+        if mask[col]:
+            vc = v[col]
+            for a in range(3):
+                lin[a] += JW[a, col] * vc
+                w[a] += JW[3 + a, col] * vc
+    lin[0] += w[1] * X[2] - w[2] * X[1]
+    lin[1] += w[2] * X[0] - w[0] * X[2]
+    lin[2] += w[0] * X[1] - w[1] * X[0]
+    return lin, w
+
+
+@njit
+def _point_acceleration(acc, w, r):
+    """Classical acceleration (3,) of the point at ``r`` from a joint origin of classical acceleration ``acc``
+    (6,: linear at the origin, angular) and angular velocity ``w``: ``a + alpha x r + w x (w x r)``."""
+    wr0, wr1, wr2 = w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]
+    out = np.empty(3)
+    out[0] = acc[0] + (acc[4] * r[2] - acc[5] * r[1]) + (w[1] * wr2 - w[2] * wr1)
+    out[1] = acc[1] + (acc[5] * r[0] - acc[3] * r[2]) + (w[2] * wr0 - w[0] * wr2)
+    out[2] = acc[2] + (acc[3] * r[1] - acc[4] * r[0]) + (w[0] * wr1 - w[1] * wr0)
+    return out
+
+
+@njit
+def _velocity_flat(JW, v, J, x, rx, act, slot_of, G, HC, HK, REL, RW, ACC, mask_x, masks, velocity, drift):
+    """`_velocity_kernel` on flat arrays."""
+    n, nv = J.shape
+    for i in range(n):
+        s = 0.0
+        for col in range(nv):
+            s += J[i, col] * v[col]
+        velocity[i] = s
+        drift[i] = 0.0
+    if act.shape[0] == 0:
+        return
+    vx, wx = _point_velocity(JW, v, mask_x, x)
+    ax = _point_acceleration(ACC[0], wx, rx)
+    P = np.empty(3)
+    for i in act:
+        for a in range(3):
+            P[a] = x[a] - REL[i, a]
+        vp, wp = _point_velocity(JW, v, masks[i], P)
+        ap = _point_acceleration(ACC[slot_of[i]], wp, RW[i])
+        rd0, rd1, rd2 = vx[0] - vp[0], vx[1] - vp[1], vx[2] - vp[2]
+        # r_dot^T H r_dot with H = hc rel rel^T - hk I
+        proj = REL[i, 0] * rd0 + REL[i, 1] * rd1 + REL[i, 2] * rd2
+        drift[i] = (HC[i] * proj * proj - HK[i] * (rd0 * rd0 + rd1 * rd1 + rd2 * rd2)
+                    + G[i, 0] * (ax[0] - ap[0]) + G[i, 1] * (ax[1] - ap[1]) + G[i, 2] * (ax[2] - ap[2]))
+
+
 _PLACEMENTS: dict = {"key": None, "joints": {}}
 
 
@@ -230,16 +307,26 @@ class RepulsionPoint:
 
 @dataclass
 class _Cache:
+    """One configuration's quantities (``key``: data and q; ``vkey``: v), the arrays those of the kernels
+    (:class:`PositionOutputs`, ``x`` the protected point, ``act`` the active repulsors' indices); None before the
+    first evaluation."""
+
     key: tuple[int, bytes] | None = None
     vkey: bytes | None = None
-    C: FloatArray = field(default_factory=lambda: np.zeros(0))
-    distances: FloatArray = field(default_factory=lambda: np.zeros(0))
-    J: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
-    active: list = field(default_factory=list)     # repulsors with C > negligible
-    rows: dict = field(default_factory=dict)       # active repulsor -> (grad, C coeff, C k d^(p-2), x - p, r)
-    rx: FloatArray = field(default_factory=lambda: np.zeros(3))
-    velocity: FloatArray = field(default_factory=lambda: np.zeros(0))
-    drift: FloatArray = field(default_factory=lambda: np.zeros(0))
+    C: FloatArray | None = None
+    distances: FloatArray | None = None
+    J: FloatArray | None = None
+    active: list | None = None     # repulsors with C > negligible
+    rx: FloatArray | None = None
+    x: FloatArray | None = None
+    act: npt.NDArray[np.intp] | None = None
+    G: FloatArray | None = None
+    HC: FloatArray | None = None
+    HK: FloatArray | None = None
+    REL: FloatArray | None = None
+    RW: FloatArray | None = None
+    velocity: FloatArray | None = None
+    drift: FloatArray | None = None
 
 
 @register_task
@@ -378,6 +465,12 @@ class SelfCollisionTask(Task):
         self._mask_x = support(self._joint_x)
         self._masks = np.array([support(j) for j in self._rep_joint])
         self._act = np.zeros(self.dim, dtype=np.intp)
+        self._acc = np.zeros((len(self._joints_needed), 6))
+        self._outputs: PositionOutputs | None = None
+        self._velocity_out = (np.empty(self.dim), np.empty(self.dim))
+        self._fk = ForwardKinematics(model)
+        self._joints_index = np.array(self._joints_needed, dtype=np.intp)
+        self._placements = (np.empty((len(self._joints_needed), 3, 3)), np.empty((len(self._joints_needed), 3)))
         self._geometry = RepulsorGeometry(self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
                                           float(self._exponent), float(self._negligible), self._masks, self._mask_x)
 
@@ -410,8 +503,9 @@ class SelfCollisionTask(Task):
     def _evaluate(self, model: pin.Model, data: pin.Data) -> _Cache:
         """Position-level quantities, cached per (data, q).
 
-        Every point is placed from its parent joint's placement (``data.oMi``, read once per configuration
-        for every task, ``_joint_placements``); ``C`` is computed for every repulsor, the gradient and the
+        Every point is placed from its parent joint's placement (computed from ``q`` by the compiled
+        `ForwardKinematics`, the same as pinocchio's ``data.oMi``; for other joint types ``data.oMi``, read once
+        per configuration for every task, ``_joint_placements``); ``C`` is computed for every repulsor, the gradient and the
         Jacobian row only for those whose ``C`` exceeds ``negligible`` (pinocchio's joint Jacobians, once per
         joint); the others' rows are zero (see ``NEGLIGIBLE``): usually every repulsor but one or two is that
         far. Per active repulsor, with ``r`` the vector from its joint's origin to it (world axes) and ``J6``
@@ -422,58 +516,60 @@ class SelfCollisionTask(Task):
         cache = self._cache
         if cache.key == key:
             return cache
-        R_all, t_all = _joint_placements(data, key, self._joints_needed)
+        fk = self._fk
+        if fk.supported and fk.model is model:
+            R_all, t_all = self._placements
+            fk.joints(q, self._joints_index, R_all, t_all)
+        else:
+            R_all, t_all = _joint_placements(data, key, self._joints_needed)
         return self._evaluate_jit(model, data, key, R_all, t_all)
 
     def _evaluate_jit(self, model: pin.Model, data: pin.Data, key: tuple, R_all: FloatArray,
                       t_all: FloatArray) -> _Cache:
         """The position-level quantities of :meth:`_evaluate` from the compiled kernel (``_position_kernel``); a
-        numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py)."""
-        n, nv = self.dim, model.nv
-        C, dist, J = np.empty(n), np.empty(n), np.empty((n, nv))
-        G, HC, HK, REL, RW, rx = (np.empty((n, 3)), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
-                                  np.empty(3))
-        act = self._act
-        k = _position_kernel(R_all, t_all, data.J, self._geometry,
-                             PositionOutputs(C, dist, J, G, HC, HK, REL, RW, rx, act))
-        rows = {i: (G[i], HC[i], HK[i], REL[i], RW[i]) for i in act[:k].tolist()}
-        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=list(rows), rows=rows, rx=rx)
+        numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py). The kernel's
+        buffers are the task's own, overwritten at the next configuration (the cache holds one configuration;
+        the public methods return copies)."""
+        out = self._outputs
+        if out is None or out.J.shape[1] != model.nv:
+            n, nv = self.dim, model.nv
+            out = self._outputs = PositionOutputs(np.empty(n), np.empty(n), np.empty((n, nv)), np.empty((n, 3)),
+                                                  np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
+                                                  np.empty(3), self._act)
+        C, dist, J, G, HC, HK, REL, RW, rx, act = out
+        k = _position_kernel(R_all, t_all, data.J, self._geometry, out)
+        idx = act[:k].copy()
+        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=t_all[0] + rx,
+                             act=idx, G=G, HC=HC, HK=HK, REL=REL, RW=RW)
         return self._cache
 
     def _evaluate_velocity(self, model: pin.Model, data: pin.Data) -> _Cache:
         """``C_dot = J v``; drift ``r_dot^T H r_dot + g^T (a_x - a_p)`` for the active repulsors (``r_dot`` the
         relative point velocity, ``a`` classical point accelerations at zero joint acceleration), 0 for the
-        others."""
+        others: the compiled ``_velocity_kernel``, given the classical accelerations of the joints carrying the
+        protected point and the active repulsors (a numpy reference is in the tests)."""
         cache = self._evaluate(model, data)
         v = data.v_in
         vkey = v.tobytes()
         if cache.vkey == vkey:
             return cache
-        drift = np.zeros(self.dim)
+        acc = self._acc
         if cache.active:
-            vx, ax = self._point_motion(model, data, self._joint_x, cache.rx)
-            for i in cache.active:
-                g, hc, hk, rel_i, r_i = cache.rows[i]
-                vp, ap = self._point_motion(model, data, self._rep_joint[i], r_i)
-                rd = vx - vp
-                # r_dot^T H r_dot with H = hc rel rel^T - hk I
-                drift[i] = hc * float(rel_i @ rd) ** 2 - hk * float(rd @ rd) + float(g @ (ax - ap))
-        cache.velocity = cache.J @ v
+            joints = self._joints_needed
+            for slot in {0, *self._slot_of[cache.act].tolist()}:
+                j = joints[slot]
+                if j == 0:
+                    acc[slot] = 0.0
+                else:
+                    acc[slot] = pin.getClassicalAcceleration(model, data, j, _LWA).vector
+        velocity, drift = self._velocity_out
+        _velocity_kernel(data.J, v, cache.J, VelocityInputs(cache.x, cache.rx, cache.act, self._slot_of, cache.G,
+                                                            cache.HC, cache.HK, cache.REL, cache.RW, acc,
+                                                            self._mask_x, self._masks), velocity, drift)
+        cache.velocity = velocity
         cache.drift = drift
         cache.vkey = vkey
         return cache
-
-    @staticmethod
-    def _point_motion(model: pin.Model, data: pin.Data, joint: int, r: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Velocity and classical acceleration at zero joint acceleration (3,) each, world axes, of the point at
-        ``r`` (world axes) from the origin of ``joint``."""
-        if joint == 0:
-            return np.zeros(3), np.zeros(3)
-        vel = pin.getVelocity(model, data, joint, _LWA)
-        acc = pin.getClassicalAcceleration(model, data, joint, _LWA)
-        w = vel.angular
-        wr = _cross(w, r)
-        return vel.linear + wr, acc.linear + _cross(acc.angular, r) + _cross(w, wr)
 
     def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
         J = self._evaluate(model, data).J
