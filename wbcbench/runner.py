@@ -147,7 +147,10 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
     s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
     s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
-    per_side = [(s, s_cw[s], s_ft[s], s_in[s]) for s in Side]
+    # each pair of per-side channels is registered left then right, next to each other: written in one go
+    s_cw_all, s_ft_all, s_in_all = (slice(d[Side.LEFT].start, d[Side.RIGHT].stop) for d in (s_cw, s_ft, s_in))
+    ft_state = sim.state_slices["ft"]  # both ankles' (force, torque), left then right, as the row wants them
+    in_contact = _ContactFlags()
     # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
     target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
     s_targets = {name: rec.add_channel(f"target_{name}", target_comps) for name in scen.target_names}
@@ -231,15 +234,15 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                 row[s_fall] = fall_log
             if s_late is not None:
                 row[s_late] = lateness[tick]
-            true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
+            state = sim.read_state()  # the next tick's measurement, recorded with the state it belongs to
+            true_meas = sim.measurement(state)
             q, v = true_meas.q, true_meas.v  # ground truth before the sensor layer
-            pin.centerOfMass(model, data, q, v)
+            row[s_com] = pin.centerOfMass(model, data, q, v, False)
+            row[s_vcom] = data.vcom[0]
             row[s_t] = (tick + 1) * spec.control_dt
             row[s_q] = q
             row[s_v] = v
             row[s_tau] = sim.applied_torque()
-            row[s_com] = data.com[0]
-            row[s_vcom] = data.vcom[0]
             if refs.com is not None:
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
@@ -253,18 +256,14 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     cells[:3] = target.position
                     if target.rotation is not None:
                         cells[3:] = target.rotation.reshape(-1)
-            cws = sim.contact_wrenches()
+            row[s_cw_all] = sim.contact_wrench_array().reshape(-1)
+            row[s_ft_all] = state[ft_state]
+            row[s_in_all] = in_contact[refs.contacts]
             meas = sensing.measure(true_meas)
             if injector.enabled:
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
-            for s, sl_cw, sl_ft, sl_in in per_side:
-                row[sl_cw] = cws[s]
-                cells = row[sl_ft]
-                cells[:3] = true_meas.ft_force[s]
-                cells[3:] = true_meas.ft_torque[s]
-                row[sl_in] = float(s in refs.contacts)
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
@@ -350,6 +349,14 @@ def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: flo
     worst = float(late_ms.max()) if late_ms.size else 0.0
     return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
             "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
+
+
+class _ContactFlags(dict):
+    """contacts (a frozenset of sides) -> the row's (in_contact_ref_left, in_contact_ref_right), made once."""
+
+    def __missing__(self, contacts):
+        flags = self[contacts] = np.array([float(s in contacts) for s in Side])
+        return flags
 
 
 class LogWriteError(WbcError):
