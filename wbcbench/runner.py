@@ -149,7 +149,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
     # each pair of per-side channels is registered left then right, next to each other: written in one go
     s_cw_all, s_ft_all, s_in_all = (slice(d[Side.LEFT].start, d[Side.RIGHT].stop) for d in (s_cw, s_ft, s_in))
-    ft_state = sim.state_slices["ft"]  # both ankles' (force, torque), left then right, as the row wants them
+    # where Simulator.read_tick writes the ground truth: q, v, tau, both soles' wrenches, both F/T readings
+    truth_dst = np.array([s_q.start, s_v.start, s_tau.start, s_cw_all.start, s_ft_all.start], dtype=np.int64)
+    i_t = s_t.start
     in_contact = _ContactFlags()
     # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
     target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
@@ -234,15 +236,13 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                 row[s_fall] = fall_log
             if s_late is not None:
                 row[s_late] = lateness[tick]
-            state = sim.read_state()  # the next tick's measurement, recorded with the state it belongs to
-            true_meas = sim.measurement(state)
-            q, v = true_meas.q, true_meas.v  # ground truth before the sensor layer
-            row[s_com] = pin.centerOfMass(model, data, q, v, False)
+            # the next tick's measurement, recorded with the state it belongs to: q, v, applied torque, contact
+            # wrenches and F/T readings go into the row in the same call
+            state, fs = sim.read_tick(row, truth_dst)
+            true_meas = sim.measurement(state)  # ground truth before the sensor layer
+            row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
             row[s_vcom] = data.vcom[0]
-            row[s_t] = (tick + 1) * spec.control_dt
-            row[s_q] = q
-            row[s_v] = v
-            row[s_tau] = sim.applied_torque()
+            row[i_t] = (tick + 1) * spec.control_dt
             if refs.com is not None:
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
@@ -256,8 +256,6 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     cells[:3] = target.position
                     if target.rotation is not None:
                         cells[3:] = target.rotation.reshape(-1)
-            row[s_cw_all] = sim.contact_wrench_array().reshape(-1)
-            row[s_ft_all] = state[ft_state]
             row[s_in_all] = in_contact[refs.contacts]
             meas = sensing.measure(true_meas)
             if injector.enabled:
@@ -278,9 +276,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             try:
                 rec.commit()
             except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
-                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[s_t][0]:.3f} s "
+                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[i_t]:.3f} s "
                                     f"({exc.strerror or exc}); the ticks written before are kept") from None
-            fs = sim.fall_status()
             if fs.fell:
                 fell, reason = True, fs.reason
                 break

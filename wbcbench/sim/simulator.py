@@ -14,7 +14,7 @@ from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
 from .contact_kernel import ContactRecords, sole_wrenches
-from .state_kernel import STATE_SENSORS, fall_numbers, read_state, state_layout, state_size
+from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, state_layout, state_size, tick_aux
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
 from ..scene import Terrain
@@ -27,6 +27,7 @@ class FallStatus:
 
 
 _STANDING = FallStatus(False)
+_NO_RECORDS = (np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int32))  # read_tick's contact records before the first
 
 
 class Simulator:
@@ -94,6 +95,7 @@ class Simulator:
         self._cos_max_tilt = math.cos(self._max_tilt) + 1e-12  # at or above: certainly within the tilt limit
         self._soles2 = (int(self._sole_ids[0]), int(self._sole_ids[1]))
         self._pyramidal = int(self.model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
+        self._tick_aux = tick_aux(self._soles2, np.zeros(6, np.int64), self.bridge.actuator_idx)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -167,7 +169,7 @@ class Simulator:
             return out
         rec = self._contacts
         if rec is None or rec.data is not d:
-            rec = self._contacts = ContactRecords(d)
+            rec = self._locate_contacts()
         sole_wrenches(n, d.efc_force, rec.floats, rec.ints, rec.offsets, self._sole_ids, self._pyramidal, out)
         return out
 
@@ -200,7 +202,9 @@ class Simulator:
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
         d = self.data
-        finite, height, cos_tilt = fall_numbers(d.qpos, d.qvel, d.geom_xpos, self.bridge.root_qadr, *self._soles2)
+        return self._fall(*fall_numbers(d.qpos, d.qvel, d.geom_xpos, self.bridge.root_qadr, *self._soles2))
+
+    def _fall(self, finite: bool, height: float, cos_tilt: float) -> FallStatus:
         if not finite:  # a NaN or inf anywhere
             return FallStatus(True, "simulation diverged (non-finite state)")
         if height < self._min_base_height:
@@ -211,6 +215,28 @@ class Simulator:
         if tilt > self._max_tilt:
             return FallStatus(True, f"base tilted {tilt:.2f} rad (> {self._max_tilt})")
         return _STANDING
+
+    def read_tick(self, row: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, FallStatus]:
+        """What the run loop reads after a step, in one compiled call: the state and sensors (`read_state`'s
+        array, returned), the fall status, and the ground truth written into a log row: q, v, the applied
+        torque, the soles' contact wrenches (left, right: `contact_wrench_array`) and the ankles' F/T readings
+        (left, right: force then torque) in consecutive columns starting at ``dst`` (int64: q, v, tau, wrenches,
+        F/T)."""
+        d = self.data
+        n = d.ncon
+        rec = self._contacts
+        if n and (rec is None or rec.data is not d):
+            rec = self._locate_contacts()
+        floats, ints = (rec.floats, rec.ints) if rec is not None else _NO_RECORDS
+        state = np.empty(self._state_size)
+        numbers = read_tick(d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.efc_force, n, floats, ints,
+                            self._pyramidal, self._state_layout, self._tick_aux, state, self._sole_wrench, row, dst)
+        return state, self._fall(*numbers)
+
+    def _locate_contacts(self) -> ContactRecords:
+        rec = self._contacts = ContactRecords(self.data)
+        self._tick_aux = tick_aux(self._soles2, rec.offsets, self.bridge.actuator_idx)
+        return rec
 
     # ------------------------------------------------------------------ acting
     def apply(self, command: Command) -> None:

@@ -13,8 +13,9 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .contact_kernel import sole_wrenches
 
-__all__ = ["read_state", "fall_numbers", "state_layout", "state_size", "STATE_SENSORS"]
+__all__ = ["read_state", "read_tick", "tick_aux", "fall_numbers", "state_layout", "state_size", "STATE_SENSORS"]
 
 #: the sensors `read_state` copies, in this order, after q and v (imu_quat is reordered to x, y, z, w)
 STATE_SENSORS = ("imu_quat", "gyro", "accelerometer", "force_left", "torque_left", "force_right", "torque_right")
@@ -103,3 +104,41 @@ def state_size(nq: int, nv: int) -> int:
     """Length of `read_state`'s output for a robot with nq, nv."""
     return nq + nv + 4 + 3 * (len(STATE_SENSORS) - 1)
 
+
+
+@njit(exact=True)
+def read_tick(qpos, qvel, sensordata, actuator_force, geom_xpos, efc_force, ncon, floats, ints, pyramidal, layout, aux,
+              state, wrench, row, dst):
+    """Everything the run loop reads after a step, in one call: `read_state` into ``state``, the soles' contact
+    wrenches (`contact_kernel.sole_wrenches`) into ``wrench``, and the ground truth copied into the log row
+    ``row`` where ``dst`` says (q, v, applied torque, both soles' wrenches, both ankles' F/T readings: the first
+    column of each, consecutive columns). ``aux``: `tick_aux`. Returns `fall_numbers`."""
+    read_state(qpos, qvel, sensordata, layout, state)
+    nq, nj = layout[2], layout[3]
+    nv = 6 + nj
+    if ncon > 0:
+        sole_wrenches(ncon, efc_force, floats, ints, aux[2:8], aux[0:2], pyramidal, wrench)
+    else:
+        wrench[:] = 0.0
+    d_q, d_v, d_tau, d_cw, d_ft = dst[0], dst[1], dst[2], dst[3], dst[4]
+    for i in range(nq):
+        row[d_q + i] = state[i]
+    for i in range(nv):
+        row[d_v + i] = state[nq + i]
+    for i in range(aux.shape[0] - 8):
+        row[d_tau + i] = actuator_force[aux[8 + i]]
+    for k in range(wrench.shape[0]):
+        for j in range(6):
+            row[d_cw + 6 * k + j] = wrench[k, j]
+    ft = nq + nv + 10
+    for i in range(12):
+        row[d_ft + i] = state[ft + i]
+    return fall_numbers(qpos, qvel, geom_xpos, layout[0], aux[0], aux[1])
+
+
+def tick_aux(soles, record_offsets, actuators) -> np.ndarray:
+    """`read_tick`'s ``aux``: the two sole geoms, the contact records' six field offsets (zeros until a contact
+    located them), the joints' actuators (pinocchio joint order)."""
+    if len(soles) != 2 or len(record_offsets) != 6:
+        raise ValueError("read_tick aux: two sole geoms and six record offsets")
+    return np.concatenate([soles, record_offsets, actuators]).astype(np.int64)
