@@ -57,15 +57,7 @@ class Simulator:
         self.kp, self.kd = robot.profile.position_gains.resolve(robot.joint_names, robot.profile.file)
         self.effort = robot.effort_limit
         self._kd_over_kp = self.kd / self.kp  # position mode: the servo's velocity reference enters as kd/kp v
-        self.pushes = tuple(pushes)
-        self._push_bodies = []
-        for p in self.pushes:
-            body = robot.profile.base_frame if p.body == "base" else p.body
-            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, body)
-            if bid < 0:
-                names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, self.model.nbody)]
-                raise UnknownNameError("body for push", p.body, names, key="pushes.body")
-            self._push_bodies.append(bid)
+        self.set_pushes(pushes)
         self._sole_geoms = {s: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s))
                             for s in Side}
         self._sensor_adr = {name: int(self.model.sensor_adr[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SENSOR,
@@ -97,6 +89,20 @@ class Simulator:
         self._pyramidal = int(self.model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
         self._tick_aux = tick_aux(self._soles2, np.zeros(6, np.int64), self.bridge.actuator_idx)
         self.reset()
+
+    def set_pushes(self, pushes: tuple[Push, ...]) -> None:
+        """The external pushes of the following steps (replacing any; each active over its own time window)."""
+        bodies = []
+        for p in pushes:
+            body = self.robot.profile.base_frame if p.body == "base" else p.body
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, body)
+            if bid < 0:
+                names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, self.model.nbody)]
+                raise UnknownNameError("body for push", p.body, names, key="pushes.body")
+            bodies.append(bid)
+        if not pushes and getattr(self, "pushes", ()):
+            self.data.xfrc_applied[:] = 0.0  # the last push's force must not stay applied
+        self.pushes, self._push_bodies = tuple(pushes), bodies
 
     # ------------------------------------------------------------------ state
     @property
