@@ -8,6 +8,9 @@ in microseconds per tick, and the real-time factor of the whole loop.
 The run is a normal `wbcbench.run` (log written to a temporary directory), after a 0.3 s warm-up run of the same
 pair in the same process (loading the compiled kernels is not a tick's cost); physics is timed by wrapping
 `Simulator.step`, the controller from the log's `controller_time_us`; the rest is the loop's wall time minus both.
+The same split in CPU time of the loop's thread (`time.thread_time`, from the end of the first tick to the end of
+the last) is printed below it: on a shared machine, other processes on the same core inflate wall time, not CPU
+time, so the CPU split is the one to compare across runs.
 `--against DIR` runs the same with the wbcbench of another checkout (e.g. the previous main) in the same
 invocation: the two alternate, each in its own process pinned to one core with OPENBLAS_NUM_THREADS=1, and the
 median over rounds is reported with the ratio new / other.
@@ -26,25 +29,64 @@ import numpy as np
 from _alternate import alternate
 
 
+class _Clock:
+    """A probe that reads the thread's CPU clock at the end of the first and of the last tick (the loop's CPU
+    time without set-up, planning and metrics)."""
+
+    def __init__(self):
+        self.first = self.last = None
+
+    def attach(self, sim):
+        return {}
+
+    def values(self):
+        now = time.thread_time()
+        if self.first is None:
+            self.first = now
+        self.last = now
+        return []
+
+    def metrics(self, log):
+        return {}
+
+
 def measure(scenario: str, controller: str) -> dict:
-    """One run; the split per tick [us] and the real-time factor."""
+    """One run; the split per tick [us] and the real-time factor. Wall time as the run loop measures it, and
+    CPU time of the loop's thread (`time.thread_time`: what another process on the same core does not add)."""
+    from wbcbench.controllers.base import make_controller
+    from wbcbench.robots import load_robot
     from wbcbench.runner import run
+    from wbcbench.scenarios import load_scenario
     from wbcbench.sim.simulator import Simulator
 
     with tempfile.TemporaryDirectory() as tmp:  # load the compiled kernels and warm the caches first
         run(scenario, controller, duration=0.3, out=Path(tmp) / "warm-up")
-    physics = [0.0]
-    step = Simulator.step
+    robot = load_robot("talos")
+    scen = load_scenario(scenario, robot)
+    ctrl = make_controller(controller, robot, None, scen.spec.control_dt)
+    clock = _Clock()
+    physics, physics_cpu, ctrl_cpu = [0.0], [0.0], [0.0]
+    step, ctrl_step = Simulator.step, ctrl.step
 
     def timed_step(self, n: int = 1) -> None:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         step(self, n)
         physics[0] += time.perf_counter() - t0
+        if clock.first is not None:  # from the end of the first tick on, as the clock
+            physics_cpu[0] += time.thread_time() - c0
 
+    def timed_ctrl(meas, refs):
+        c0 = time.thread_time()
+        out = ctrl_step(meas, refs)
+        if clock.first is not None:
+            ctrl_cpu[0] += time.thread_time() - c0
+        return out
+
+    ctrl.step = timed_ctrl
     Simulator.step = timed_step
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            result = run(scenario, controller, out=Path(tmp) / "run")
+            result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock])
     finally:
         Simulator.step = step
     s = result.summary
@@ -52,15 +94,25 @@ def measure(scenario: str, controller: str) -> dict:
     wall_us = s["wall_time_s"] * 1e6
     ctrl_us = float(np.nansum(result.log["controller_time_us"]))
     phys_us = physics[0] * 1e6
+    n_cpu = ticks - 1
+    loop_cpu = (clock.last - clock.first) * 1e6
     return {"ticks": ticks, "fell": s["fell"], "controller_us": ctrl_us / ticks, "physics_us": phys_us / ticks,
             "rest_us": (wall_us - ctrl_us - phys_us) / ticks, "tick_us": wall_us / ticks,
-            "real_time_factor": s["real_time_factor"]}
+            "real_time_factor": s["real_time_factor"],
+            "cpu_controller_us": ctrl_cpu[0] * 1e6 / n_cpu, "cpu_physics_us": physics_cpu[0] * 1e6 / n_cpu,
+            "cpu_rest_us": (loop_cpu - (ctrl_cpu[0] + physics_cpu[0]) * 1e6) / n_cpu, "cpu_tick_us": loop_cpu / n_cpu,
+            "cpu_real_time_factor": scen.spec.control_dt * 1e6 / (loop_cpu / n_cpu)}
 
 
 def _line(label: str, r: dict) -> str:
-    return (f"  {label:8s} controller {r['controller_us']:6.1f}  physics {r['physics_us']:6.1f}  "
+    wall = (f"  {label:6s} wall  controller {r['controller_us']:6.1f}  physics {r['physics_us']:6.1f}  "
             f"rest {r['rest_us']:6.1f}  tick {r['tick_us']:6.1f} us   real-time factor {r['real_time_factor']:.2f}"
             f"{'   FELL' if r['fell'] else ''}")
+    if "cpu_tick_us" not in r:  # a checkout whose benchmark measured wall time only
+        return wall
+    return wall + (f"\n  {label:6s} CPU   controller {r['cpu_controller_us']:6.1f}  physics {r['cpu_physics_us']:6.1f}  "
+                   f"rest {r['cpu_rest_us']:6.1f}  tick {r['cpu_tick_us']:6.1f} us   real-time factor "
+                   f"{r['cpu_real_time_factor']:.2f}")
 
 
 def against(args) -> None:
@@ -72,7 +124,12 @@ def against(args) -> None:
     for side in med:
         print(_line(side, med[side]))
     print(f"  new/other: rest {med['new']['rest_us'] / med['other']['rest_us']:.2f}, "
-          f"tick {med['new']['tick_us'] / med['other']['tick_us']:.2f}")
+          f"tick {med['new']['tick_us'] / med['other']['tick_us']:.2f} (wall)", end="")
+    if all("cpu_rest_us" in m for m in med.values()):
+        print(f"; rest {med['new']['cpu_rest_us'] / med['other']['cpu_rest_us']:.2f}, "
+              f"tick {med['new']['cpu_tick_us'] / med['other']['cpu_tick_us']:.2f} (CPU)")
+    else:
+        print()
 
 
 def main() -> None:

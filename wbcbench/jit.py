@@ -37,10 +37,17 @@ if JIT_ENABLED:
     # flag that assumes finite values: NaN must still fail the tests
     _FASTMATH = {"reassoc", "contract"}
 
-    def njit(fn):
-        """numba.njit with the options every kernel uses (cached on disk, vectorised sums)."""
-        return _numba_njit(cache=True, nogil=True, fastmath=_FASTMATH, error_model="numpy")(fn)
+    def njit(fn=None, *, exact: bool = False):
+        """numba.njit with the options every kernel uses (cached on disk, vectorised sums). `exact=True`: no
+        reassociation or fused multiply-add, i.e. the same IEEE arithmetic, operation by operation, as the
+        numpy code the kernel replaces (for kernels whose results are logged bit for bit)."""
+        if fn is None:
+            return lambda f: njit(f, exact=exact)
+        return _numba_njit(cache=True, nogil=True, fastmath=set() if exact else _FASTMATH,
+                           error_model="numpy")(fn)
 else:
-    def njit(fn):
+    def njit(fn=None, *, exact: bool = False):
         """JIT off: the kernel runs as plain Python."""
+        if fn is None:
+            return lambda f: f
         return fn

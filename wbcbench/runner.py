@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import os
 import platform
+import sys
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -53,12 +56,37 @@ def step_time_stats(us: np.ndarray) -> dict:
             "mean": float(us.mean())}
 
 
+@dataclass(frozen=True)
+class Branch:
+    """One continuation of a run from its branch point: its own run directory and the pushes it adds."""
+
+    out: Path
+    pushes: tuple = ()
+
+
+@dataclass(frozen=True)
+class BranchPoint:
+    """Run once up to time `t`, then continue several times from that same state, each continuation (a
+    `Branch`) in a child process of its own (`os.fork`: the simulator, controller, sensing and scenario as they
+    are, nothing rebuilt or re-simulated) that writes a complete run directory (log from t = 0, config with its
+    pushes, summary) exactly as a run with those pushes from the start would (a branch's pushes must not start
+    before `t`).
+
+    `plan()` is a generator: it yields the first `Branch`, is sent the summary of each finished branch (a dict
+    with "error" when the branch's process died) and yields the next, until it returns. The branches run one
+    after another, so the next can depend on the last (e.g. a bisection over a push's force). The run that
+    branches ends at `t`: its own directory keeps the log up to there and its summary counts the branches."""
+
+    t: float
+    plan: Callable[[], Generator[Branch, dict, None]]
+
+
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
         mode: str | None = None, duration: float | None = None, out: str | Path | None = None,
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
-        overwrite: bool = False, realtime: bool = False) -> RunResult:
+        overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -67,7 +95,40 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     logged in those channels) and `metrics(log) -> dict` (merged into the summary's metrics); e.g.
     `wbcbench.sim.self_collision.SelfCollisionProbe`. A probe may also have `observe(t, refs)`, called with the
     references handed to the controller every tick (e.g. the live view, `wbcbench.viz.live.LiveView`).
+    `branch`: continue the run several times from one state (`BranchPoint`).
     """
+    global _BRANCH_CHILD
+    try:
+        result = _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset,
+                      sensors, seed, model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch)
+    except BaseException:
+        if _BRANCH_CHILD:  # a branch's process never returns into its parent's code
+            _branch_exit(1, traceback.format_exc())
+        raise
+    if _BRANCH_CHILD:
+        _branch_exit(0, None)
+    return result
+
+
+#: True in a branch's child process (see `BranchPoint`)
+_BRANCH_CHILD = False
+
+
+def _branch_exit(code: int, error: str | None) -> None:
+    if error:
+        try:
+            sys.stderr.write(error)
+        except Exception:
+            pass
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    finally:
+        os._exit(code)
+
+
+def _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset, sensors, seed,
+         model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch) -> RunResult:
     robot = load_robot(robot) if isinstance(robot, str) else robot
     scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
     spec = scen.spec
@@ -147,7 +208,12 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
     s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
     s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
-    per_side = [(s, s_cw[s], s_ft[s], s_in[s]) for s in Side]
+    # each pair of per-side channels is registered left then right, next to each other: written in one go
+    s_cw_all, s_ft_all, s_in_all = (slice(d[Side.LEFT].start, d[Side.RIGHT].stop) for d in (s_cw, s_ft, s_in))
+    # where Simulator.read_tick writes the ground truth: q, v, tau, both soles' wrenches, both F/T readings
+    truth_dst = np.array([s_q.start, s_v.start, s_tau.start, s_cw_all.start, s_ft_all.start], dtype=np.int64)
+    i_t = s_t.start
+    in_contact = _ContactFlags()
     # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
     target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
     s_targets = {name: rec.add_channel(f"target_{name}", target_comps) for name in scen.target_names}
@@ -174,6 +240,14 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
     duration = spec.duration if spec.duration > 0 else scen.planned_duration
     n_ticks = int(round(duration / spec.control_dt))
+    k_branch, n_branches = None, 0
+    if branch is not None:
+        k_branch = int(math.floor(branch.t / spec.control_dt + 1e-9))
+        if not 0 < k_branch < n_ticks:
+            raise ConfigError(f"branch point t = {branch.t} s outside the run (0, {duration}) s", key="branch")
+        if not hasattr(os, "fork"):
+            raise ConfigError("branching a run needs os.fork (Linux, macOS)", key="branch")
+        rec.chunk = max(rec.chunk, k_branch + 1)  # nothing written to the file before the branches: they copy it
     fell, reason, error, interrupted = False, "", None, False
     ctrl_us = np.full(n_ticks, np.nan)
     lateness = np.zeros(n_ticks) if realtime else None
@@ -193,6 +267,16 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                               file=spec.file) from None
         for tick in range(n_ticks):
             t = tick * spec.control_dt
+            if tick == k_branch:
+                approach = time.perf_counter() - wall0
+                try:
+                    got = _branch(branch, sim, rec, config)
+                except Exception as exc:  # the plan's own error (not the controller's): raised as it is
+                    raise _PlanError(exc) from None
+                if isinstance(got, int):  # the parent: every branch has run; this run ends here
+                    n_branches = got
+                    break
+                run_dir, wall0 = got, time.perf_counter() - approach  # a branch: its own run from here on
             if realtime and tick > 0:  # tick k starts at wall_start + k dt, or late
                 now = time.perf_counter()
                 if tick == 1:  # the clock starts after the first tick (one-off start-up work is not a delay)
@@ -231,15 +315,13 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                 row[s_fall] = fall_log
             if s_late is not None:
                 row[s_late] = lateness[tick]
-            true_meas = sim.measure()  # the next tick's measurement, recorded with the state it belongs to
-            q, v = true_meas.q, true_meas.v  # ground truth before the sensor layer
-            pin.centerOfMass(model, data, q, v)
-            row[s_t] = (tick + 1) * spec.control_dt
-            row[s_q] = q
-            row[s_v] = v
-            row[s_tau] = sim.applied_torque()
-            row[s_com] = data.com[0]
+            # the next tick's measurement, recorded with the state it belongs to: q, v, applied torque, contact
+            # wrenches and F/T readings go into the row in the same call
+            state, fs = sim.read_tick(row, truth_dst)
+            true_meas = sim.measurement(state)  # ground truth before the sensor layer
+            row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
             row[s_vcom] = data.vcom[0]
+            row[i_t] = (tick + 1) * spec.control_dt
             if refs.com is not None:
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
@@ -253,18 +335,12 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
                     cells[:3] = target.position
                     if target.rotation is not None:
                         cells[3:] = target.rotation.reshape(-1)
-            cws = sim.contact_wrenches()
+            row[s_in_all] = in_contact[refs.contacts]
             meas = sensing.measure(true_meas)
             if injector.enabled:
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
-            for s, sl_cw, sl_ft, sl_in in per_side:
-                row[sl_cw] = cws[s]
-                cells = row[sl_ft]
-                cells[:3] = true_meas.ft_force[s]
-                cells[3:] = true_meas.ft_torque[s]
-                row[sl_in] = float(s in refs.contacts)
             row[s_time] = ctrl_us[tick]
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
@@ -279,9 +355,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
             try:
                 rec.commit()
             except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
-                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[s_t][0]:.3f} s "
+                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[i_t]:.3f} s "
                                     f"({exc.strerror or exc}); the ticks written before are kept") from None
-            fs = sim.fall_status()
             if fs.fell:
                 fell, reason = True, fs.reason
                 break
@@ -290,6 +365,9 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     except WbcError:
         _close_quietly(rec)
         raise
+    except _PlanError as exc:
+        _close_quietly(rec)
+        raise exc.error
     except KeyboardInterrupt:  # Ctrl-C: stop here, keep the log and say so in the summary
         interrupted = True
     except Exception as exc:  # a crash in a controller: keep the log, say why
@@ -298,12 +376,13 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     finally:
         _close_quietly(rec)
     wall = time.perf_counter() - wall0
-    sim_time = (tick + 1) * spec.control_dt if n_ticks else 0.0
+    sim_time = (tick + (0 if n_branches else 1)) * spec.control_dt if n_ticks else 0.0
     summary = {
         "robot": robot.name, "scenario": spec.name, "controller": controller, "mode": ctrl.mode.value,
         "fell": fell, "fall_reason": reason or None, "interrupted": interrupted, "sim_time_s": sim_time,
         "duration_s": duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
+        **({"branches": n_branches} if branch is not None and not _BRANCH_CHILD else {}),
         "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
         "controller_status": ctrl.status(),
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
@@ -350,6 +429,62 @@ def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: flo
     worst = float(late_ms.max()) if late_ms.size else 0.0
     return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
             "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
+
+
+def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) -> Path | int:
+    """At the branch point. In the parent, run `branch.plan()`'s branches one by one, each in a forked child,
+    and return how many ran. In a child, set up its branch (pushes, run directory and config, log file: the
+    rows so far are in memory) and return its run directory: the child then runs on as a normal run and exits
+    at the end of `run`."""
+    global _BRANCH_CHILD
+    plan = branch.plan()
+    try:
+        b = next(plan)
+    except StopIteration:
+        return 0
+    n = 0
+    while True:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            _BRANCH_CHILD = True
+            out = Path(b.out)
+            out.mkdir(parents=True, exist_ok=True)
+            for stale in ("summary.json", "error.txt", "log.parquet"):
+                (out / stale).unlink(missing_ok=True)
+            sim.set_pushes(tuple(sim.pushes) + tuple(b.pushes))
+            cfg = {**config, "pushes": [p.__dict__ for p in sim.pushes]}
+            (out / "config.json").write_text(json.dumps(cfg, indent=2, default=str))
+            rec.path = out / "log.parquet"
+            return out
+        _, status = os.waitpid(pid, 0)
+        n += 1
+        code = os.waitstatus_to_exitcode(status)
+        try:
+            summary = json.loads((Path(b.out) / "summary.json").read_text())
+        except (OSError, ValueError):
+            summary = {"error": f"the branch's process ended with exit code {code} and no summary"}
+        try:
+            b = plan.send(summary)
+        except StopIteration:
+            return n
+
+
+class _PlanError(Exception):
+    """An error raised by a branch plan (carried past the loop's handler of controller crashes)."""
+
+    def __init__(self, error: Exception):
+        super().__init__(str(error))
+        self.error = error
+
+
+class _ContactFlags(dict):
+    """contacts (a frozenset of sides) -> the row's (in_contact_ref_left, in_contact_ref_right), made once."""
+
+    def __missing__(self, contacts):
+        flags = self[contacts] = np.array([float(s in contacts) for s in Side])
+        return flags
 
 
 class LogWriteError(WbcError):

@@ -92,6 +92,16 @@ class PointReference:
         setattr_(self, "acceleration", _ZERO3 if self.acceleration is None else
                  _frozen_vector(self.acceleration, 3, "PointReference.acceleration"))
 
+    @classmethod
+    def unchecked(cls, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> "PointReference":
+        """From (3,) float64 arrays already checked (e.g. rows of a precomputed plan): no conversion, no copy."""
+        ref = object.__new__(cls)
+        setattr_ = object.__setattr__
+        setattr_(ref, "position", position)
+        setattr_(ref, "velocity", velocity)
+        setattr_(ref, "acceleration", acceleration)
+        return ref
+
 
 @dataclass(frozen=True, slots=True)
 class PoseReference:
@@ -123,6 +133,19 @@ class PoseReference:
     def from_se3(cls, pose, velocity=None, acceleration=None) -> "PoseReference":
         """From a `pinocchio.SE3` (copied)."""
         return cls(pose.translation.copy(), pose.rotation.copy(), velocity, acceleration)
+
+    @classmethod
+    def unchecked(cls, position: np.ndarray, rotation: np.ndarray | None, velocity: np.ndarray,
+                  acceleration: np.ndarray) -> "PoseReference":
+        """From float64 arrays of the right shapes already checked ((3,), (3, 3) or None, (6,), (6,); e.g. rows
+        of a precomputed plan): no conversion, no copy."""
+        ref = object.__new__(cls)
+        setattr_ = object.__setattr__
+        setattr_(ref, "position", position)
+        setattr_(ref, "rotation", rotation)
+        setattr_(ref, "velocity", velocity)
+        setattr_(ref, "acceleration", acceleration)
+        return ref
 
     @classmethod
     def translating(cls, position, velocity=None, acceleration=None, rotation=None) -> "PoseReference":

@@ -11,6 +11,7 @@ import pytest
 
 from wbcbench.robots import load_robot
 from wbcbench.robustness import PushStudy, phase_times, run_study
+from wbcbench.robustness.push import PushCell
 from wbcbench.scenarios import load_scenario
 
 
@@ -38,6 +39,22 @@ def test_bisection_brackets_the_limit(tmp_path):
         assert r.survived_impulse >= 10.0
     saved = json.loads((tmp_path / "push_results.json").read_text())
     assert len(saved["results"]) == 4 and saved["phase_times_s"] == {"ds": 1.0}
+
+
+def test_trials_from_one_approach_equal_trials_from_the_start(tmp_path):
+    """The protocol simulates the approach to the push once per controller, phase and seed and continues every
+    trial from it; trials made from the start (where processes cannot fork) give the same outcomes."""
+    from wbcbench.robustness.push import _bisect, _bisect_group
+
+    study = PushStudy("stand", ("tsid-position",), directions=2, phases=("ds",), iterations=1, max_impulse=50.0,
+                      settle=1.0)
+    cells = [PushCell("tsid-position", d, "ds", 0, 1.0) for d in (0.0, 180.0)]
+    grouped = _bisect_group(study, cells, tmp_path / "branched")
+    alone = [_bisect(study, c, tmp_path / "alone") for c in cells]
+    assert grouped == alone
+    assert any(ok for r in alone for _, ok, _ in r.trials) and any(not ok for r in alone for _, ok, _ in r.trials)
+    assert sorted(p.name for p in (tmp_path / "branched" / "runs").iterdir()) == \
+        sorted(p.name for p in (tmp_path / "alone" / "runs").iterdir())
 
 
 def test_cli_bad_input(tmp_path):

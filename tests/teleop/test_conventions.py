@@ -13,6 +13,7 @@ import pytest
 from wbcbench.errors import ConfigError
 from wbcbench.teleop.bvh import BvhJoint, BvhSkeleton, parse_bvh, write_bvh
 from wbcbench.teleop.loader import load_recording
+from wbcbench.teleop.mvnx import write_mvnx
 from wbcbench.teleop.registry import recording_path
 from wbcbench.teleop.skeleton_map import load_segment_map, map_segments
 
@@ -123,10 +124,14 @@ def test_each_convention_maps_every_segment_and_its_unit(tmp_path, convention):
     assert rec.length_unit_note
 
 
-@pytest.mark.parametrize("convention", ["xsens-bvh", "bandai-namco", "cmu"])
+@pytest.mark.parametrize("convention", sorted(CONVENTIONS) + ["mvnx"])
 def test_a_convention_teleoperates_talos_from_the_command_line(tmp_path, convention):
-    """No option: the robot follows (hand error under 5 cm), stands, and the grippers touch nothing."""
-    path = write_convention(tmp_path / f"{convention}.bvh", convention)
+    """Every convention, and the shipped recording exported as Xsens MVNX: with no option, the robot follows
+    (hand error under 5 cm), stands, and the grippers touch nothing."""
+    if convention == "mvnx":
+        path = write_mvnx(tmp_path / "take.mvnx", load_recording(recording_path("reach_forward")))
+    else:
+        path = write_convention(tmp_path / f"{convention}.bvh", convention)
     out = tmp_path / "run"
     proc = subprocess.run([sys.executable, "-m", "wbcbench.cli", "teleop", "-i", str(path), "--out", str(out),
                            "--quiet"], capture_output=True, text=True)
@@ -136,7 +141,8 @@ def test_a_convention_teleoperates_talos_from_the_command_line(tmp_path, convent
     assert not s["fell"]
     assert m["hand_position_error_m"]["mean"] < 0.05
     assert m.get("self_collisions", 0) == 0
-    assert m["teleop"]["skeleton"]["length_unit"]
+    if convention != "mvnx":  # MVNX states positions in metres: nothing to detect
+        assert m["teleop"]["skeleton"]["length_unit"]
 
 
 def test_segment_map_file_and_its_errors(tmp_path):

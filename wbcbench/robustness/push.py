@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -103,57 +104,74 @@ def phase_times(scenario: str, robot: str = "talos", after: float = 2.0) -> dict
             "ss-mid": float(T0 + 0.5 * (T1 - T0)), "ss-late": float(T0 + 0.9 * (T1 - T0))}
 
 
-def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple[bool, str]:
-    """One run with one push; (survived, reason)."""
-    from ..robots import load_robot
-    from ..runner import run
+def _trial_scenario(study: PushStudy, robot, push_time: float):
+    """The scenario of a trial without its push: it ends `settle` s after the push, step adjustment as asked."""
     from ..scenarios import load_scenario
-    from ..sim.push import Push
 
-    robot = load_robot(study.robot)
     scen = load_scenario(study.scenario, robot)
-    force = impulse / study.push_duration
-    a = math.radians(cell.direction_deg)
-    push = Push(body="base", force=(force * math.cos(a), force * math.sin(a), 0.0), start=cell.push_time,
-                duration=study.push_duration)
-    end = cell.push_time + study.push_duration + study.settle
-    scen.spec = replace(scen.spec, pushes=(push,), duration=end)
+    end = push_time + study.push_duration + study.settle
+    scen.spec = replace(scen.spec, pushes=(), duration=end)
     if study.step_adjustment:
         enable = getattr(scen, "enable_step_adjustment", None)
         if enable is None:
             raise ConfigError(f"scenario '{study.scenario}' (kind {scen.kind}) has no step adjustment",
                               key="--step-adjustment")
         enable()
-    res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
-              predict_falls=True, overwrite=True)
-    s = res.summary
-    if s["fell"]:
-        ttf = s["fall_prediction"]["time_to_fall_s"]
-        return False, f"fell: {s['fall_reason']}" + (f" (predicted {ttf:.2f} s before)" if ttf is not None else "")
-    log = res.log
-    com = np.array([log[f"com.{a}"][-1] for a in "xyz"])
-    ref = np.array([log[f"com_ref.{a}"][-1] for a in "xyz"])
-    dist = float(np.linalg.norm((com - ref)[:2])) if np.isfinite(ref).all() else 0.0
+    return scen
+
+
+def _push(study: PushStudy, cell: PushCell, impulse: float):
+    from ..sim.push import Push
+
+    force = impulse / study.push_duration
+    a = math.radians(cell.direction_deg)
+    return Push(body="base", force=(force * math.cos(a), force * math.sin(a), 0.0), start=cell.push_time,
+                duration=study.push_duration)
+
+
+def _verdict(study: PushStudy, summary: dict, com_end: np.ndarray, ref_end: np.ndarray) -> tuple[bool, str]:
+    """(survived, reason) of a trial from its summary and its last CoM and CoM reference."""
+    if "error" in summary and "fell" not in summary:
+        return False, f"error: {summary['error']}"
+    if summary["fell"]:
+        ttf = (summary.get("fall_prediction") or {}).get("time_to_fall_s")
+        return False, f"fell: {summary['fall_reason']}" + (f" (predicted {ttf:.2f} s before)" if ttf is not None else "")
+    dist = float(np.linalg.norm((com_end - ref_end)[:2])) if np.isfinite(ref_end).all() else 0.0
     if dist > study.tolerance:
         return False, f"off the plan: CoM {dist:.3f} m from the planned CoM"
     return True, "survived"
 
 
-def _bisect(study: PushStudy, cell: PushCell, out_dir: Path) -> PushResult:
-    name = f"{cell.controller}-{cell.phase}-{int(cell.direction_deg):03d}deg-s{cell.seed}"
+def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple[bool, str]:
+    """One run with one push from the start; (survived, reason)."""
+    from ..robots import load_robot
+    from ..runner import run
+
+    robot = load_robot(study.robot)
+    scen = _trial_scenario(study, robot, cell.push_time)
+    scen.spec = replace(scen.spec, pushes=(_push(study, cell, impulse),))
+    res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
+              predict_falls=True, overwrite=True)
+    log = res.log
+    return _verdict(study, res.summary, np.array([log[f"com.{a}"][-1] for a in "xyz"]),
+                    np.array([log[f"com_ref.{a}"][-1] for a in "xyz"]))
+
+
+def _bisection(study: PushStudy, cell: PushCell):
+    """The bisection of one cell as a generator: yields the impulses to try [N s], is sent each trial's
+    (survived, reason), returns the `PushResult`."""
     trials = []
 
-    def attempt(impulse: float) -> bool:
-        ok, why = _trial(study, cell, impulse, out_dir / "runs" / f"{name}-{impulse:.2f}Ns")
-        trials.append((round(impulse, 4), ok, why))
-        return ok
+    def record(impulse: float, outcome: tuple[bool, str]) -> bool:
+        trials.append((round(impulse, 4), outcome[0], outcome[1]))
+        return outcome[0]
 
-    if study.probe_max and attempt(study.max_impulse):
+    if study.probe_max and record(study.max_impulse, (yield study.max_impulse)):
         return PushResult(cell, study.max_impulse, None, tuple(trials))
     lo, hi = 0.0, study.max_impulse
     for _ in range(study.iterations):
         mid = 0.5 * (lo + hi)
-        if attempt(mid):
+        if record(mid, (yield mid)):
             lo = mid
         else:
             hi = mid
@@ -162,12 +180,75 @@ def _bisect(study: PushStudy, cell: PushCell, out_dir: Path) -> PushResult:
     return PushResult(cell, lo, hi, tuple(trials))
 
 
-def _bisect_job(args) -> PushResult:
-    return _bisect(*args)
+def _trial_name(cell: PushCell, impulse: float) -> str:
+    return f"{cell.controller}-{cell.phase}-{int(cell.direction_deg):03d}deg-s{cell.seed}-{impulse:.2f}Ns"
+
+
+def _bisect(study: PushStudy, cell: PushCell, out_dir: Path) -> PushResult:
+    """One cell, each trial a run from the start."""
+    steps = _bisection(study, cell)
+    try:
+        impulse = next(steps)
+        while True:
+            impulse = steps.send(_trial(study, cell, impulse, out_dir / "runs" / _trial_name(cell, impulse)))
+    except StopIteration as done:
+        return done.value
+
+
+def _bisect_group(study: PushStudy, cells: list[PushCell], out_dir: Path) -> list[PushResult]:
+    """Cells of one controller, phase and seed (so one push time): the approach to the push is simulated once
+    and every trial of every cell continues from it (`wbcbench.runner.BranchPoint`), which gives the runs that
+    trials from the start give, without re-simulating the approach each time."""
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    from ..robots import load_robot
+    from ..runner import Branch, BranchPoint, run
+
+    first = cells[0]
+    results: list[PushResult] = []
+
+    def plan():
+        for cell in cells:
+            steps = _bisection(study, cell)
+            try:
+                impulse = next(steps)
+                while True:
+                    out = out_dir / "runs" / _trial_name(cell, impulse)
+                    summary = yield Branch(out, (_push(study, cell, impulse),))
+                    com_end = ref_end = np.full(3, np.nan)
+                    try:
+                        table = pq.read_table(out / "log.parquet", columns=[f"{c}.{a}" for c in ("com", "com_ref")
+                                                                            for a in "xyz"])
+                        last = table.slice(table.num_rows - 1)
+                        com_end = np.array([last.column(f"com.{a}")[0].as_py() for a in "xyz"])
+                        ref_end = np.array([last.column(f"com_ref.{a}")[0].as_py() for a in "xyz"])
+                    except (OSError, ValueError, KeyError):  # no log: the summary says why
+                        summary = summary if "error" in summary else {**summary, "error": "no log"}
+                    impulse = steps.send(_verdict(study, summary, com_end, ref_end))
+            except StopIteration as done:
+                results.append(done.value)
+
+    robot = load_robot(study.robot)
+    scen = _trial_scenario(study, robot, first.push_time)
+    approach = out_dir / "runs" / f"{first.controller}-{first.phase}-s{first.seed}-approach"
+    run(scen, first.controller, robot=robot, out=approach, sensors=study.sensors, seed=first.seed,
+        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan))
+    shutil.rmtree(approach, ignore_errors=True)  # a partial run: the trials are the raw runs
+    return results
+
+
+def _group_job(args) -> list[PushResult]:
+    study, cells, out = args
+    if hasattr(os, "fork"):
+        return _bisect_group(study, cells, out)
+    return [_bisect(study, cell, out) for cell in cells]
 
 
 def run_study(study: PushStudy, out_dir: str | Path, jobs: int = 1, progress=None) -> list[PushResult]:
-    """Every cell of the study, bisected in `jobs` processes; results in the order of the cells."""
+    """Every cell of the study, bisected in `jobs` processes; results in the order of the cells. Cells sharing
+    controller, phase and seed run as one group (one approach simulated, see `_bisect_group`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     times = phase_times(study.scenario, study.robot, study.after)
@@ -178,19 +259,29 @@ def run_study(study: PushStudy, out_dir: str | Path, jobs: int = 1, progress=Non
     cells = [PushCell(c, 360.0 * k / study.directions, ph, seed, times[ph])
              for c in study.controllers for ph in study.phases for k in range(study.directions)
              for seed in range(study.seeds)]
-    args = [(study, cell, out) for cell in cells]
-    results: list[PushResult] = []
+    groups: dict[tuple, list[PushCell]] = {}
+    for cell in cells:
+        groups.setdefault((cell.controller, cell.phase, cell.seed), []).append(cell)
+    # fewer groups than twice the processes: split them (each piece simulates its approach) to keep all busy
+    pieces = max(1, math.ceil(2 * jobs / len(groups))) if jobs > 1 else 1
+    args = [(study, part, out) for group in groups.values() for part in np.array_split(np.array(group, dtype=object),
+                                                                                      min(pieces, len(group)))]
+    args = [(study, list(part), out) for study, part, out in args]
+    done: dict[PushCell, PushResult] = {}
+
+    def collect(rs: list[PushResult]) -> None:
+        done.update((r.cell, r) for r in rs)
+        if progress:
+            progress(len(done), len(cells))
+
     if jobs <= 1:
         for a in args:
-            results.append(_bisect_job(a))
-            if progress:
-                progress(len(results), len(cells))
+            collect(_group_job(a))
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for r in pool.map(_bisect_job, args):
-                results.append(r)
-                if progress:
-                    progress(len(results), len(cells))
+            for rs in pool.map(_group_job, args):
+                collect(rs)
+    results = [done[c] for c in cells]
     (out / "push_results.json").write_text(json.dumps(
         {"study": asdict(study), "phase_times_s": times,
          "results": [{**asdict(r.cell), "survived_impulse_Ns": r.survived_impulse,

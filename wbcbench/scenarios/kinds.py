@@ -226,19 +226,15 @@ class WalkScenario(Scenario):
 
     def references(self, t):
         w = self.walk
+        table = self._table if self._table is not None and self._table.walk is w else self._tabulate(w)
         k = min(int(round(t / w.dt)), w.n_ticks - 1)
-        feet = {}
-        contacts = []
-        for s in Side:
-            f = w.feet[s]
-            if f.in_contact[k]:
-                contacts.append(s)
-            else:
-                feet[s] = PoseReference.translating(f.p_world_sole[k], f.v_world_sole[k], f.a_world_sole[k],
-                                                    f.R_world_sole[k])
-        return References(t=t, contacts=frozenset(contacts),
-                          com=PointReference(w.p_world_com[k], w.v_world_com[k], w.a_world_com[k]), feet=feet,
-                          zmp=w.p_world_zmp_ref[k])
+        return table.references(t, k)
+
+    _table = None
+
+    def _tabulate(self, walk) -> "_WalkTable":
+        self._table = _WalkTable(walk)
+        return self._table
 
     def metrics(self, log):
         com = channel(log, "com")
@@ -257,6 +253,48 @@ class WalkScenario(Scenario):
             out["step_adjustments"] = self.adjuster.count
             out["step_adjustment_foothold_shift_m"] = [float(x) for x in self.adjuster.delta]
         return out
+
+
+class _WalkTable:
+    """A walk's references, tick by tick, from arrays arranged once per walk (a re-plan makes a new walk): the
+    contact set of every tick, the swing feet's 6-D velocities and accelerations (linear, zero angular), and
+    the rows that `references` hands out as they are (the plan's arrays, checked here once)."""
+
+    def __init__(self, walk):
+        self.walk = walk
+        n = walk.n_ticks
+        self.com = tuple(_checked_rows(a, (3,), "CoM") for a in (walk.p_world_com, walk.v_world_com, walk.a_world_com))
+        self.zmp = _checked_rows(walk.p_world_zmp_ref, (3,), "ZMP")
+        code = np.zeros(n, dtype=np.int64)
+        self.feet = {}
+        for bit, s in enumerate(Side):
+            f = walk.feet[s]
+            code += np.asarray(f.in_contact[:n], dtype=bool).astype(np.int64) << bit
+            zeros = np.zeros((n, 3))
+            self.feet[s] = (_checked_rows(f.p_world_sole, (3,), "foot position"),
+                            _checked_rows(f.R_world_sole, (3, 3), "foot rotation"),
+                            _checked_rows(np.hstack([f.v_world_sole[:n], zeros]), (6,), "foot velocity"),
+                            _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
+        self.code = code.tolist()
+        # per contact code: the contact set and the (side, arrays) of the swinging feet
+        self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
+        self.swinging = [[(s, self.feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
+                         for c in range(1 << len(Side))]
+
+    def references(self, t: float, k: int) -> References:
+        code = self.code[k]
+        feet = {s: PoseReference.unchecked(p[k], R[k], v[k], a[k]) for s, (p, R, v, a) in self.swinging[code]}
+        p, v, a = self.com
+        return References(t=t, contacts=self.contacts[code], com=PointReference.unchecked(p[k], v[k], a[k]),
+                          feet=feet, zmp=self.zmp[k])
+
+
+def _checked_rows(a, shape: tuple, what: str) -> np.ndarray:
+    """A plan's per-tick array as float64, C-ordered (each row a contiguous view), rows of `shape`."""
+    out = np.ascontiguousarray(a, dtype=np.float64)
+    if out.shape[1:] != shape:
+        raise ValueError(f"walk {what}: rows of shape {out.shape[1:]}, expected {shape}")
+    return out
 
 
 def _parse_step_adjustment(sec, robot):

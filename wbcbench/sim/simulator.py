@@ -13,7 +13,8 @@ from ..errors import UnknownNameError
 from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
-from .contact_kernel import sole_wrenches
+from .contact_kernel import ContactRecords, sole_wrenches
+from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, state_layout, state_size, tick_aux
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
 from ..scene import Terrain
@@ -26,6 +27,7 @@ class FallStatus:
 
 
 _STANDING = FallStatus(False)
+_NO_RECORDS = (np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int32))  # read_tick's contact records before the first
 
 
 class Simulator:
@@ -54,30 +56,53 @@ class Simulator:
         self.dt = float(self.model.opt.timestep)
         self.kp, self.kd = robot.profile.position_gains.resolve(robot.joint_names, robot.profile.file)
         self.effort = robot.effort_limit
-        self.pushes = tuple(pushes)
-        self._push_bodies = []
-        for p in self.pushes:
-            body = robot.profile.base_frame if p.body == "base" else p.body
-            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, body)
-            if bid < 0:
-                names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, self.model.nbody)]
-                raise UnknownNameError("body for push", p.body, names, key="pushes.body")
-            self._push_bodies.append(bid)
+        self._kd_over_kp = self.kd / self.kp  # position mode: the servo's velocity reference enters as kd/kp v
+        self.set_pushes(pushes)
         self._sole_geoms = {s: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s))
                             for s in Side}
         self._sensor_adr = {name: int(self.model.sensor_adr[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SENSOR,
                                                                               name)])
-                            for name in ["force_left", "torque_left", "force_right", "torque_right", "gyro",
-                                         "accelerometer", "imu_quat"]}
+                            for name in STATE_SENSORS}
+        # read_state's arguments besides MuJoCo's arrays, and the layout of what it fills
+        b = self.bridge
+        self._state_layout = state_layout(b.root_qadr, b.root_vadr, robot.nq, b.mj_q_idx, b.pin_q_idx, b.mj_v_idx,
+                                          b.pin_v_idx, [self._sensor_adr[n] for n in STATE_SENSORS])
+        self._state_size = state_size(robot.nq, robot.nv)
+        k = robot.nq + robot.nv
+        self._measurement_slices = (slice(0, robot.nq), slice(robot.nq, k), slice(k, k + 4), slice(k + 4, k + 7),
+                                    slice(k + 7, k + 10), slice(k + 10, k + 13), slice(k + 13, k + 16),
+                                    slice(k + 16, k + 19), slice(k + 19, k + 22))
+        # the joints' actuators, as a slice when they are consecutive (the usual case; indexing with one is faster)
+        act = b.actuator_idx
+        self._act = (slice(int(act[0]), int(act[0]) + len(act))
+                     if len(act) and act[0] >= 0 and np.array_equal(act, np.arange(act[0], act[0] + len(act))) else act)
         self._command = Command(tau=np.zeros(robot.na))
         self._tick = 0
         self._spd_M = np.zeros((self.model.nv, self.model.nv))
         self._sole_ids = np.array(list(self._sole_geoms.values()), dtype=np.int32)
         self._sole_wrench = np.zeros((len(self._sole_ids), 6))
+        self._contacts: ContactRecords | None = None  # located from the first contact
         self._min_base_height = float(robot.profile.min_base_height)
         self._max_tilt = float(robot.profile.max_tilt)
+        self._cos_max_tilt = math.cos(self._max_tilt) + 1e-12  # at or above: certainly within the tilt limit
+        self._soles2 = (int(self._sole_ids[0]), int(self._sole_ids[1]))
         self._pyramidal = int(self.model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
+        self._tick_aux = tick_aux(self._soles2, np.zeros(6, np.int64), self.bridge.actuator_idx)
         self.reset()
+
+    def set_pushes(self, pushes: tuple[Push, ...]) -> None:
+        """The external pushes of the following steps (replacing any; each active over its own time window)."""
+        bodies = []
+        for p in pushes:
+            body = self.robot.profile.base_frame if p.body == "base" else p.body
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, body)
+            if bid < 0:
+                names = [mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, self.model.nbody)]
+                raise UnknownNameError("body for push", p.body, names, key="pushes.body")
+            bodies.append(bid)
+        if not pushes and getattr(self, "pushes", ()):
+            self.data.xfrc_applied[:] = 0.0  # the last push's force must not stay applied
+        self.pushes, self._push_bodies = tuple(pushes), bodies
 
     # ------------------------------------------------------------------ state
     @property
@@ -108,29 +133,51 @@ class Simulator:
     def measure(self) -> Measurement:
         """Sensors as a real robot has them. The base estimate is ground truth (no noise, no delay) here; the
         sensor layer (wbcbench.sensing) degrades it."""
-        sd = self.data.sensordata
-        adr = self._sensor_adr
-        a = adr["imu_quat"]
-        w, x, y, z = sd[a:a + 4].tolist()
-        g, acc = adr["gyro"], adr["accelerometer"]
-        fl, fr, tl, tr = adr["force_left"], adr["force_right"], adr["torque_left"], adr["torque_right"]
-        return Measurement(
-            t=self.t, q=self.true_q(), v=self.true_v(),
-            imu_quat=np.array([x, y, z, w]),
-            gyro=sd[g:g + 3].copy(), accelerometer=sd[acc:acc + 3].copy(),
-            ft_force={Side.LEFT: sd[fl:fl + 3].copy(), Side.RIGHT: sd[fr:fr + 3].copy()},
-            ft_torque={Side.LEFT: sd[tl:tl + 3].copy(), Side.RIGHT: sd[tr:tr + 3].copy()},
-        )
+        return self.measurement(self.read_state())
+
+    def read_state(self) -> np.ndarray:
+        """The state and sensors now, in one new array laid out as `state_slices` says (pinocchio conventions):
+        q, v, IMU quaternion (x, y, z, w), gyro, accelerometer, then force and torque of the left and right
+        ankle F/T sensors."""
+        d = self.data
+        buf = np.empty(self._state_size)
+        read_state(d.qpos, d.qvel, d.sensordata, self._state_layout, buf)
+        return buf
+
+    def measurement(self, state: np.ndarray) -> Measurement:
+        """The `Measurement` whose arrays are views of `state` (from `read_state`, not to be reused)."""
+        q, v, imu, gyro, acc, fl, tl, fr, tr = self._measurement_slices
+        return Measurement(t=self._tick * self.dt, q=state[q], v=state[v], imu_quat=state[imu], gyro=state[gyro],
+                           accelerometer=state[acc], ft_force={Side.LEFT: state[fl], Side.RIGHT: state[fr]},
+                           ft_torque={Side.LEFT: state[tl], Side.RIGHT: state[tr]})
+
+    @property
+    def state_slices(self) -> dict[str, slice]:
+        """Where `read_state` puts q, v and the sensors; "ft" is both ankles' (force, torque), left then right."""
+        nq, nv = self.robot.nq, self.robot.nv
+        k = nq + nv
+        return {"q": slice(0, nq), "v": slice(nq, k), "imu_quat": slice(k, k + 4), "gyro": slice(k + 4, k + 7),
+                "accelerometer": slice(k + 7, k + 10), "ft": slice(k + 10, k + 22)}
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
+        out = self.contact_wrench_array()
+        return {s: out[k].copy() for k, s in enumerate(self._sole_geoms)}
+
+    def contact_wrench_array(self) -> np.ndarray:
+        """`contact_wrenches` as one (2, 6) array, left then right (the simulator's own buffer: overwritten by
+        the next call)."""
         d = self.data
         n = d.ncon
         out = self._sole_wrench
-        con = d.contact
-        sole_wrenches(d.efc_force, con.efc_address[:n], con.dim[:n], con.friction[:n], con.frame[:n], con.pos[:n],
-                      con.geom[:n], self._sole_ids, self._pyramidal, out)
-        return {s: out[k].copy() for k, s in enumerate(self._sole_geoms)}
+        if n == 0:
+            out[:] = 0.0
+            return out
+        rec = self._contacts
+        if rec is None or rec.data is not d:
+            rec = self._locate_contacts()
+        sole_wrenches(n, d.efc_force, rec.floats, rec.ints, rec.offsets, self._sole_ids, self._pyramidal, out)
+        return out
 
     def set_joint_fault(self, joint: str, kind: str | None) -> None:
         """A joint's actuator fails (inria_wbc's CUT / LOCKED / PASSIVE): `cut` gives no torque, `passive` only
@@ -161,21 +208,41 @@ class Simulator:
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
         d = self.data
-        q = d.qpos
-        if not (math.isfinite(q.sum()) and math.isfinite(d.qvel.sum())):  # a NaN or inf anywhere
+        return self._fall(*fall_numbers(d.qpos, d.qvel, d.geom_xpos, self.bridge.root_qadr, *self._soles2))
+
+    def _fall(self, finite: bool, height: float, cos_tilt: float) -> FallStatus:
+        if not finite:  # a NaN or inf anywhere
             return FallStatus(True, "simulation diverged (non-finite state)")
-        a = self.bridge.root_qadr
-        xpos = d.geom_xpos
-        g_left, g_right = self._sole_ids
-        height = float(q[a + 2]) - min(float(xpos[g_left, 2]), float(xpos[g_right, 2]))
         if height < self._min_base_height:
             return FallStatus(True, f"base {height:.3f} m above the lower foot (< {self._min_base_height})")
-        w, x, y, z = q[a + 3:a + 7].tolist()
-        cos_tilt = (1 - 2 * (x * x + y * y)) / (w * w + x * x + y * y + z * z)
+        if cos_tilt >= self._cos_max_tilt:
+            return _STANDING
         tilt = math.acos(min(1.0, max(-1.0, cos_tilt)))
         if tilt > self._max_tilt:
             return FallStatus(True, f"base tilted {tilt:.2f} rad (> {self._max_tilt})")
         return _STANDING
+
+    def read_tick(self, row: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, FallStatus]:
+        """What the run loop reads after a step, in one compiled call: the state and sensors (`read_state`'s
+        array, returned), the fall status, and the ground truth written into a log row: q, v, the applied
+        torque, the soles' contact wrenches (left, right: `contact_wrench_array`) and the ankles' F/T readings
+        (left, right: force then torque) in consecutive columns starting at ``dst`` (int64: q, v, tau, wrenches,
+        F/T)."""
+        d = self.data
+        n = d.ncon
+        rec = self._contacts
+        if n and (rec is None or rec.data is not d):
+            rec = self._locate_contacts()
+        floats, ints = (rec.floats, rec.ints) if rec is not None else _NO_RECORDS
+        state = np.empty(self._state_size)
+        numbers = read_tick(d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.efc_force, n, floats, ints,
+                            self._pyramidal, self._state_layout, self._tick_aux, state, self._sole_wrench, row, dst)
+        return state, self._fall(*numbers)
+
+    def _locate_contacts(self) -> ContactRecords:
+        rec = self._contacts = ContactRecords(self.data)
+        self._tick_aux = tick_aux(self._soles2, rec.offsets, self.bridge.actuator_idx)
+        return rec
 
     # ------------------------------------------------------------------ acting
     def apply(self, command: Command) -> None:
@@ -183,12 +250,12 @@ class Simulator:
         self._command = command
         na = self.robot.na
         ctrl = self.data.ctrl
-        act = self.bridge.actuator_idx
+        act = self._act
         if self.mode is ActuationMode.TORQUE:
             ctrl[act] = command.tau if command.tau is not None else np.zeros(na)
         elif self.mode is ActuationMode.POSITION:
             v = command.v if command.v is not None else 0.0
-            ctrl[act] = command.q + self.kd / self.kp * v
+            ctrl[act] = command.q + self._kd_over_kp * v
             self.data.qfrc_applied[:] = 0.0
             if command.tau is not None:
                 self.data.qfrc_applied[self.bridge.mj_v_idx] = command.tau
@@ -223,10 +290,10 @@ class Simulator:
                     if p.active(t):
                         xf[bid, :3] += p.force
             if self.mode is ActuationMode.SPD:
-                self.data.ctrl[self.bridge.actuator_idx] = self._spd_torque()
+                self.data.ctrl[self._act] = self._spd_torque()
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
 
     def applied_torque(self) -> np.ndarray:
         """Torque the actuators produced at the last step, (na,) in pinocchio joint order [N m]."""
-        return self.data.actuator_force[self.bridge.actuator_idx].copy()
+        return self.data.actuator_force[self._act].copy()
