@@ -63,3 +63,18 @@ def test_bad_branch_point_and_failing_plan(tmp_path):
         run("stand", "joint-pd", duration=0.2, out=tmp_path / "b", branch=BranchPoint(0.1, plan))
     assert (tmp_path / "b0" / "summary.json").exists()  # the branch before the error ran and wrote its run
     assert len(read_log(tmp_path / "b" / "log.parquet")["t"]) == 100  # the parent's log up to the branch point
+
+
+def test_a_branch_that_cannot_run_reports_an_error_to_the_plan(tmp_path):
+    """The branch's process cannot make its directory (a file is in the way): it ends, and the plan is sent an
+    error with its exit code; the next branch runs."""
+    (tmp_path / "a-file").write_text("not a directory")
+    seen = []
+
+    def plan():
+        seen.append((yield Branch(tmp_path / "a-file" / "b0")))
+        seen.append((yield Branch(tmp_path / "b1")))
+
+    run("stand", "joint-pd", duration=0.2, out=tmp_path / "a", branch=BranchPoint(0.1, plan))
+    assert "exit code 1" in seen[0]["error"] and "fell" not in seen[0]
+    assert seen[1]["fell"] is False and (tmp_path / "b1" / "log.parquet").exists()

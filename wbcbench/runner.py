@@ -115,16 +115,17 @@ _BRANCH_CHILD = False
 
 
 def _branch_exit(code: int, error: str | None) -> None:
-    if error:
-        try:
-            sys.stderr.write(error)
-        except Exception:
-            pass
+    """End a branch's process. An error that escaped the run goes to the branch's error.txt (not to a stream
+    whose lock another thread of the parent may have held at the fork); nothing of the parent's runs at exit."""
     try:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        if error and _BRANCH_DIR is not None:
+            (_BRANCH_DIR / "error.txt").write_text(error)
     finally:
         os._exit(code)
+
+
+#: the run directory of this branch's process (see `BranchPoint`)
+_BRANCH_DIR: Path | None = None
 
 
 def _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset, sensors, seed,
@@ -436,7 +437,7 @@ def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) ->
     and return how many ran. In a child, set up its branch (pushes, run directory and config, log file: the
     rows so far are in memory) and return its run directory: the child then runs on as a normal run and exits
     at the end of `run`."""
-    global _BRANCH_CHILD
+    global _BRANCH_CHILD, _BRANCH_DIR
     plan = branch.plan()
     try:
         b = next(plan)
@@ -449,7 +450,7 @@ def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) ->
         pid = os.fork()
         if pid == 0:
             _BRANCH_CHILD = True
-            out = Path(b.out)
+            out = _BRANCH_DIR = Path(b.out)
             out.mkdir(parents=True, exist_ok=True)
             for stale in ("summary.json", "error.txt", "log.parquet"):
                 (out / stale).unlink(missing_ok=True)
@@ -464,7 +465,12 @@ def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) ->
         try:
             summary = json.loads((Path(b.out) / "summary.json").read_text())
         except (OSError, ValueError):
-            summary = {"error": f"the branch's process ended with exit code {code} and no summary"}
+            why = ""
+            try:
+                why = ": " + (Path(b.out) / "error.txt").read_text().strip().splitlines()[-1]
+            except (OSError, IndexError):
+                pass
+            summary = {"error": f"the branch's process ended with exit code {code} and no summary{why}"}
         try:
             b = plan.send(summary)
         except StopIteration:
