@@ -15,10 +15,11 @@ Each move follows the quintic blend (zero velocity and acceleration at its ends)
 CoM: x, y from ZMP preview control (see preview_control.py); z = com_height + support height, where a height
 change (stairs) is blended with a quintic from the start of the ZMP move to the start of the next one (the
 move plus the following single support). With `initial_com_height` the CoM starts at that height instead and
-reaches com_height with a quintic before the first ZMP move (a lower walking height than the standing one). On flat ground z is constant, the cart-table model is exact, and
-p_world_zmp reproduces the reference up to the preview controller's tracking error (about 0.1 mm for the
-paper's 20 cm walk with the defaults). With height changes the cart-table ZMP ignores the vertical CoM
-acceleration: an approximation.
+reaches com_height with a quintic before the first ZMP move (a walking height lower than the standing one).
+On flat ground z is otherwise constant, the cart-table model is exact, and p_world_zmp reproduces the reference
+up to the preview controller's tracking error (about 0.1 mm for the paper's 20 cm walk with the defaults). With
+height changes (and during that descent) the cart-table ZMP ignores the vertical CoM acceleration: an
+approximation.
 
 Feet: at rest on their footsteps, swinging (swing.py) during single support; contact changes at the ticks
 nearest to the plan's lift-off and touch-down times.
