@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from wbcbench.runner import run
 
@@ -77,7 +78,6 @@ def test_g1_walks_with_the_generic_task_set(g1, tmp_path):
 def test_tsid_torque_walks_at_0_8_m_s(talos, tmp_path):
     """walk-fast-0.8-quick: 60 cm steps every 0.75 s (0.8 m/s planned) with the CoM lowered to 0.76 m above the
     soles; tsid-torque walks it without a fall, at the planned speed, with the CoM height tracked."""
-    import yaml
     params = yaml.safe_load((SCEN / "walk-fast-0.8-quick.yaml").read_text())["params"]
     assert params["step_length"] / (params["single_support"] + params["double_support"]) == pytest.approx(0.8)
     res = run("walk-fast-0.8-quick", "tsid-torque", talos, out=tmp_path)
