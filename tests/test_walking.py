@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from wbcbench.runner import run
 
@@ -72,3 +73,27 @@ def test_g1_walks_with_the_generic_task_set(g1, tmp_path):
     assert not s["fell"], s["fall_reason"]
     assert s["metrics"]["final_position_error_m"] < 0.05
     assert s["metrics"]["distance_m"] > 0.35
+
+
+def test_tsid_torque_walks_at_0_8_m_s(talos, tmp_path):
+    """walk-fast-0.8-quick: 60 cm steps every 0.75 s (0.8 m/s planned) with the CoM lowered to 0.76 m above the
+    soles; tsid-torque walks it without a fall, at the planned speed, with the CoM height tracked."""
+    params = yaml.safe_load((SCEN / "walk-fast-0.8-quick.yaml").read_text())["params"]
+    assert params["step_length"] / (params["single_support"] + params["double_support"]) == pytest.approx(0.8)
+    res = run("walk-fast-0.8-quick", "tsid-torque", talos, out=tmp_path)
+    s, log = res.summary, res.log
+    assert not s["fell"], s["fall_reason"]
+    m = s["metrics"]
+    assert m["final_position_error_m"] < 0.05
+    assert m["distance_m"] == pytest.approx(params["steps"] * params["step_length"], abs=0.05)
+    # measured speed of the base from the first to the last step's touch-down (the start of each double support)
+    both = (log["in_contact_ref_left"] > 0) & (log["in_contact_ref_right"] > 0)
+    td = np.flatnonzero(np.diff(both.astype(int)) == 1) + 1
+    assert len(td) == params["steps"] + 1  # every step and the final one
+    a, b = td[0], td[params["steps"] - 1]
+    t = log["t"]
+    speed = (log["q.x"][b] - log["q.x"][a]) / (t[b] - t[a])
+    assert speed >= 0.78, speed
+    # the lowered CoM: reached and tracked (standing height 0.877 m: the CoM started above the plan's 0.76 m)
+    assert log["com_ref.z"][0] - log["com_ref.z"][a] > 0.1
+    assert np.abs(log["com.z"] - log["com_ref.z"]).max() < 0.03

@@ -209,6 +209,28 @@ def test_stairs_raise_the_com_smoothly(other_walks):
     assert lifted.p_world_sole[:, 2].max() == pytest.approx(0.4 + CONFIG.swing_apex_height, abs=1e-6)
 
 
+def test_lower_walking_height_is_reached_before_the_zmp_moves():
+    """initial_com_height: the CoM starts at it and descends to com_height, smoothly and at rest in x-y, before the
+    first ZMP move; from then on the walk is the one planned at com_height."""
+    plan = scenario_plan("walk_60cm")
+    low = PatternGeneratorConfig(com_height=0.76, initial_com_height=COM_HEIGHT)
+    w = generate_walk(plan, low)
+    ref = generate_walk(plan, PatternGeneratorConfig(com_height=0.76))
+    z, vz = w.p_world_com[:, 2], w.v_world_com[:, 2]
+    first_move = int(round((plan.timing.initial_double_support - low.initial_shift) / w.dt))
+    assert z[0] == pytest.approx(COM_HEIGHT) and vz[0] == 0.0 and w.a_world_com[0, 2] == 0.0
+    assert np.all(np.diff(z[:first_move + 1]) <= 1e-12)
+    np.testing.assert_allclose(z[first_move:], 0.76, atol=1e-12)
+    assert np.abs(w.a_world_com[:, 2]).max() < 0.5
+    np.testing.assert_allclose(np.diff(z) / w.dt, 0.5 * (vz[1:] + vz[:-1]), atol=1e-4)
+    np.testing.assert_allclose(np.diff(vz) / w.dt, 0.5 * (w.a_world_com[1:, 2] + w.a_world_com[:-1, 2]), atol=1e-3)
+    # x-y, the ZMP and the feet are those of the walk planned at 0.76 m throughout
+    np.testing.assert_array_equal(w.p_world_com[:, :2], ref.p_world_com[:, :2])
+    np.testing.assert_array_equal(w.p_world_zmp, ref.p_world_zmp)
+    np.testing.assert_array_equal(w.p_world_com[first_move:], ref.p_world_com[first_move:])
+    assert w.omega == pytest.approx(np.sqrt(9.81 / 0.76))
+
+
 def test_sampling_interface(walks):
     w = walks["walk_20cm"]
     s = w.at(4.2)
@@ -265,6 +287,7 @@ def test_config_and_timing_validation(timing, kwargs, match):
     ({"com_height": 0.87, "dt": -1e-3}, "dt"),
     ({"com_height": 0.87, "zmp_transfer": "cubic"}, "allowed: smooth, linear"),
     ({"com_height": 0.87, "swing_apex_phase": 0.0}, "swing_apex_phase"),
+    ({"com_height": 0.76, "initial_com_height": -0.87}, "initial_com_height"),
 ])
 def test_config_rejects_bad_values(kwargs, match):
     with pytest.raises(ValueError, match=match):

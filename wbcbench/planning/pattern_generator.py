@@ -14,10 +14,12 @@ Each move follows the quintic blend (zero velocity and acceleration at its ends)
 
 CoM: x, y from ZMP preview control (see preview_control.py); z = com_height + support height, where a height
 change (stairs) is blended with a quintic from the start of the ZMP move to the start of the next one (the
-move plus the following single support). On flat ground z is constant, the cart-table model is exact, and
-p_world_zmp reproduces the reference up to the preview controller's tracking error (about 0.1 mm for the
-paper's 20 cm walk with the defaults). With height changes the cart-table ZMP ignores the vertical CoM
-acceleration: an approximation.
+move plus the following single support). With `initial_com_height` the CoM starts at that height instead and
+reaches com_height with a quintic before the first ZMP move (a walking height lower than the standing one).
+On flat ground z is otherwise constant, the cart-table model is exact, and p_world_zmp reproduces the reference
+up to the preview controller's tracking error (about 0.1 mm for the paper's 20 cm walk with the defaults). With
+height changes (and during that descent) the cart-table ZMP ignores the vertical CoM acceleration: an
+approximation.
 
 Feet: at rest on their footsteps, swinging (swing.py) during single support; contact changes at the ticks
 nearest to the plan's lift-off and touch-down times.
@@ -73,6 +75,10 @@ class PatternGeneratorConfig:
         swing_apex_height: swing apex above the higher end of each swing [m].
         swing_apex_phase: fraction of the swing at the apex, in (0, 1).
         swing_horizontal_window: (w0, w1) fraction of the swing during which the foot moves horizontally.
+        initial_com_height: CoM height above the support at t = 0 [m] when it differs from com_height (a robot
+            starting taller than the walking height); the CoM z then moves to com_height with a quintic (zero
+            velocity and acceleration at both ends) from t = 0 to the start of the first ZMP move. None: the
+            walk starts at com_height.
     """
 
     com_height: float
@@ -88,6 +94,7 @@ class PatternGeneratorConfig:
     swing_apex_height: float = 0.05
     swing_apex_phase: float = 0.5
     swing_horizontal_window: tuple[float, float] = (0.0, 1.0)
+    initial_com_height: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("com_height", "dt", "gravity", "preview_horizon", "zmp_weight", "jerk_weight",
@@ -105,6 +112,8 @@ class PatternGeneratorConfig:
             except ValueError:
                 raise PlanningError(f"PatternGeneratorConfig.zmp_transfer: unknown {self.zmp_transfer!r}; allowed: "
                                  f"{', '.join(z.value for z in ZmpTransfer)}") from None
+        if self.initial_com_height is not None:
+            _positive("PatternGeneratorConfig", "initial_com_height", self.initial_com_height)
         if not np.isfinite(self.swing_apex_height) or self.swing_apex_height < 0.0:
             raise PlanningError(f"PatternGeneratorConfig.swing_apex_height must be >= 0 [m], got "
                              f"{self.swing_apex_height!r}")
@@ -343,6 +352,13 @@ def generate_walk(plan: FootstepPlan, config: PatternGeneratorConfig,
     zmp_ref = _zmp_from_moves(moves, n, p_init, config.zmp_transfer)
     c_xy, v_xy, a_xy = _com_horizontal(zmp_ref[:, :2], p_init[:2], config)
     z, dz, ddz = _support_height(moves, n, p_init[2], config.dt)
+    if config.initial_com_height is not None:  # the descent (or rise) to com_height before the ZMP first moves
+        k = np.arange(moves[0].start)
+        s, ds, dds = _blend(k, 0, moves[0].start, ZmpTransfer.SMOOTH)
+        h = config.initial_com_height - config.com_height
+        z[k] += h * (1.0 - s)
+        dz[k] -= h * ds / config.dt
+        ddz[k] -= h * dds / config.dt**2
     com = np.column_stack([c_xy, z + config.com_height])
     vcom = np.column_stack([v_xy, dz])
     acom = np.column_stack([a_xy, ddz])

@@ -118,7 +118,9 @@ class WalkScenario(Scenario):
     params: steps (number of steps before the final one), step_length [m], single_support and
     double_support [s], initial_double_support / final_double_support [s], apex [m] (swing apex height),
     first_side (left|right), step_width (default: the feet's initial separation), max_step_length [m] (the
-    reach limit the plan is checked against, default 0.65).
+    reach limit the plan is checked against, default 0.65), com_height [m] (the CoM height above the soles while
+    walking, default: the initial one; a lower one is reached by a quintic descent during the initial double
+    support, before the ZMP first moves, and the preview controller's cart-table height is set to it).
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
@@ -146,6 +148,7 @@ class WalkScenario(Scenario):
         self.width = params.float("step_width", 0.0, min=0.0)
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
+        self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment"):
             self.step_adjustment = _parse_step_adjustment(params.section("step_adjustment"), self.robot)
 
@@ -177,9 +180,11 @@ class WalkScenario(Scenario):
                                  sole=SoleRectangle(sole.length, sole.width, *sole.center),
                                  first_side=Side(self.first), start=(mid[0], mid[1], mid[2], 0.0),
                                  limits=ReachLimits(max_length=self.max_step_length))
+            h0 = float(com0[2] - mid[2])
             self.pg_config = PatternGeneratorConfig(
-                com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt, swing_apex_height=self.apex,
-                preview_horizon=self.preview_horizon)
+                com_height=h0 if self.com_height is None else self.com_height, dt=self.spec.control_dt,
+                swing_apex_height=self.apex, preview_horizon=self.preview_horizon,
+                initial_com_height=None if self.com_height is None else h0)
             self.walk = generate_walk(plan, self.pg_config, p_world_com_init=com0)
         except PlanningError as exc:  # the one point where a plan's error gets the scenario's file and key
             raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
