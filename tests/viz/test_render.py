@@ -13,6 +13,8 @@ from wbcbench.runner import run
 from wbcbench.sim.model import VISUAL_GROUP, SimOptions
 from wbcbench.viz.render import Overlays, _Frames, _plan, _Renderer, _render_replay, keyframe_strip, render_run
 
+from .conftest import bad_run_dirs
+
 
 def _decode(path):
     with av.open(str(path)) as c:
@@ -153,12 +155,7 @@ def _cli(*args, env=None):
 
 
 def test_bad_input_is_one_line(stand_run, tmp_path):
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    corrupt = tmp_path / "corrupt"
-    corrupt.mkdir()
-    (corrupt / "config.json").write_text((stand_run / "config.json").read_text())
-    (corrupt / "log.parquet").write_bytes(b"PAR1 this is not parquet")
+    empty, corrupt = bad_run_dirs(tmp_path, stand_run)
     cases = [((str(empty),), {}, "no log.parquet"), ((str(corrupt),), {}, "cannot read the log"),
              ((str(stand_run), "--size", "100x"), {}, "--size"),
              ((str(stand_run), "--camera", "drone"), {}, "drone"),

@@ -12,6 +12,8 @@ import pytest
 
 from wbcbench.viz.viewer import SIDE_SPACING, ReplayViewer
 
+from .conftest import bad_run_dirs
+
 
 def _free_port() -> int:
     with socket.socket() as s:
@@ -75,12 +77,7 @@ def test_layouts(viewer):
 def test_bad_input_is_one_line(walk_run, tmp_path):
     """No log, a damaged log, a port in use: `wbcbench view` says so in one line, exit code 2 (the three run at
     once: the command line's start-up is most of their time)."""
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    corrupt = tmp_path / "corrupt"
-    corrupt.mkdir()
-    (corrupt / "config.json").write_text((walk_run / "config.json").read_text())
-    (corrupt / "log.parquet").write_bytes(b"PAR1 this is not parquet")
+    empty, corrupt = bad_run_dirs(tmp_path, walk_run)
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()

@@ -246,6 +246,12 @@ def _group_job(args) -> list[PushResult]:
     return [_bisect(study, cell, out) for cell in cells]
 
 
+def _split(items: list, k: int) -> list[list]:
+    """`items` in `k` consecutive parts of nearly equal length."""
+    n = len(items)
+    return [items[i * n // k:(i + 1) * n // k] for i in range(k)]
+
+
 def run_study(study: PushStudy, out_dir: str | Path, jobs: int = 1, progress=None) -> list[PushResult]:
     """Every cell of the study, bisected in `jobs` processes; results in the order of the cells. Cells sharing
     controller, phase and seed run as one group (one approach simulated, see `_bisect_group`)."""
@@ -264,9 +270,7 @@ def run_study(study: PushStudy, out_dir: str | Path, jobs: int = 1, progress=Non
         groups.setdefault((cell.controller, cell.phase, cell.seed), []).append(cell)
     # fewer groups than twice the processes: split them (each piece simulates its approach) to keep all busy
     pieces = max(1, math.ceil(2 * jobs / len(groups))) if jobs > 1 else 1
-    args = [(study, part, out) for group in groups.values() for part in np.array_split(np.array(group, dtype=object),
-                                                                                      min(pieces, len(group)))]
-    args = [(study, list(part), out) for study, part, out in args]
+    args = [(study, part, out) for group in groups.values() for part in _split(group, min(pieces, len(group)))]
     done: dict[PushCell, PushResult] = {}
 
     def collect(rs: list[PushResult]) -> None:

@@ -271,19 +271,19 @@ class _WalkTable:
         self.com = tuple(_checked_rows(a, (3,), "CoM") for a in (walk.p_world_com, walk.v_world_com, walk.a_world_com))
         self.zmp = _checked_rows(walk.p_world_zmp_ref, (3,), "ZMP")
         code = np.zeros(n, dtype=np.int64)
-        self.feet = {}
+        feet = {}
         for bit, s in enumerate(Side):
             f = walk.feet[s]
             code += np.asarray(f.in_contact[:n], dtype=bool).astype(np.int64) << bit
             zeros = np.zeros((n, 3))
-            self.feet[s] = (_checked_rows(f.p_world_sole, (3,), "foot position"),
-                            _checked_rows(f.R_world_sole, (3, 3), "foot rotation"),
-                            _checked_rows(np.hstack([f.v_world_sole[:n], zeros]), (6,), "foot velocity"),
-                            _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
+            feet[s] = (_checked_rows(f.p_world_sole, (3,), "foot position"),
+                       _checked_rows(f.R_world_sole, (3, 3), "foot rotation"),
+                       _checked_rows(np.hstack([f.v_world_sole[:n], zeros]), (6,), "foot velocity"),
+                       _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
         self.code = code.tolist()
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
-        self.swinging = [[(s, self.feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
+        self.swinging = [[(s, feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
                          for c in range(1 << len(Side))]
 
     def references(self, t: float, k: int) -> References:

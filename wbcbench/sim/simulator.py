@@ -136,9 +136,9 @@ class Simulator:
         return self.measurement(self.read_state())
 
     def read_state(self) -> np.ndarray:
-        """The state and sensors now, in one new array laid out as `state_slices` says (pinocchio conventions):
-        q, v, IMU quaternion (x, y, z, w), gyro, accelerometer, then force and torque of the left and right
-        ankle F/T sensors."""
+        """The state and sensors now, in one new array (pinocchio conventions): q, v, IMU quaternion (x, y, z, w),
+        gyro, accelerometer, then force and torque of the left and right ankle F/T sensors (`measurement` views
+        it)."""
         d = self.data
         buf = np.empty(self._state_size)
         read_state(d.qpos, d.qvel, d.sensordata, self._state_layout, buf)
@@ -150,14 +150,6 @@ class Simulator:
         return Measurement(t=self._tick * self.dt, q=state[q], v=state[v], imu_quat=state[imu], gyro=state[gyro],
                            accelerometer=state[acc], ft_force={Side.LEFT: state[fl], Side.RIGHT: state[fr]},
                            ft_torque={Side.LEFT: state[tl], Side.RIGHT: state[tr]})
-
-    @property
-    def state_slices(self) -> dict[str, slice]:
-        """Where `read_state` puts q, v and the sensors; "ft" is both ankles' (force, torque), left then right."""
-        nq, nv = self.robot.nq, self.robot.nv
-        k = nq + nv
-        return {"q": slice(0, nq), "v": slice(nq, k), "imu_quat": slice(k, k + 4), "gyro": slice(k + 4, k + 7),
-                "accelerometer": slice(k + 7, k + 10), "ft": slice(k + 10, k + 22)}
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
