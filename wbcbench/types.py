@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from enum import Enum
 
 import numpy as np
@@ -182,6 +182,20 @@ class References:
     wrench_targets: dict = field(default_factory=dict)
     contact_poses: dict = field(default_factory=dict)
 
+    def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
+                  contact_poses: dict) -> "References":
+        """A copy with the fields a stabilizer corrects replaced (`dataclasses.replace` without its per-field
+        machinery: a stabilizer does this every tick)."""
+        new = object.__new__(References)
+        setattr_ = object.__setattr__
+        for name in _REFERENCE_FIELDS:
+            setattr_(new, name, getattr(self, name))
+        setattr_(new, "com", com)
+        setattr_(new, "targets", targets)
+        setattr_(new, "wrench_targets", wrench_targets)
+        setattr_(new, "contact_poses", contact_poses)
+        return new
+
     def missing(self, names) -> list[str]:
         """The fields among `names` this tick leaves unset (None or empty)."""
         out = []
@@ -190,6 +204,9 @@ class References:
             if v is None or (isinstance(v, (dict, frozenset)) and not v):
                 out.append(n)
         return out
+
+
+_REFERENCE_FIELDS = tuple(f.name for f in fields(References))
 
 
 @dataclass(frozen=True, slots=True)

@@ -146,6 +146,8 @@ class InverseDynamicsFormulation:
         joint_limit_horizon: [s] horizon turning joint position limits into acceleration bounds.
         transition_time: [s] of a contact's force ramp.
         dt: the control period [s] (velocity limits as acceleration bounds).
+        compiled_frames: evaluate the frame tasks in one compiled call (`TaskStack`'s option of that name: the
+            same rows to rounding, not the same bits).
     The limit arrays (`q_lo`, `q_hi`, `v_max`, `tau_max`) may be replaced by new arrays at any time.
     """
 
@@ -153,8 +155,10 @@ class InverseDynamicsFormulation:
                  *, hard_tasks: Sequence[Task] = (), position_limits: tuple[np.ndarray, np.ndarray],
                  velocity_limit: np.ndarray, effort_limit: np.ndarray, regularization_dv: float = 1e-6,
                  regularization_wrench: float = 1e-5, wrench_target_weight: float = 0.0,
-                 joint_limit_horizon: float = 0.01, transition_time: float = 0.05, dt: float = 1e-3):
+                 joint_limit_horizon: float = 0.01, transition_time: float = 0.05, dt: float = 1e-3,
+                 compiled_frames: bool = False):
         self.model = model
+        self.compiled_frames = compiled_frames
         self.data = model.createData()
         self.nv = model.nv
         self.na = model.nv - 6
@@ -251,7 +255,8 @@ class InverseDynamicsFormulation:
         if entry is None:
             hard = [self.contacts[n].contact for n in active] + self.hard_tasks
             soft = self.tasks + [self.free_tasks[n] for n in self.names if n not in active]
-            entry = self._stacks[active] = (TaskStack(hard + soft, self.nv, skip_zero_weight=soft), len(hard))
+            entry = self._stacks[active] = (TaskStack(hard + soft, self.nv, skip_zero_weight=soft,
+                                                        compiled_frames=self.compiled_frames), len(hard))
         return entry
 
     def _limit_rows(self) -> _kernels.JointLimits:

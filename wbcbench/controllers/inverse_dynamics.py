@@ -54,6 +54,9 @@ class InverseDynamicsController(Controller):
     """
 
     modes = (ActuationMode.TORQUE, ActuationMode.POSITION, ActuationMode.SPD)
+    #: frame tasks evaluated in one compiled call (`TaskStack(compiled_frames=...)`): the same rows to rounding;
+    #: off for the paper's controllers, whose logs are compared bit for bit across versions
+    compiled_frames = False
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | str | Path | None = None,
                  stabilizer: Stabilizer | None = None):
@@ -80,7 +83,7 @@ class InverseDynamicsController(Controller):
             velocity_limit=robot.velocity_limit, effort_limit=robot.effort_limit,
             regularization_dv=spec.regularization_dv, regularization_wrench=spec.regularization_wrench,
             wrench_target_weight=spec.regularization_wrench_target, joint_limit_horizon=spec.joint_limit_horizon,
-            transition_time=c.transition_time, dt=dt)
+            transition_time=c.transition_time, dt=dt, compiled_frames=self.compiled_frames)
         self.data = F.data
         self.tasks = tasks
         self.task_by_name = F.task_by_name

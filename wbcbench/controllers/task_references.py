@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-import pinocchio as pin
-
 from ..side import Side
 from ..tasks import CoMTask, FrameTask, Task
 from ..types import References
@@ -41,4 +39,4 @@ def _set_pose(task: FrameTask, target) -> None:
     R = target.rotation
     if R is None:
         R = task.reference.rotation
-    task.set_reference(pin.SE3(R, target.position), target.velocity, target.acceleration)
+    task.set_pose(target.position, R, target.velocity, target.acceleration)

@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..robots import Robot, Side
+from ..stabilizers.teleop import reference_wrench_targets
 from ..tasks import SelfCollisionTask
 from ..types import ActuationMode, Command, Measurement, References
 from .base import register
@@ -62,6 +63,7 @@ class TSIDTeleop(InverseDynamicsController):
 
     name = "tsid-teleop"
     default_mode = ActuationMode.SPD
+    compiled_frames = True
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
@@ -113,8 +115,6 @@ class TSIDTeleop(InverseDynamicsController):
     def _reference_targets(self, refs: References) -> dict[Side, np.ndarray] | None:
         """F of Eq. 7 for the active contacts at their nominal (reset) poses, cached while the CoM reference and
         the active contacts stay the same."""
-        from ..stabilizers.teleop import reference_wrench_targets
-
         active = self.formulation.active
         if not active or refs.com is None:
             return None

@@ -38,7 +38,7 @@ dimensionless for Eq. 2, rad/m for Eq. 3, rad/N for Eq. 5; kv and ka the same un
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -52,6 +52,9 @@ from ..types import Measurement, ModelFeedback, PointReference, PoseReference, R
 from . import _kernels as _k
 from ._kernels import feet_measurement, filter_measurement, reference_split
 from .base import Stabilizer, register_stabilizer
+
+_SIDES = tuple(Side)  # iterating the enum itself costs a microsecond a loop
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 __all__ = [
     "AdmittanceGains",
@@ -262,11 +265,17 @@ def low_pass_gain(cutoff_hz: float | None, dt: float) -> float:
     return 1.0 if cutoff_hz is None else 1.0 - float(np.exp(-2 * np.pi * cutoff_hz * dt))
 
 
-@dataclass
 class _Measured:
-    zmp: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
-    cop_sole: dict = field(default_factory=dict)       # side -> (2,) in the sole frame, from its centre
-    normal_force: dict = field(default_factory=dict)   # side -> N
+    """The stabilizer's filtered measurement of a tick: the ZMP (x, y) [m, world] (NaN when unloaded), per loaded
+    foot the CoP (2,) [m] in its sole frame from the sole centre, per foot the normal force [N]."""
+
+    __slots__ = ("zmp", "cop_sole", "normal_force")
+
+    def __init__(self, zmp: np.ndarray | None = None, cop_sole: dict | None = None,
+                 normal_force: dict | None = None):
+        self.zmp = np.full(2, np.nan) if zmp is None else zmp
+        self.cop_sole = {} if cop_sole is None else cop_sole
+        self.normal_force = {} if normal_force is None else normal_force
 
 
 @dataclass
@@ -377,6 +386,8 @@ class TeleopStabilizer(Stabilizer):
         self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
         self._cop_buf = _CopBuffers()
         self._com_gains = None if spec.com_admittance is None else _gain_arrays(spec.com_admittance)
+        g = spec.ankle_admittance
+        self._ankle_gains = None if g is None else (float(g.kd[0]), float(g.kd[1]), _limit(g.limit))
         self._fk = ForwardKinematics(m)
         self._fk_frames = self._fk.frame_arrays([*(self.sensor_ids[s] for s in Side), *(self.sole_ids[s] for s in Side)])
         self._frames_R, self._frames_t = np.zeros((4, 3, 3)), np.zeros((4, 3))
@@ -427,33 +438,35 @@ class TeleopStabilizer(Stabilizer):
                 buf.p_sensor[i] = M.translation
                 buf.R_sole[i] = S.rotation
                 buf.p_sole[i] = S.translation
-        for i, s in enumerate(Side):
-            buf.f_sensor[i] = meas.ft_force[s]
-            buf.m_sensor[i] = meas.ft_torque[s]
+        ft_force, ft_torque = meas.ft_force, meas.ft_torque
+        buf.f_sensor[0] = ft_force[_LEFT]
+        buf.f_sensor[1] = ft_force[_RIGHT]
+        buf.m_sensor[0] = ft_torque[_LEFT]
+        buf.m_sensor[1] = ft_torque[_RIGHT]
         zmp_ok = feet_measurement(buf.R_sensor, buf.p_sensor, buf.f_sensor, buf.m_sensor, buf.foot_mass,
                                   buf.foot_com, buf.R_sole, buf.p_sole, self.sole_center, self.spec.min_normal_force,
                                   GRAVITY, buf.out, buf.zmp)
         state = self._filter_state
         filter_measurement(buf.out, buf.zmp, zmp_ok, self._filter_alpha, state, self._filter_started)
-        out = _Measured()
         f = state.tolist()
-        for i, s in enumerate(Side):
-            out.normal_force[s] = f[6 + i]
-            if buf.out[i, 3] != 0.0:
-                out.cop_sole[s] = state[2 + 2 * i:4 + 2 * i].copy()
-        if zmp_ok:
-            out.zmp = state[0:2].copy()
-        return out
+        loaded = buf.out[:, 3].tolist()
+        cop = {}
+        if loaded[0] != 0.0:
+            cop[_LEFT] = state[2:4].copy()
+        if loaded[1] != 0.0:
+            cop[_RIGHT] = state[4:6].copy()
+        return _Measured(state[0:2].copy() if zmp_ok else None, cop, {_LEFT: f[6], _RIGHT: f[7]})
 
     def model_cop(self, feedback: ModelFeedback) -> np.ndarray | None:
         """ZMP (x, y) of the model's QP wrenches of the last tick, world frame; None when unloaded
         (`_kernels.model_cop`)."""
         buf = self._cop_buf
         use = buf.use
-        for i, s in enumerate(Side):
-            M = feedback.contact_poses.get(s)
-            w = feedback.wrenches.get(s)
-            use[i] = M is not None and w is not None and s in feedback.active
+        poses, wrenches, active = feedback.contact_poses, feedback.wrenches, feedback.active
+        for i, s in enumerate(_SIDES):
+            M = poses.get(s)
+            w = wrenches.get(s)
+            use[i] = M is not None and w is not None and s in active
             if use[i]:
                 buf.R[i] = M.rotation
                 buf.p[i] = M.translation
@@ -482,8 +495,9 @@ class TeleopStabilizer(Stabilizer):
             out = np.empty((3, 3))
             _k.com_admittance(com, com_ref.velocity, com_ref.acceleration, float(cop_model[0] - meas_.zmp[0]),
                               float(cop_model[1] - meas_.zmp[1]), *self._com_gains, _limit(g.limit), dt, out)
-            log[4:6] = (out[0] - com)[:2]
-            com_ref = PointReference(out[0], out[1], out[2])
+            log[4] = out[0, 0] - com[0]
+            log[5] = out[0, 1] - com[1]
+            com_ref = PointReference.unchecked(out[0], out[1], out[2])  # the kernel's finite (3,) rows
         active = feedback.active
         both = Side.LEFT in active and Side.RIGHT in active
         # Eq. 4-5
@@ -500,10 +514,14 @@ class TeleopStabilizer(Stabilizer):
             else:
                 p0, R0 = nominal.translation, nominal.rotation
             c, s_ = math.cos(roll), math.sin(roll)
-            R = np.array([[1.0, 0.0, 0.0], [0.0, c, -s_], [0.0, s_, c]]) @ R0
+            R = np.empty((3, 3))  # Rx(roll) R0
+            R[0] = R0[0]
+            np.subtract(c * R0[1], s_ * R0[2], out=R[1])
+            np.add(s_ * R0[1], c * R0[2], out=R[2])
             targets = dict(targets)
-            targets[spec.torso_task] = PoseReference(p0, R, np.array([0, 0, 0, wx, 0, 0.0]),
-                                                     np.array([0, 0, 0, ax, 0, 0.0]))
+            w, a = np.zeros(6), np.zeros(6)
+            w[3], a[3] = wx, ax
+            targets[spec.torso_task] = PoseReference.unchecked(np.array(p0, dtype=np.float64), R, w, a)
             log[6] = roll
         # Eq. 6-7
         wrench_targets = refs.wrench_targets
@@ -525,7 +543,8 @@ class TeleopStabilizer(Stabilizer):
         g = spec.ankle_admittance
         if g is not None:
             contact_poses = dict(contact_poses)
-            for i, s in enumerate(Side):
+            kd_x, kd_y, limit = self._ankle_gains
+            for i, s in enumerate(_SIDES):
                 nominal = self._contact_nominal.get(s)
                 if nominal is None or s not in active:
                     continue
@@ -534,12 +553,12 @@ class TeleopStabilizer(Stabilizer):
                     contact_poses[s] = nominal
                     continue
                 R = np.empty((3, 3))
-                log[7 + i] = _k.ankle_admittance(nominal.rotation, cop[0], cop[1], g.kd[0], g.kd[1], _limit(g.limit), R)
+                log[7 + i] = _k.ankle_admittance(nominal.rotation, cop[0], cop[1], kd_x, kd_y, limit, R)
                 contact_poses[s] = pin.SE3(R, nominal.translation)
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs
-        return replace(refs, com=com_ref, targets=targets, wrench_targets=wrench_targets, contact_poses=contact_poses)
+        return refs.corrected(com_ref, targets, wrench_targets, contact_poses)
 
 
 def _cart_table_zmp(com: np.ndarray, com_acc: np.ndarray | None, centre: dict) -> np.ndarray:

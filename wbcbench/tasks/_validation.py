@@ -169,3 +169,40 @@ def _orthonormal(R, tol):
             if not abs(d) <= tol:  # NaN compares False
                 return False
     return True
+
+
+def is_vector(x: Any, dim: int) -> bool:
+    """True when ``x`` is a float64 numpy array of shape (dim,) (then the compiled copies below take it as is)."""
+    return type(x) is np.ndarray and x.dtype == _F64 and x.shape == (dim,)
+
+
+_F64 = np.dtype(np.float64)
+#: an empty vector: "no array" for the optional arguments of the compiled copies
+EMPTY = np.zeros(0)
+
+
+@njit
+def copy_finite(a, b, c, a_out, b_out, c_out):
+    """Copy three vectors (any of them empty) into the outputs; False (outputs unspecified) unless every value is
+    finite. One compiled call for a reference and its derivatives, set every tick."""
+    return _copy_finite(a, a_out) and _copy_finite(b, b_out) and _copy_finite(c, c_out)
+
+
+@njit
+def _copy_finite(src, dst):
+    for i in range(src.shape[0]):
+        x = src[i]
+        if not math.isfinite(x):
+            return False
+        dst[i] = x
+    return True
+
+
+@njit
+def copy_pose_checked(p, R, v, a, p_out, R_out, v_out, a_out):
+    """`copy_finite` of ``p``, ``v``, ``a``, and ``R`` (3, 3) into ``R_out``, which must be a rotation to 1e-5
+    (`is_rotation`)."""
+    for i in range(3):
+        for j in range(3):
+            R_out[i, j] = R[i, j]
+    return copy_finite(p, v, a, p_out, v_out, a_out) and _orthonormal(R_out, 1e-5)

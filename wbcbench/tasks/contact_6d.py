@@ -279,9 +279,9 @@ class Contact6D(Task):
         """Set the contact's reference placement ``T_world_ref`` (where the sole should stay)."""
         if not isinstance(pose, pin.SE3):
             raise TaskConfigError(self.owner, "pose", f"expected a pinocchio.SE3, got {type(pose).__name__}")
-        R = np.array(pose.rotation, dtype=np.float64)
-        p = np.array(pose.translation, dtype=np.float64)
-        if not (np.isfinite(p).all() and val.is_rotation(R)):
+        R, p = np.empty((3, 3)), np.empty(3)
+        E = val.EMPTY
+        if not val.copy_pose_checked(pose.translation, pose.rotation, E, E, p, R, E, E):
             raise TaskConfigError(self.owner, "pose", "expected a finite rigid transform")
         self._M_ref = pin.SE3(R, p)
 

@@ -19,6 +19,7 @@ __all__ = ["FrameTask"]
 FloatArray = npt.NDArray[np.float64]
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_F64 = np.dtype(np.float64)
 
 
 @register_task
@@ -134,6 +135,35 @@ class FrameTask(Task):
         self._p_ref = val.frozen(p)
         self._R_ref = val.frozen(R)
 
+    def set_pose(
+        self,
+        position: npt.ArrayLike,
+        rotation: npt.ArrayLike,
+        velocity: npt.ArrayLike | None = None,
+        acceleration: npt.ArrayLike | None = None,
+    ) -> None:
+        """:meth:`set_reference` from a position (3,) and a rotation matrix (3, 3) instead of an SE3, with the
+        same checks; float64 arrays of those shapes (what `PoseReference` holds) are checked and copied in one
+        compiled call (a reference is set every tick)."""
+        if (type(rotation) is np.ndarray and rotation.dtype == _F64 and rotation.shape == (3, 3)
+                and val.is_vector(position, 3) and (velocity is None or val.is_vector(velocity, 6))
+                and (acceleration is None or val.is_vector(acceleration, 6))):
+            p, R = np.empty(3), np.empty((3, 3))
+            v = self._zero_reference() if velocity is None else np.empty(6)
+            a = self._zero_reference() if acceleration is None else np.empty(6)
+            E = val.EMPTY
+            if val.copy_pose_checked(position, rotation, E if velocity is None else velocity,
+                                     E if acceleration is None else acceleration, p, R, E if velocity is None else v,
+                                     E if acceleration is None else a):
+                self._v_ref = v if velocity is None else val.frozen(v)
+                self._a_ref = a if acceleration is None else val.frozen(a)
+                self._p_ref = val.frozen(p)
+                self._R_ref = val.frozen(R)
+                return
+        # anything else, or a check failed: the general path (and its error message)
+        self.set_reference(pin.SE3(np.asarray(rotation, dtype=np.float64), np.asarray(position, dtype=np.float64)),
+                           velocity, acceleration)
+
     def set_reference_to_current(self, model: pin.Model, data: pin.Data) -> None:
         """Set the reference pose to the current pose of the frame, with zero velocity and acceleration."""
         self.set_reference(self.placement(model, data))
@@ -194,3 +224,4 @@ class FrameTask(Task):
     def drift(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """Classical acceleration ``[p_ddot; omega_dot]`` at zero joint acceleration, (6,), world axes."""
         return pin.getFrameClassicalAcceleration(model, data, self._frame_id, _LWA).vector
+

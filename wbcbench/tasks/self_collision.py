@@ -48,15 +48,15 @@ import pinocchio as pin
 from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
-from wbcbench.tasks.placements import ForwardKinematics
+from wbcbench.tasks.placements import ForwardKinematics, _forward_gather
 from wbcbench.tasks.task import Task
 from wbcbench.tasks.registry import register_task
 
 __all__ = ["RepulsionPoint", "SelfCollisionTask", "attractor"]
 
 FloatArray = npt.NDArray[np.float64]
-
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
 #: Default C below which a repulsor's row is left at zero (Jacobian and drift; the error keeps C): the point is
 #: then farther than 2.1 a from the repulsor (p = 3, normalized), the row asks for |C_ddot| < kp C = 0.05 s^-2 with
 #: Table I's kp 500, and |grad C| < 7e-3 per metre for a = 0.2 m (see SelfCollisionTask).
@@ -266,7 +266,62 @@ def _velocity_flat(JW, v, J, x, rx, act, slot_of, G, HC, HK, REL, RW, ACC, mask_
                     + G[i, 0] * (ax[0] - ap[0]) + G[i, 1] * (ax[1] - ap[1]) + G[i, 2] * (ax[2] - ap[2]))
 
 
+@njit
+def _joint_accelerations(JW, dJ, v, masks, origins, acc):
+    """Classical accelerations at zero joint acceleration (6,: linear of the joint origin, angular; world axes)
+    of the joints of support ``masks`` (k, nv) and origins ``origins`` (k, 3) into ``acc`` (k, 6): with the
+    spatial velocity (v_o, w) = J v and acceleration (a_o, w_dot) = dJ v at the world origin,
+    ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)`` (the universe, an empty support, gives 0)."""
+    nv = JW.shape[1]
+    for k in range(masks.shape[0]):
+        vo = np.zeros(6)
+        ao = np.zeros(6)
+        for c in range(nv):
+            if masks[k, c]:
+                vc = v[c]
+                for a in range(6):
+                    vo[a] += JW[a, c] * vc
+                    ao[a] += dJ[a, c] * vc
+        px, py, pz = origins[k, 0], origins[k, 1], origins[k, 2]
+        wx, wy, wz = vo[3], vo[4], vo[5]
+        dx, dy, dz = ao[3], ao[4], ao[5]
+        pdx = vo[0] + wy * pz - wz * py
+        pdy = vo[1] + wz * px - wx * pz
+        pdz = vo[2] + wx * py - wy * px
+        acc[k, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
+        acc[k, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
+        acc[k, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
+        acc[k, 3], acc[k, 4], acc[k, 5] = dx, dy, dz
+
+
+@njit
+def _velocity_and_drift(JW, dJ, v, slot_masks, origins, acc, J, x, rx, act, slot_of, G, HC, HK, REL, RW, mask_x,
+                        masks, velocity, drift):
+    """`_joint_accelerations` of every slot, then `_velocity_flat` (one call)."""
+    _joint_accelerations(JW, dJ, v, slot_masks, origins, acc)
+    _velocity_flat(JW, v, J, x, rx, act, slot_of, G, HC, HK, REL, RW, acc, mask_x, masks, velocity, drift)
+
+
+@njit
+def _rows_flat(q, kinds, parents, idx_q, R0, t0, R_fk, t_fk, joints, R_all, t_all, JW, dJ, v, slot_of, offsets,
+               offset_x, scales, p, negligible, masks, mask_x, C, dist, J, G, HC, HK, REL, RW, rx, act, slot_masks, acc,
+               x, velocity, drift, with_velocity):
+    """A tick's evaluation in one call: the joints' placements (`placements._forward_gather`), the position-level
+    quantities (`_position_flat`), the protected point ``x``, and with ``with_velocity`` the velocities and drifts
+    (`_velocity_and_drift`); returns the number of active repulsors."""
+    _forward_gather(q, kinds, parents, idx_q, R0, t0, R_fk, t_fk, joints, R_all, t_all)
+    nact = _position_flat(R_all, t_all, JW, slot_of, offsets, offset_x, scales, p, negligible, masks, mask_x, C, dist,
+                          J, G, HC, HK, REL, RW, rx, act)
+    for a in range(3):
+        x[a] = t_all[0, a] + rx[a]
+    if with_velocity:
+        _velocity_and_drift(JW, dJ, v, slot_masks, t_all, acc, J, x, rx, act[:nact], slot_of, G, HC, HK, REL, RW,
+                            mask_x, masks, velocity, drift)
+    return nact
+
+
 _PLACEMENTS: dict = {"key": None, "joints": {}}
+_NO_VECTOR = np.zeros(0)
 
 
 def _joint_placements(data: pin.Data, key: tuple, joints: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
@@ -327,6 +382,7 @@ class _Cache:
     RW: FloatArray | None = None
     velocity: FloatArray | None = None
     drift: FloatArray | None = None
+    origins: FloatArray | None = None  # (k, 3) origins of the joints carrying the points (slots), world
 
 
 @register_task
@@ -464,6 +520,7 @@ class SelfCollisionTask(Task):
 
         self._mask_x = support(self._joint_x)
         self._masks = np.array([support(j) for j in self._rep_joint])
+        self._slot_masks = np.array([support(j) for j in self._joints_needed])
         self._act = np.zeros(self.dim, dtype=np.intp)
         self._acc = np.zeros((len(self._joints_needed), 6))
         self._outputs: PositionOutputs | None = None
@@ -540,7 +597,7 @@ class SelfCollisionTask(Task):
         k = _position_kernel(R_all, t_all, data.J, self._geometry, out)
         idx = act[:k].copy()
         self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=t_all[0] + rx,
-                             act=idx, G=G, HC=HC, HK=HK, REL=REL, RW=RW)
+                             act=idx, G=G, HC=HC, HK=HK, REL=REL, RW=RW, origins=t_all)
         return self._cache
 
     def _evaluate_velocity(self, model: pin.Model, data: pin.Data) -> _Cache:
@@ -554,22 +611,65 @@ class SelfCollisionTask(Task):
         if cache.vkey == vkey:
             return cache
         acc = self._acc
-        if cache.active:
-            joints = self._joints_needed
-            for slot in {0, *self._slot_of[cache.act].tolist()}:
-                j = joints[slot]
-                if j == 0:
-                    acc[slot] = 0.0
-                else:
-                    acc[slot] = pin.getClassicalAcceleration(model, data, j, _LWA).vector
         velocity, drift = self._velocity_out
-        _velocity_kernel(data.J, v, cache.J, VelocityInputs(cache.x, cache.rx, cache.act, self._slot_of, cache.G,
-                                                            cache.HC, cache.HK, cache.REL, cache.RW, acc,
-                                                            self._mask_x, self._masks), velocity, drift)
+        if cache.active and cache.origins is not None:
+            # the joints' classical accelerations (pinocchio's getClassicalAcceleration, LOCAL_WORLD_ALIGNED) from
+            # the world Jacobians and their time variation, with the velocities (flat arguments: one call)
+            _velocity_and_drift(data.J, data.dJ, v, self._slot_masks, cache.origins, acc, cache.J, cache.x,
+                                cache.rx, cache.act, self._slot_of, cache.G, cache.HC, cache.HK, cache.REL, cache.RW,
+                                self._mask_x, self._masks, velocity, drift)
+        else:
+            if cache.active:  # a cache without the joint origins (set from outside the kernel): pinocchio's
+                joints = self._joints_needed
+                for slot in {0, *self._slot_of[cache.act].tolist()}:
+                    j = joints[slot]
+                    acc[slot] = 0.0 if j == 0 else pin.getClassicalAcceleration(model, data, j, _LWA).vector
+            _velocity_flat(data.J, v, cache.J, cache.x, cache.rx, cache.act, self._slot_of, cache.G, cache.HC,
+                           cache.HK, cache.REL, cache.RW, acc, self._mask_x, self._masks, velocity, drift)
         cache.velocity = velocity
         cache.drift = drift
         cache.vkey = vkey
         return cache
+
+    def _write_rows(self, model: pin.Model, data: pin.Data, J_out: FloatArray, e_out: FloatArray,
+                    drift_out: FloatArray | None) -> None:
+        """The stack's evaluation (see `Task._write_rows`): placements, rows, velocities and drifts in one compiled
+        call (`_rows_flat`), the same quantities as `_evaluate` and `_evaluate_velocity`, whose cache it sets."""
+        fk = self._fk
+        if not (fk.supported and fk.model is model):
+            super()._write_rows(model, data, J_out, e_out, drift_out)
+            return
+        q = data.q_in
+        key = (id(data), q.tobytes())
+        cache = self._cache
+        if cache.key != key or (drift_out is not None and cache.vkey is None):
+            out = self._outputs
+            if out is None or out.J.shape[1] != model.nv:
+                self._evaluate_jit(model, data, key, *self._placements)  # allocates the buffers
+                out = self._outputs
+            C, dist, J, G, HC, HK, REL, RW, rx, act = out
+            R_all, t_all = self._placements
+            velocity, drift = self._velocity_out
+            with_velocity = drift_out is not None
+            v = data.v_in if with_velocity else _NO_VECTOR
+            x = np.empty(3)
+            g = self._geometry
+            k = _rows_flat(q, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._joints_index, R_all,
+                           t_all, data.J, data.dJ if with_velocity else data.J, v, g.slot_of, g.offsets, g.offset_x,
+                           g.scales, g.exponent, g.negligible, g.masks, g.mask_x, C, dist, J, G, HC, HK, REL, RW, rx,
+                           act, self._slot_masks, self._acc, x, velocity, drift, with_velocity)
+            idx = act[:k].copy()
+            cache = self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=x, act=idx,
+                                         G=G, HC=HC, HK=HK, REL=REL, RW=RW, origins=t_all)
+            if with_velocity:
+                cache.velocity, cache.drift, cache.vkey = velocity, drift, v.tobytes()
+        elif drift_out is not None:
+            cache = self._evaluate_velocity(model, data)
+        sel = None if self._all_selected else self._selection
+        J_out[...] = cache.J if sel is None else cache.J[sel]
+        np.negative(cache.C if sel is None else cache.C[sel], out=e_out)
+        if drift_out is not None:
+            drift_out[...] = cache.drift if sel is None else cache.drift[sel]
 
     def _write_jacobian(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
         J = self._evaluate(model, data).J

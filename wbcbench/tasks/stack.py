@@ -22,12 +22,17 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from wbcbench.tasks.frame_batch import FrameBatch
+from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.rows import Rows
 from wbcbench.tasks.task import Task
 
 __all__ = ["TaskStack"]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+_IN_BATCH = "frame batch"  # a stack item whose rows the FrameBatch writes
 
 
 def _read_only(array: FloatArray) -> FloatArray:
@@ -60,13 +65,19 @@ class TaskStack:
         skip_zero_weight: leave out the tasks whose weight is 0 (nothing they give counts in a weighted cost);
             re-evaluated when a weight changes. True for every task, or the collection of tasks it applies to
             (e.g. the cost tasks of a stack that also holds constraints).
+        compiled_frames: fill the rows of the frame tasks (:class:`~wbcbench.tasks.FrameTask`, not subclasses)
+            with one compiled call (:mod:`wbcbench.tasks.frame_batch`): the same rows to rounding, not the same
+            bits, faster by a few us per task. Models the compiled kinematics does not support keep the tasks'
+            own evaluation.
 
     The arrays returned are read-only views of the stack's buffers, overwritten by the next evaluation (copy
     them to keep them). Not thread-safe.
     """
 
-    def __init__(self, tasks: Sequence[Task], nv: int, *, skip_zero_weight: bool | Collection[Task] = False) -> None:
+    def __init__(self, tasks: Sequence[Task], nv: int, *, skip_zero_weight: bool | Collection[Task] = False,
+                 compiled_frames: bool = False) -> None:
         self._candidates = tuple(tasks)
+        self._compiled_frames = bool(compiled_frames)
         self._nv = int(nv)
         if isinstance(skip_zero_weight, bool):
             self._skippable = frozenset(map(id, self._candidates)) if skip_zero_weight else frozenset()
@@ -92,6 +103,7 @@ class TaskStack:
         kp, kd, sw = np.empty(m), np.empty(m), np.empty(m)
         items: list[tuple] = []
         slices: list[slice] = []
+        batched: list[tuple[Task, int]] = []
         start = 0
         for task, r in zip(tasks, sizes, strict=True):
             rows = slice(start, start + r)
@@ -100,9 +112,17 @@ class TaskStack:
             kd[rows] = task.kd[sel]
             sw[rows] = math.sqrt(task.weight)
             # (task, its hooks and row views; [last v_ref, last a_ref] seen); no Jacobian hook when constant
+            # how the rows are written: the frame batch, the task's own combined hook, or its three hooks (None)
+            if self._compiled_frames and type(task) is FrameTask:
+                how = _IN_BATCH
+                batched.append((task, start))
+            elif type(task)._write_rows is not Task._write_rows and not task._constant_jacobian:
+                how = task._write_rows
+            else:
+                how = None
             items.append((task, None if task._constant_jacobian else task._write_jacobian, self._A[rows],
                           task._write_error, self._e[rows], task._write_drift, self._drift[rows],
-                          self._v_ref[rows], self._a_ref[rows], [None, None]))
+                          self._v_ref[rows], self._a_ref[rows], [None, None], how))
             slices.append(rows)
             start += r
         self._kp, self._kd, self._minus_kd = kp, kd, -kd
@@ -110,6 +130,8 @@ class TaskStack:
         self._refs_changed = False
         self._sqrt_weights = _read_only(sw)
         self._items = items
+        self._batched = batched
+        self._batch = None  # FrameBatch, built at the first evaluation (it needs the model)
         self._tasks = tuple(tasks)
         self._slices = tuple(slices)
         self._A_out, self._b_out = _read_only(self._A), _read_only(self._b)
@@ -144,17 +166,28 @@ class TaskStack:
 
     # ---------------------------------------------------------------------------------------- evaluation
     def _fill(self, model: pin.Model, data: pin.Data, drift: bool) -> None:
-        for task, write_jacobian, J, write_error, e, write_drift, a, v_ref_rows, a_ref_rows, seen in self._items:
-            if write_jacobian is not None:
-                write_jacobian(model, data, J)
-            write_error(model, data, e)
+        batch = self._batch
+        if batch is None and self._batched:
+            batch = self._batch = FrameBatch(model, *zip(*self._batched))
+            if not batch.supported:  # the model's joints: the tasks' own hooks
+                self._items = [item[:-1] + (None if item[-1] is _IN_BATCH else item[-1],) for item in self._items]
+        if batch is not None and batch.supported:
+            batch.fill(model, data, self._A, self._e, self._drift if drift else None)
+        for task, write_jacobian, J, write_error, e, write_drift, a, v_ref_rows, a_ref_rows, seen, how in self._items:
+            if how is None:
+                if write_jacobian is not None:
+                    write_jacobian(model, data, J)
+                write_error(model, data, e)
+            elif how is not _IN_BATCH:
+                how(model, data, J, e, a if drift else None)
             v_ref = task._v_ref
             if v_ref is not seen[0]:  # set_reference stores new (read-only) arrays: copy only when replaced
                 v_ref_rows[...] = v_ref if task._all_selected else v_ref[task._selection]
                 seen[0] = v_ref
                 self._refs_changed = True
             if drift:
-                write_drift(model, data, a)
+                if how is None:
+                    write_drift(model, data, a)
                 a_ref = task._a_ref
                 if a_ref is not seen[1]:
                     a_ref_rows[...] = a_ref if task._all_selected else a_ref[task._selection]

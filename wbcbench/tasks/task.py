@@ -275,6 +275,15 @@ class Task(ABC):
         a = self.drift(model, data)
         out[...] = a if self._all_selected else a[self._selection]
 
+    def _write_rows(self, model: pin.Model, data: pin.Data, J_out: FloatArray, e_out: FloatArray,
+                    drift_out: FloatArray | None) -> None:
+        """The three hooks above in one (``drift_out`` None: no drift, velocity level). A task whose rows share
+        most of their work overrides this; the stack then calls it instead of the three."""
+        self._write_jacobian(model, data, J_out)
+        self._write_error(model, data, e_out)
+        if drift_out is not None:
+            self._write_drift(model, data, drift_out)
+
     def __repr__(self) -> str:
         selected = "".join("1" if m else "0" for m in self._mask)
         return f"{type(self).__name__}(name={self._name!r}, weight={self._weight:g}, mask={selected})"

@@ -1,0 +1,201 @@
+"""The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`) of a stack in one compiled call.
+
+A frame task's rows cost three pinocchio queries from Python per tick (``updateFramePlacement``,
+``getFrameJacobian``, ``getFrameClassicalAcceleration``), a ``log3`` and a few numpy temporaries: 5-8 us a task,
+six tasks in the teleoperation set (three on the head frame). Here one kernel computes, for every frame task of
+the stack, the selected rows of the same quantities from what :func:`~wbcbench.tasks.update_kinematics` already
+filled (pinocchio's joint Jacobians in WORLD ``data.J`` and their time variation ``data.dJ``, read in place) and
+the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
+
+* placement ``(R, p)`` of the frame; error ``[p_ref - p; log3(R_ref R^T)]``;
+* Jacobian (LOCAL_WORLD_ALIGNED): the WORLD columns of the joints supporting the frame, the linear part moved
+  from the world origin to the frame, ``J_lin + J_ang x p``; the other columns zero;
+* drift (classical acceleration at zero joint acceleration): with the spatial velocity ``(v_o, w) = J v`` and
+  acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``.
+
+The same quantities as pinocchio's to rounding (the tests compare them on random states), not the same bits: a
+stack uses this path only when asked (``TaskStack(..., compiled_frames=True)``), so that the controllers whose
+logs are compared bit for bit with earlier versions keep pinocchio's.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from wbcbench.jit import njit
+from wbcbench.tasks.exceptions import ReferenceNotSetError
+from wbcbench.tasks.placements import ForwardKinematics, _forward
+
+__all__ = ["FrameBatch", "log3"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class FrameBatch:
+    """The frame tasks ``tasks`` of a stack, whose selected rows start at ``starts`` in the stack's buffers.
+
+    `supported` is False when the model has a joint the compiled forward kinematics does not know; the stack then
+    keeps the tasks' own hooks.
+    """
+
+    def __init__(self, model: pin.Model, tasks, starts) -> None:
+        self.fk = ForwardKinematics(model)
+        self.supported = self.fk.supported and len(tasks) > 0
+        self.tasks = tuple(tasks)
+        if not self.supported:
+            return
+        k, nv = len(self.tasks), model.nv
+        parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
+        self._parents = parents
+        support = np.zeros((k, nv), dtype=np.bool_)
+        for i, j in enumerate(parents):
+            for s in model.supports[int(j)]:
+                if s > 0:
+                    iv = model.joints[s].idx_v
+                    support[i, iv:iv + model.joints[s].nv] = True
+        self._support = support
+        axes, owner, rows = [], [], []
+        for i, (task, start) in enumerate(zip(self.tasks, starts, strict=True)):
+            for r, axis in enumerate(task.rows):
+                axes.append(axis)
+                owner.append(i)
+                rows.append(start + r)
+        self._axes = np.array(axes, dtype=np.intp)
+        self._owner = np.array(owner, dtype=np.intp)
+        self._rows = np.array(rows, dtype=np.intp)
+        self._p_ref = np.zeros((k, 3))
+        self._R_ref = np.zeros((k, 3, 3))
+        self._seen: list = [None] * k
+        self._R = np.zeros((k, 3, 3))
+        self._t = np.zeros((k, 3))
+
+    def fill(self, model: pin.Model, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> None:
+        """Write the tasks' Jacobian rows into ``A``, error rows into ``e`` and, unless None, drift rows into
+        ``drift`` (the stack's buffers), for the state of the last kinematics update."""
+        seen = self._seen
+        for i, task in enumerate(self.tasks):
+            R_ref = task._R_ref
+            if R_ref is not seen[i]:
+                if R_ref is None or task._p_ref is None:
+                    raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+                self._R_ref[i] = R_ref
+                self._p_ref[i] = task._p_ref
+                seen[i] = R_ref
+        fk = self.fk
+        with_drift = drift is not None
+        _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
+                    self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
+                    if with_drift else _EMPTY, self._support, self._p_ref, self._R_ref, self._axes, self._owner,
+                    self._rows, A, e, drift if with_drift else _EMPTY, with_drift)
+
+
+_EMPTY = np.zeros(0)
+
+
+@njit
+def log3(R, out):
+    """The rotation vector of the rotation matrix ``R`` (3, 3) into ``out`` (3,) (pinocchio's ``log3``: angle in
+    [0, pi])."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    c = 0.5 * (tr - 1.0)
+    if c > 1.0:
+        c = 1.0
+    elif c < -1.0:
+        c = -1.0
+    vx = R[2, 1] - R[1, 2]
+    vy = R[0, 2] - R[2, 0]
+    vz = R[1, 0] - R[0, 1]
+    # the angle from its sine (half the antisymmetric part's norm) and cosine: accurate at 0 and at pi, where acos
+    # alone loses half the digits
+    theta = math.atan2(0.5 * math.sqrt(vx * vx + vy * vy + vz * vz), c)
+    if theta < 1e-4:  # theta / (2 sin theta) = 1/2 + theta^2 / 12 + O(theta^4)
+        f = 0.5 + theta * theta / 12.0
+        out[0], out[1], out[2] = f * vx, f * vy, f * vz
+    elif theta < math.pi - 1e-3:
+        f = theta / (2.0 * math.sin(theta))
+        out[0], out[1], out[2] = f * vx, f * vy, f * vz
+    else:
+        # near pi the antisymmetric part vanishes: the axis from the symmetric part, R + R^T = 2 c I + 2 (1 - c) a a^T,
+        # its sign from the antisymmetric part (2 sin(theta) a)
+        d = 1.0 - c
+        i = 0
+        if R[1, 1] > R[i, i]:
+            i = 1
+        if R[2, 2] > R[i, i]:
+            i = 2
+        ai = math.sqrt(max((R[i, i] - c) / d, 0.0))
+        a = np.empty(3)
+        for j in range(3):
+            a[j] = ai if j == i else (R[i, j] + R[j, i]) / (2.0 * d * ai)
+        if a[0] * vx + a[1] * vy + a[2] * vz < 0.0:
+            for j in range(3):
+                a[j] = -a[j]
+        for j in range(3):
+            out[j] = theta * a[j]
+
+
+@njit
+def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, p_ref, R_ref,
+                axes, owner, rows, A, e, drift, with_drift):
+    _forward(q, kinds, jparents, idx_q, R0, t0, Rj, tj)
+    k = parents.shape[0]
+    nv = J.shape[1]
+    err = np.empty((k, 6))
+    acc = np.empty((k, 6))
+    M = np.empty((3, 3))
+    w = np.empty(3)
+    for i in range(k):
+        jp = parents[i]
+        for a in range(3):
+            for b in range(3):
+                R[i, a, b] = Rj[jp, a, 0] * Rf[i, 0, b] + Rj[jp, a, 1] * Rf[i, 1, b] + Rj[jp, a, 2] * Rf[i, 2, b]
+            t[i, a] = Rj[jp, a, 0] * tf[i, 0] + Rj[jp, a, 1] * tf[i, 1] + Rj[jp, a, 2] * tf[i, 2] + tj[jp, a]
+        for a in range(3):
+            err[i, a] = p_ref[i, a] - t[i, a]
+            for b in range(3):  # R_ref R^T
+                M[a, b] = R_ref[i, a, 0] * R[i, b, 0] + R_ref[i, a, 1] * R[i, b, 1] + R_ref[i, a, 2] * R[i, b, 2]
+        log3(M, w)
+        err[i, 3], err[i, 4], err[i, 5] = w[0], w[1], w[2]
+        if with_drift:
+            vo = np.zeros(6)
+            ao = np.zeros(6)
+            for c in range(nv):
+                if support[i, c]:
+                    vc = v[c]
+                    for a in range(6):
+                        vo[a] += J[a, c] * vc
+                        ao[a] += dJ[a, c] * vc
+            px, py, pz = t[i, 0], t[i, 1], t[i, 2]
+            wx, wy, wz = vo[3], vo[4], vo[5]
+            dx, dy, dz = ao[3], ao[4], ao[5]
+            # velocity of the frame origin: v_o + w x p
+            pdx = vo[0] + wy * pz - wz * py
+            pdy = vo[1] + wz * px - wx * pz
+            pdz = vo[2] + wx * py - wy * px
+            acc[i, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
+            acc[i, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
+            acc[i, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
+            acc[i, 3], acc[i, 4], acc[i, 5] = dx, dy, dz
+    for r in range(rows.shape[0]):
+        i = owner[r]
+        ax = axes[r]
+        row = rows[r]
+        e[row] = err[i, ax]
+        if with_drift:
+            drift[row] = acc[i, ax]
+        px, py, pz = t[i, 0], t[i, 1], t[i, 2]
+        for c in range(nv):
+            if not support[i, c]:
+                A[row, c] = 0.0
+            elif ax == 0:  # J_lin + J_ang x p
+                A[row, c] = J[0, c] + J[4, c] * pz - J[5, c] * py
+            elif ax == 1:
+                A[row, c] = J[1, c] + J[5, c] * px - J[3, c] * pz
+            elif ax == 2:
+                A[row, c] = J[2, c] + J[3, c] * py - J[4, c] * px
+            else:
+                A[row, c] = J[ax, c]
