@@ -524,6 +524,7 @@ class SelfCollisionTask(Task):
         self._act = np.zeros(self.dim, dtype=np.intp)
         self._acc = np.zeros((len(self._joints_needed), 6))
         self._outputs: PositionOutputs | None = None
+        self._rows_args: tuple | None = None
         self._velocity_out = (np.empty(self.dim), np.empty(self.dim))
         self._fk = ForwardKinematics(model)
         self._joints_index = np.array(self._joints_needed, dtype=np.intp)
@@ -647,20 +648,26 @@ class SelfCollisionTask(Task):
             if out is None or out.J.shape[1] != model.nv:
                 self._evaluate_jit(model, data, key, *self._placements)  # allocates the buffers
                 out = self._outputs
-            C, dist, J, G, HC, HK, REL, RW, rx, act = out
-            R_all, t_all = self._placements
-            velocity, drift = self._velocity_out
+                self._rows_args = None
+            args = self._rows_args
+            if args is None:  # the kernel's fixed arguments, in its order around q, the Jacobians and v
+                g = self._geometry
+                args = self._rows_args = (
+                    (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._joints_index,
+                     *self._placements),
+                    (g.slot_of, g.offsets, g.offset_x, g.scales, g.exponent, g.negligible, g.masks, g.mask_x, *out,
+                     self._slot_masks, self._acc))
             with_velocity = drift_out is not None
             v = data.v_in if with_velocity else _NO_VECTOR
             x = np.empty(3)
-            g = self._geometry
-            k = _rows_flat(q, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._joints_index, R_all,
-                           t_all, data.J, data.dJ if with_velocity else data.J, v, g.slot_of, g.offsets, g.offset_x,
-                           g.scales, g.exponent, g.negligible, g.masks, g.mask_x, C, dist, J, G, HC, HK, REL, RW, rx,
-                           act, self._slot_masks, self._acc, x, velocity, drift, with_velocity)
+            velocity, drift = self._velocity_out
+            JW = data.J
+            k = _rows_flat(q, *args[0], JW, data.dJ if with_velocity else JW, v, *args[1], x, velocity, drift,
+                           with_velocity)
+            act = out.act
             idx = act[:k].copy()
-            cache = self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=x, act=idx,
-                                         G=G, HC=HC, HK=HK, REL=REL, RW=RW, origins=t_all)
+            cache = self._cache = _Cache(key, None, out.C, out.dist, out.J, idx.tolist(), out.rx, x, idx, out.G,
+                                         out.HC, out.HK, out.REL, out.RW, None, None, self._placements[1])
             if with_velocity:
                 cache.velocity, cache.drift, cache.vkey = velocity, drift, v.tobytes()
         elif drift_out is not None:
