@@ -136,11 +136,11 @@ def test_full_disk_during_logging_is_one_line_and_keeps_the_log(tmp_path: Path, 
     real_flush = Recorder.flush
     calls = {"n": 0}
 
-    def flaky_flush(self):
+    def flaky_flush(self, *args, **kwargs):
         calls["n"] += 1
         if calls["n"] > 2:
             raise OSError(errno.ENOSPC, "No space left on device")
-        return real_flush(self)
+        return real_flush(self, *args, **kwargs)
 
     monkeypatch.setattr(Recorder, "flush", flaky_flush)
     real_init = Recorder.__init__  # row groups of 1000 ticks, whatever the default: the third group fails
@@ -150,3 +150,34 @@ def test_full_disk_during_logging_is_one_line_and_keeps_the_log(tmp_path: Path, 
     assert "\n" not in str(err.value)
     log = read_log(tmp_path / "r" / "log.parquet")
     assert len(log["t"]) == 2000
+
+
+def test_a_failed_background_write_is_raised_and_the_earlier_groups_kept(tmp_path: Path, monkeypatch):
+    """Row groups are written in a thread: a write that fails there is raised by the next flush, in the run's
+    thread, and the file keeps the groups written before it."""
+    import errno
+
+    import pyarrow.parquet as pq
+
+    from wbcbench.recorder import Recorder, read_log
+
+    rec = Recorder(tmp_path / "log.parquet", chunk=10)
+    s = rec.add_channel("x")
+    real_write = pq.ParquetWriter.write_table
+    calls = {"n": 0}
+
+    def flaky_write(self, table, *args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(self, table, *args, **kwargs)
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", flaky_write)
+    with pytest.raises(OSError, match="No space left"):
+        for k in range(100):
+            rec.row[s] = k
+            rec.commit()
+    assert calls["n"] == 3 and k == 39  # the third group failed in the thread; the fourth flush raised it
+    with pytest.raises(OSError, match="No space left"):  # the disk is still full: the last rows cannot go
+        rec.close()
+    assert read_log(tmp_path / "log.parquet")["x"].tolist() == list(range(20))

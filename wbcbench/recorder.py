@@ -3,6 +3,7 @@ interrupted keeps its log up to the last flushed group (and `close()` flushes th
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -26,8 +27,11 @@ class Recorder:
         self.columns: list[str] = []
         self.slices: dict[str, slice] = {}
         self._buf: np.ndarray | None = None
+        self._spare: np.ndarray | None = None  # the other buffer, while a flushed one is being written
         self._n = 0
         self._writer: pq.ParquetWriter | None = None
+        self._pending: threading.Thread | None = None
+        self._pending_error: BaseException | None = None
         self.rows_written = 0
 
     def add_channel(self, name: str, components: list[str] | None = None) -> slice:
@@ -57,26 +61,55 @@ class Recorder:
         if self._n == self.chunk:
             self.flush()
 
-    def flush(self) -> None:
+    def flush(self, wait: bool = False) -> None:
+        """Write the rows filled so far as a row group. The compression and the file write run in a thread
+        (pyarrow releases the GIL there), so that a paced run does not stall for the tens of milliseconds a
+        group takes; the next flush (or `close`, or `wait=True`) waits for it and raises its error (a full disk)."""
+        self._join()
         if self._buf is None or self._n == 0:
             return
         block = self._buf[: self._n]
+        # zero-copy columns of the column-major buffer: it is not reused before the write is done
         table = pa.Table.from_arrays([pa.array(block[:, i]) for i in range(block.shape[1])], names=self.columns)
         if self._writer is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             # no dictionary encoding: float channels almost never repeat, and trying costs half the write time
             self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd", use_dictionary=False)
-        self._writer.write_table(table)
-        self.rows_written += self._n
-        self._n = 0
-        self._buf[:] = np.nan
+        n, self._n = self._n, 0
+        self._buf, self._spare = (self._spare, self._buf)
+        if self._buf is None:
+            self._buf = np.full((self.chunk, len(self.columns)), np.nan, order="F")
+        else:
+            self._buf[:] = np.nan
+        self._pending = threading.Thread(target=self._write, args=(table, n), name="wbcbench-log-writer", daemon=True)
+        self._pending.start()
+        if wait:
+            self._join()
+
+    def _write(self, table: pa.Table, n: int) -> None:
+        try:
+            self._writer.write_table(table)
+            self.rows_written += n
+        except BaseException as exc:  # raised in the caller's thread by the next flush or close
+            self._pending_error = exc
+
+    def _join(self) -> None:
+        if self._pending is not None:
+            self._pending.join()
+            self._pending = None
+        if self._pending_error is not None:
+            exc, self._pending_error = self._pending_error, None
+            raise exc
 
     def close(self) -> None:
-        """Flush the pending rows and finish the file. If the flush fails (a full disk), the file is still
-        finished with the rows flushed before, and the error raised."""
+        """Flush the pending rows and finish the file. If a write fails (a full disk), the file is still
+        finished with the rows written before, and the error raised."""
         try:
-            self.flush()
+            self.flush(wait=True)
         finally:
+            if self._pending is not None:  # the flush raised before waiting for the write it started
+                self._pending.join()
+                self._pending = None
             if self._writer is not None:
                 writer, self._writer = self._writer, None
                 writer.close()
