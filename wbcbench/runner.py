@@ -7,6 +7,7 @@ summary.json. A run that falls or fails still writes its log up to the failure a
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import math
 import os
@@ -252,6 +253,13 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     fell, reason, error, interrupted = False, "", None, False
     ctrl_us = np.full(n_ticks, np.nan)
     lateness = np.zeros(n_ticks) if realtime else None
+    # a paced run: no cyclic garbage collection during the loop (a full collection stalls the interpreter for
+    # milliseconds; the loop's objects are freed by reference counting), what exists now moved out of its reach
+    gc_paused = realtime and gc.isenabled()
+    if gc_paused:
+        gc.collect()
+        gc.freeze()
+        gc.disable()
     wall0 = time.perf_counter()
     tick = 0
     observe = getattr(scen, "observe", None)
@@ -376,6 +384,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         error = traceback.format_exc()
     finally:
         _close_quietly(rec)
+        if gc_paused:
+            gc.enable()
+            gc.unfreeze()
     wall = time.perf_counter() - wall0
     sim_time = (tick + (0 if n_branches else 1)) * spec.control_dt if n_ticks else 0.0
     summary = {

@@ -163,6 +163,7 @@ class TeleopReferenceSource:
         self.truth = np.full(24, np.nan)
         self.command_filter = CommandFilter(self.robot, q0, self.config.safety, self.dt)
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
+        self._last_valid: dict | None = None
         self._filtered: dict[str, pin.SE3] = {}
         self._valid_prev = None
         self._loss_start = None
@@ -334,7 +335,7 @@ class TeleopReferenceSource:
             if self._valid_prev is False and self._loss_start is not None:
                 self.loss_durations.append(t - self._loss_start)
                 self._loss_start = None
-            self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in targets.items()}
+            self._last_valid = targets  # held (at rest) if the stream is lost: made then, not every tick
             self._hold_from = None
         else:
             if self._valid_prev is not False:
@@ -342,6 +343,9 @@ class TeleopReferenceSource:
                 if self._valid_prev is True:
                     self.loss_events += 1
                 self._loss_start = t
+                if self._last_valid is not None:
+                    self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in self._last_valid.items()}
+                    self._last_valid = None
                 self._hold_from = {k: pin.SE3(v[0]) for k, v in self._held.items()}
             targets = self._safe_targets(t)
         self._valid_prev = valid
