@@ -1,4 +1,4 @@
-"""The compiled evaluations of task rows against pinocchio's: `log3`, the frame-task batch of a stack
+"""The compiled evaluations of task rows against pinocchio's: `log3`, the frame-task and contact batch of a stack
 (`TaskStack(compiled_frames=True)`), the self-collision task's fused rows and joint accelerations, and the compiled
 reference setters (same values stored, same errors)."""
 
@@ -68,8 +68,13 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
     tasks = _frame_tasks(m, rng)
     com = CoMTask(m, kp=10.0)
     com.set_reference(np.array([0.0, 0.1, 0.8]))
-    plain = TaskStack([tasks[0], com, *tasks[1:]], m.nv)
-    batch = TaskStack([tasks[0], com, *tasks[1:]], m.nv, compiled_frames=True)
+    contacts = [Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0),
+                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0)]
+    for c, angle in zip(contacts, (0.3, 2.5)):  # a small and a large rotation error
+        c.set_reference(pin.SE3(pin.exp3(angle * np.array([0.6, 0.0, 0.8])), rng.normal(size=3)))
+    stacked = [contacts[0], tasks[0], com, *tasks[1:], contacts[1]]
+    plain = TaskStack(stacked, m.nv)
+    batch = TaskStack(stacked, m.nv, compiled_frames=True)
     for seed in range(12):
         q, v = erd_talos.random_state(seed, speed=2.0)
         update_kinematics(m, d, q, v)

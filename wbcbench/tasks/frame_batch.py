@@ -1,4 +1,5 @@
-"""The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`) of a stack in one compiled call.
+"""The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`) and contacts
+(:class:`~wbcbench.tasks.Contact6D`) of a stack in one compiled call.
 
 A frame task's rows cost three pinocchio queries from Python per tick (``updateFramePlacement``,
 ``getFrameJacobian``, ``getFrameClassicalAcceleration``), a ``log3`` and a few numpy temporaries: 5-8 us a task,
@@ -11,7 +12,10 @@ the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
 * Jacobian (LOCAL_WORLD_ALIGNED): the WORLD columns of the joints supporting the frame, the linear part moved
   from the world origin to the frame, ``J_lin + J_ang x p``; the other columns zero;
 * drift (classical acceleration at zero joint acceleration): with the spatial velocity ``(v_o, w) = J v`` and
-  acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``.
+  acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``;
+* a contact's rows are in its LOCAL frame: the Jacobian above rotated by ``R^T``, the error
+  ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``) and the drift the
+  spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL).
 
 The same quantities as pinocchio's to rounding (the tests compare them on random states), not the same bits: a
 stack uses this path only when asked (``TaskStack(..., compiled_frames=True)``), so that the controllers whose
@@ -27,7 +31,9 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from wbcbench.jit import njit
+from wbcbench.tasks.contact_6d import Contact6D
 from wbcbench.tasks.exceptions import ReferenceNotSetError
+from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.placements import ForwardKinematics, _forward
 
 __all__ = ["FrameBatch", "log3"]
@@ -50,6 +56,7 @@ class FrameBatch:
             return
         k, nv = len(self.tasks), model.nv
         parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
+        self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
         self._parents = parents
         support = np.zeros((k, nv), dtype=np.bool_)
         for i, j in enumerate(parents):
@@ -76,21 +83,27 @@ class FrameBatch:
     def fill(self, model: pin.Model, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> None:
         """Write the tasks' Jacobian rows into ``A``, error rows into ``e`` and, unless None, drift rows into
         ``drift`` (the stack's buffers), for the state of the last kinematics update."""
-        seen = self._seen
+        seen, local = self._seen, self._local
         for i, task in enumerate(self.tasks):
-            R_ref = task._R_ref
-            if R_ref is not seen[i]:
-                if R_ref is None or task._p_ref is None:
-                    raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
-                self._R_ref[i] = R_ref
-                self._p_ref[i] = task._p_ref
-                seen[i] = R_ref
+            ref = task._M_ref if local[i] else task._R_ref
+            if ref is not seen[i]:  # set_reference stores a new object
+                if local[i]:
+                    if ref is None:
+                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the contact")
+                    self._R_ref[i] = ref.rotation
+                    self._p_ref[i] = ref.translation
+                else:
+                    if ref is None or task._p_ref is None:
+                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+                    self._R_ref[i] = ref
+                    self._p_ref[i] = task._p_ref
+                seen[i] = ref
         fk = self.fk
         with_drift = drift is not None
         _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
                     self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                    if with_drift else _EMPTY, self._support, self._p_ref, self._R_ref, self._axes, self._owner,
-                    self._rows, A, e, drift if with_drift else _EMPTY, with_drift)
+                    if with_drift else _EMPTY, self._support, self._local, self._p_ref, self._R_ref, self._axes,
+                    self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift)
 
 
 _EMPTY = np.zeros(0)
@@ -139,8 +152,8 @@ def log3(R, out):
 
 
 @njit
-def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, p_ref, R_ref,
-                axes, owner, rows, A, e, drift, with_drift):
+def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local, p_ref,
+                R_ref, axes, owner, rows, A, e, drift, with_drift):
     _forward(q, kinds, jparents, idx_q, R0, t0, Rj, tj)
     k = parents.shape[0]
     nv = J.shape[1]
@@ -148,17 +161,37 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
     acc = np.empty((k, 6))
     M = np.empty((3, 3))
     w = np.empty(3)
+    d = np.empty(3)
     for i in range(k):
         jp = parents[i]
         for a in range(3):
             for b in range(3):
                 R[i, a, b] = Rj[jp, a, 0] * Rf[i, 0, b] + Rj[jp, a, 1] * Rf[i, 1, b] + Rj[jp, a, 2] * Rf[i, 2, b]
             t[i, a] = Rj[jp, a, 0] * tf[i, 0] + Rj[jp, a, 1] * tf[i, 1] + Rj[jp, a, 2] * tf[i, 2] + tj[jp, a]
-        for a in range(3):
-            err[i, a] = p_ref[i, a] - t[i, a]
-            for b in range(3):  # R_ref R^T
-                M[a, b] = R_ref[i, a, 0] * R[i, b, 0] + R_ref[i, a, 1] * R[i, b, 1] + R_ref[i, a, 2] * R[i, b, 2]
-        log3(M, w)
+        if local[i]:  # log6(M^-1 M_ref): w = log3(R^T R_ref), v = V(w)^-1 R^T (p_ref - p)
+            for a in range(3):
+                d[a] = 0.0
+                for b in range(3):
+                    M[a, b] = R[i, 0, a] * R_ref[i, 0, b] + R[i, 1, a] * R_ref[i, 1, b] + R[i, 2, a] * R_ref[i, 2, b]
+                    d[a] += R[i, b, a] * (p_ref[i, b] - t[i, b])
+            log3(M, w)
+            th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+            if th2 < 1e-8:  # (1 - th sin(th) / (2 (1 - cos(th)))) / th^2 = 1/12 + th^2 / 720 + O(th^4)
+                c = 1.0 / 12.0 + th2 / 720.0
+            else:
+                th = math.sqrt(th2)
+                c = (1.0 - th * math.sin(th) / (2.0 * (1.0 - math.cos(th)))) / th2
+            # V^-1 d = d - 1/2 w x d + c w x (w x d)
+            wd0, wd1, wd2 = w[1] * d[2] - w[2] * d[1], w[2] * d[0] - w[0] * d[2], w[0] * d[1] - w[1] * d[0]
+            err[i, 0] = d[0] - 0.5 * wd0 + c * (w[1] * wd2 - w[2] * wd1)
+            err[i, 1] = d[1] - 0.5 * wd1 + c * (w[2] * wd0 - w[0] * wd2)
+            err[i, 2] = d[2] - 0.5 * wd2 + c * (w[0] * wd1 - w[1] * wd0)
+        else:
+            for a in range(3):
+                err[i, a] = p_ref[i, a] - t[i, a]
+                for b in range(3):  # R_ref R^T
+                    M[a, b] = R_ref[i, a, 0] * R[i, b, 0] + R_ref[i, a, 1] * R[i, b, 1] + R_ref[i, a, 2] * R[i, b, 2]
+            log3(M, w)
         err[i, 3], err[i, 4], err[i, 5] = w[0], w[1], w[2]
         if with_drift:
             vo = np.zeros(6)
@@ -176,10 +209,19 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
             pdx = vo[0] + wy * pz - wz * py
             pdy = vo[1] + wz * px - wx * pz
             pdz = vo[2] + wx * py - wy * px
-            acc[i, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
-            acc[i, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
-            acc[i, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
-            acc[i, 3], acc[i, 4], acc[i, 5] = dx, dy, dz
+            if local[i]:  # spatial acceleration at the frame origin, in the frame's axes
+                a0 = ao[0] + dy * pz - dz * py
+                a1 = ao[1] + dz * px - dx * pz
+                a2 = ao[2] + dx * py - dy * px
+                for a in range(3):
+                    acc[i, a] = R[i, 0, a] * a0 + R[i, 1, a] * a1 + R[i, 2, a] * a2
+                    acc[i, 3 + a] = R[i, 0, a] * dx + R[i, 1, a] * dy + R[i, 2, a] * dz
+            else:
+                acc[i, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
+                acc[i, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
+                acc[i, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
+                acc[i, 3], acc[i, 4], acc[i, 5] = dx, dy, dz
+    col = np.empty(6)
     for r in range(rows.shape[0]):
         i = owner[r]
         ax = axes[r]
@@ -191,11 +233,15 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
         for c in range(nv):
             if not support[i, c]:
                 A[row, c] = 0.0
-            elif ax == 0:  # J_lin + J_ang x p
-                A[row, c] = J[0, c] + J[4, c] * pz - J[5, c] * py
-            elif ax == 1:
-                A[row, c] = J[1, c] + J[5, c] * px - J[3, c] * pz
-            elif ax == 2:
-                A[row, c] = J[2, c] + J[3, c] * py - J[4, c] * px
+                continue
+            # the column in LOCAL_WORLD_ALIGNED: J_lin + J_ang x p, J_ang
+            col[0] = J[0, c] + J[4, c] * pz - J[5, c] * py
+            col[1] = J[1, c] + J[5, c] * px - J[3, c] * pz
+            col[2] = J[2, c] + J[3, c] * py - J[4, c] * px
+            col[3], col[4], col[5] = J[3, c], J[4, c], J[5, c]
+            if local[i]:  # rotated into the frame's axes
+                b = 0 if ax < 3 else 3
+                a = ax - b
+                A[row, c] = R[i, 0, a] * col[b] + R[i, 1, a] * col[b + 1] + R[i, 2, a] * col[b + 2]
             else:
-                A[row, c] = J[ax, c]
+                A[row, c] = col[ax]
