@@ -66,8 +66,8 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
     d = m.createData()
     rng = np.random.default_rng(0)
     tasks = _frame_tasks(m, rng)
-    com = CoMTask(m, kp=10.0)
-    com.set_reference(np.array([0.0, 0.1, 0.8]))
+    com = CoMTask(m, kp=10.0, mask=[1, 0, 1])
+    com.set_reference(np.array([0.0, 0.1, 0.8]), np.array([0.1, 0.0, 0.2]))
     contacts = [Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0),
                 Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0)]
     for c, angle in zip(contacts, (0.3, 2.5)):  # a small and a large rotation error

@@ -1,5 +1,6 @@
-"""The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`) and contacts
-(:class:`~wbcbench.tasks.Contact6D`) of a stack in one compiled call.
+"""The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`), contacts
+(:class:`~wbcbench.tasks.Contact6D`) and a CoM task (:class:`~wbcbench.tasks.CoMTask`) of a stack in one compiled
+call.
 
 A frame task's rows cost three pinocchio queries from Python per tick (``updateFramePlacement``,
 ``getFrameJacobian``, ``getFrameClassicalAcceleration``), a ``log3`` and a few numpy temporaries: 5-8 us a task,
@@ -15,7 +16,8 @@ the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
   acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``;
 * a contact's rows are in its LOCAL frame: the Jacobian above rotated by ``R^T``, the error
   ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``) and the drift the
-  spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL).
+  spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL);
+* the CoM task's rows from the centroidal map: ``Ag[:3] / m``, ``p_ref - com``, ``dAg[:3] v / m``.
 
 The same quantities as pinocchio's to rounding (the tests compare them on random states), not the same bits: a
 stack uses this path only when asked (``TaskStack(..., compiled_frames=True)``), so that the controllers whose
@@ -31,7 +33,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from wbcbench.jit import njit
-from wbcbench.tasks.contact_6d import Contact6D
+from wbcbench.tasks.com_task import CoMTask
 from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.placements import ForwardKinematics, _forward
@@ -42,21 +44,38 @@ FloatArray = npt.NDArray[np.float64]
 
 
 class FrameBatch:
-    """The frame tasks ``tasks`` of a stack, whose selected rows start at ``starts`` in the stack's buffers.
+    """The frame tasks, contacts and CoM task ``tasks`` of a stack, whose selected rows start at ``starts`` in the
+    stack's buffers.
 
-    `supported` is False when the model has a joint the compiled forward kinematics does not know; the stack then
-    keeps the tasks' own hooks.
+    `supported` is False when the model has a joint the compiled forward kinematics does not know (or there is no
+    frame task or contact); the stack then keeps the tasks' own hooks.
     """
 
     def __init__(self, model: pin.Model, tasks, starts) -> None:
         self.fk = ForwardKinematics(model)
-        self.supported = self.fk.supported and len(tasks) > 0
+        framed = [t for t in tasks if not isinstance(t, CoMTask)]
+        self.supported = self.fk.supported and len(framed) > 0
         self.tasks = tuple(tasks)
         if not self.supported:
             return
-        k, nv = len(self.tasks), model.nv
+        nv = model.nv
+        self._com = [(t, start) for t, start in zip(self.tasks, starts, strict=True) if isinstance(t, CoMTask)]
+        if len(self._com) > 1:
+            raise ValueError("FrameBatch: at most one CoM task")
+        starts = [start for t, start in zip(self.tasks, starts, strict=True) if not isinstance(t, CoMTask)]
+        self.tasks = tuple(framed)
+        k = len(framed)
         parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
         self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
+        if self._com:
+            task, start = self._com[0]
+            self._com_rows = np.array([start + r for r in range(len(task.rows))], dtype=np.intp)
+            self._com_axes = task.rows.astype(np.intp)
+            self._com_inv_mass = float(task._inv_mass)
+        else:
+            self._com_rows = self._com_axes = np.zeros(0, dtype=np.intp)
+            self._com_inv_mass = 0.0
+        self._com_ref = np.zeros(3)
         self._parents = parents
         support = np.zeros((k, nv), dtype=np.bool_)
         for i, j in enumerate(parents):
@@ -98,15 +117,27 @@ class FrameBatch:
                     self._R_ref[i] = ref
                     self._p_ref[i] = task._p_ref
                 seen[i] = ref
+        com_ref = self._com_ref
+        if self._com:
+            task = self._com[0][0]
+            if task._p_ref is None:
+                raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+            com_ref[:] = task._p_ref
+            Ag, dAg, com = data.Ag, data.dAg, data.com[0]
+        else:
+            Ag = dAg = _EMPTY2
+            com = _EMPTY
         fk = self.fk
         with_drift = drift is not None
         _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
                     self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
                     if with_drift else _EMPTY, self._support, self._local, self._p_ref, self._R_ref, self._axes,
-                    self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift)
+                    self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg, com, com_ref,
+                    self._com_axes, self._com_rows, self._com_inv_mass)
 
 
 _EMPTY = np.zeros(0)
+_EMPTY2 = np.zeros((0, 0))
 
 
 @njit
@@ -153,7 +184,18 @@ def log3(R, out):
 
 @njit
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local, p_ref,
-                R_ref, axes, owner, rows, A, e, drift, with_drift):
+                R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
+    # the CoM task's rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m
+    for r in range(com_rows.shape[0]):
+        ax, row = com_axes[r], com_rows[r]
+        e[row] = com_ref[ax] - com[ax]
+        s = 0.0
+        for c in range(Ag.shape[1]):
+            A[row, c] = Ag[ax, c] * inv_mass
+            if with_drift:
+                s += dAg[ax, c] * v[c]
+        if with_drift:
+            drift[row] = s * inv_mass
     _forward(q, kinds, jparents, idx_q, R0, t0, Rj, tj)
     k = parents.shape[0]
     nv = J.shape[1]
