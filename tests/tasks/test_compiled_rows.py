@@ -21,13 +21,8 @@ from wbcbench.tasks import (
 from wbcbench.tasks.frame_batch import log3
 from wbcbench.tasks.self_collision import _joint_accelerations
 
-REPULSORS = (
-    RepulsionPoint("base_link", 0.15, (0.0, 0.1, 0.0), name="hip_left"),
-    RepulsionPoint("leg_left_3_link", 0.15, (0.0, 0.1, -0.2)),
-    RepulsionPoint("torso_2_link", 0.30),
-    RepulsionPoint("gripper_right_base_link", 0.30, (0.0, 0.0, -0.09)),
-    RepulsionPoint("universe", 0.20, (0.3, 0.3, 0.8), name="fixed"),
-)
+from .test_self_collision import REPULSORS
+
 
 
 def test_log3_matches_pinocchio_from_zero_to_pi():

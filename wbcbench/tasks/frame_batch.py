@@ -38,7 +38,7 @@ from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.placements import ForwardKinematics, _forward
 
-__all__ = ["FrameBatch", "log3"]
+__all__ = ["FrameBatch", "classical_acceleration", "log3", "origin_motion"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -183,6 +183,40 @@ def log3(R, out):
 
 
 @njit
+def origin_motion(JW, dJ, v, support):
+    """The spatial velocity ``(v_o, w) = J v`` and acceleration at zero joint acceleration ``(a_o, w_dot) = dJ v``
+    (6,: linear at the world origin, angular; world axes) of the body whose joints' columns are ``support``
+    (nv,) (pinocchio's WORLD Jacobians ``JW`` and their time variation ``dJ``)."""
+    vo = np.zeros(6)
+    ao = np.zeros(6)
+    for c in range(JW.shape[1]):
+        if support[c]:
+            vc = v[c]
+            for a in range(6):
+                vo[a] += JW[a, c] * vc
+                ao[a] += dJ[a, c] * vc
+    return vo, ao
+
+
+@njit
+def classical_acceleration(JW, dJ, v, support, p, out):
+    """The classical acceleration at zero joint acceleration ``[p_ddot; w_dot]`` (6,, world axes) of the point
+    ``p`` (3,) of that body into ``out``: ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)`` (pinocchio's
+    ``getFrameClassicalAcceleration``, LOCAL_WORLD_ALIGNED)."""
+    vo, ao = origin_motion(JW, dJ, v, support)
+    px, py, pz = p[0], p[1], p[2]
+    wx, wy, wz = vo[3], vo[4], vo[5]
+    dx, dy, dz = ao[3], ao[4], ao[5]
+    pdx = vo[0] + wy * pz - wz * py  # velocity of the point: v_o + w x p
+    pdy = vo[1] + wz * px - wx * pz
+    pdz = vo[2] + wx * py - wy * px
+    out[0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
+    out[1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
+    out[2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
+    out[3], out[4], out[5] = dx, dy, dz
+
+
+@njit
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local, p_ref,
                 R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
     # the CoM task's rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m
@@ -236,22 +270,10 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
             log3(M, w)
         err[i, 3], err[i, 4], err[i, 5] = w[0], w[1], w[2]
         if with_drift:
-            vo = np.zeros(6)
-            ao = np.zeros(6)
-            for c in range(nv):
-                if support[i, c]:
-                    vc = v[c]
-                    for a in range(6):
-                        vo[a] += J[a, c] * vc
-                        ao[a] += dJ[a, c] * vc
-            px, py, pz = t[i, 0], t[i, 1], t[i, 2]
-            wx, wy, wz = vo[3], vo[4], vo[5]
-            dx, dy, dz = ao[3], ao[4], ao[5]
-            # velocity of the frame origin: v_o + w x p
-            pdx = vo[0] + wy * pz - wz * py
-            pdy = vo[1] + wz * px - wx * pz
-            pdz = vo[2] + wx * py - wy * px
             if local[i]:  # spatial acceleration at the frame origin, in the frame's axes
+                vo, ao = origin_motion(J, dJ, v, support[i])
+                px, py, pz = t[i, 0], t[i, 1], t[i, 2]
+                dx, dy, dz = ao[3], ao[4], ao[5]
                 a0 = ao[0] + dy * pz - dz * py
                 a1 = ao[1] + dz * px - dx * pz
                 a2 = ao[2] + dx * py - dy * px
@@ -259,10 +281,7 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
                     acc[i, a] = R[i, 0, a] * a0 + R[i, 1, a] * a1 + R[i, 2, a] * a2
                     acc[i, 3 + a] = R[i, 0, a] * dx + R[i, 1, a] * dy + R[i, 2, a] * dz
             else:
-                acc[i, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
-                acc[i, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
-                acc[i, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
-                acc[i, 3], acc[i, 4], acc[i, 5] = dx, dy, dz
+                classical_acceleration(J, dJ, v, support[i], t[i], acc[i])
     col = np.empty(6)
     for r in range(rows.shape[0]):
         i = owner[r]

@@ -48,6 +48,7 @@ import pinocchio as pin
 from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
+from wbcbench.tasks.frame_batch import classical_acceleration
 from wbcbench.tasks.placements import ForwardKinematics, _forward_gather
 from wbcbench.tasks.task import Task
 from wbcbench.tasks.registry import register_task
@@ -269,29 +270,10 @@ def _velocity_flat(JW, v, J, x, rx, act, slot_of, G, HC, HK, REL, RW, ACC, mask_
 @njit
 def _joint_accelerations(JW, dJ, v, masks, origins, acc):
     """Classical accelerations at zero joint acceleration (6,: linear of the joint origin, angular; world axes)
-    of the joints of support ``masks`` (k, nv) and origins ``origins`` (k, 3) into ``acc`` (k, 6): with the
-    spatial velocity (v_o, w) = J v and acceleration (a_o, w_dot) = dJ v at the world origin,
-    ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)`` (the universe, an empty support, gives 0)."""
-    nv = JW.shape[1]
+    of the joints of support ``masks`` (k, nv) and origins ``origins`` (k, 3) into ``acc`` (k, 6)
+    (`frame_batch.classical_acceleration`; the universe, an empty support, gives 0)."""
     for k in range(masks.shape[0]):
-        vo = np.zeros(6)
-        ao = np.zeros(6)
-        for c in range(nv):
-            if masks[k, c]:
-                vc = v[c]
-                for a in range(6):
-                    vo[a] += JW[a, c] * vc
-                    ao[a] += dJ[a, c] * vc
-        px, py, pz = origins[k, 0], origins[k, 1], origins[k, 2]
-        wx, wy, wz = vo[3], vo[4], vo[5]
-        dx, dy, dz = ao[3], ao[4], ao[5]
-        pdx = vo[0] + wy * pz - wz * py
-        pdy = vo[1] + wz * px - wx * pz
-        pdz = vo[2] + wx * py - wy * px
-        acc[k, 0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
-        acc[k, 1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
-        acc[k, 2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
-        acc[k, 3], acc[k, 4], acc[k, 5] = dx, dy, dz
+        classical_acceleration(JW, dJ, v, masks[k], origins[k], acc[k])
 
 
 @njit
