@@ -405,6 +405,9 @@ class TeleopStabilizer(Stabilizer):
         self._filter_started = np.zeros(5, dtype=bool)
         self._contact_nominal: dict[Side, pin.SE3] = {}
         self._torso_nominal: pin.SE3 | None = None
+        # their rotations and translations as arrays (an SE3's attributes are copies made at each access)
+        self._contact_nominal_arrays: dict[Side, tuple[np.ndarray, np.ndarray]] = {}
+        self._torso_nominal_arrays: tuple[np.ndarray, np.ndarray] | None = None
         self._tilt = {s: np.eye(3) for s in Side}
         self._prev_error = {s: None for s in Side}
         self.measured = _Measured()
@@ -415,9 +418,11 @@ class TeleopStabilizer(Stabilizer):
         self._clear()
         for s, ref in feedback.contact_references.items():
             self._contact_nominal[s] = pin.SE3(ref)
+            self._contact_nominal_arrays[s] = (ref.rotation.copy(), ref.translation.copy())
         torso = feedback.task_references.get(self.spec.torso_task)
         if torso is not None:
             self._torso_nominal = pin.SE3(torso)
+            self._torso_nominal_arrays = (torso.rotation.copy(), torso.translation.copy())
 
     # -------------------------------------------------------------- measurement
     def _measure(self, meas: Measurement) -> _Measured:
@@ -508,11 +513,11 @@ class TeleopStabilizer(Stabilizer):
             f_meas = (meas_.normal_force[Side.LEFT], meas_.normal_force[Side.RIGHT])
             roll, wx, ax = foot_force_difference(f_model, f_meas, g, dt)
             base = targets.get(spec.torso_task)
-            nominal = self._torso_nominal
+            R_nominal, p_nominal = self._torso_nominal_arrays
             if base is not None:
-                p0, R0 = base.position, (base.rotation if base.rotation is not None else nominal.rotation)
+                p0, R0 = base.position, (base.rotation if base.rotation is not None else R_nominal)
             else:
-                p0, R0 = nominal.translation, nominal.rotation
+                p0, R0 = p_nominal, R_nominal
             c, s_ = math.cos(roll), math.sin(roll)
             R = np.empty((3, 3))  # Rx(roll) R0
             R[0] = R0[0]
@@ -552,9 +557,10 @@ class TeleopStabilizer(Stabilizer):
                 if cop is None:
                     contact_poses[s] = nominal
                     continue
+                R_nominal, p_nominal = self._contact_nominal_arrays[s]
                 R = np.empty((3, 3))
-                log[7 + i] = _k.ankle_admittance(nominal.rotation, cop[0], cop[1], kd_x, kd_y, limit, R)
-                contact_poses[s] = pin.SE3(R, nominal.translation)
+                log[7 + i] = _k.ankle_admittance(R_nominal, cop[0], cop[1], kd_x, kd_y, limit, R)
+                contact_poses[s] = pin.SE3(R, p_nominal)
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs
