@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from ..tasks.placements import _forward, _frames
 
 __all__ = ["ankle_admittance", "com_admittance", "feet_measurement", "filter_measurement", "model_cop", "reference_split"]
 
@@ -224,3 +225,22 @@ def ankle_admittance(R, c0, c1, kd_pitch, kd_roll, limit, out):
             out[i, j] = R[i, 0] * T[0, j] + R[i, 1] * T[1, j] + R[i, 2] * T[2, j]
     s = 0.5 * math.sqrt((T[2, 1] - T[1, 2]) ** 2 + (T[0, 2] - T[2, 0]) ** 2 + (T[1, 0] - T[0, 1]) ** 2)
     return math.atan2(s, 0.5 * (T[0, 0] + T[1, 1] + T[2, 2] - 1.0))
+
+
+@njit
+def measure_feet(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames, t_frames, R_out, t_out,
+                 f_left, f_right, m_left, m_right, f_sensor, m_sensor, foot_mass, foot_com, sole_center,
+                 min_normal_force, gravity, out, zmp, alpha, state, started):
+    """The stabilizer's measurement of a tick in one call: the placements of the sensor and sole frames for ``q``
+    (`placements._forward`, `_frames`; rows: left, right sensor, left, right sole into ``R_out``, ``t_out``), the
+    F/T readings into ``f_sensor``, ``m_sensor`` (2, 3), `feet_measurement`, then `filter_measurement`; returns
+    whether the ZMP exists."""
+    _forward(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
+    _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R_out, t_out)
+    for a in range(3):
+        f_sensor[0, a], f_sensor[1, a] = f_left[a], f_right[a]
+        m_sensor[0, a], m_sensor[1, a] = m_left[a], m_right[a]
+    zmp_ok = feet_measurement(R_out[:2], t_out[:2], f_sensor, m_sensor, foot_mass, foot_com, R_out[2:], t_out[2:],
+                              sole_center, min_normal_force, gravity, out, zmp)
+    filter_measurement(out, zmp, zmp_ok, alpha, state, started)
+    return zmp_ok

@@ -431,18 +431,25 @@ class TeleopStabilizer(Stabilizer):
         arithmetic and the filters:
         `_kernels.feet_measurement` (`measured_wrench`, `_moment_about`) and `filter_measurement`)."""
         buf = self._buf
-        if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views)
-            self._fk.frames(meas.q, self._fk_frames, self._frames_R, self._frames_t)
-        else:
-            m, d = self.model, self.data
-            pin.forwardKinematics(m, d, meas.q)
-            for i, s in enumerate(Side):
-                M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
-                S = pin.updateFramePlacement(m, d, self.sole_ids[s])
-                buf.R_sensor[i] = M.rotation
-                buf.p_sensor[i] = M.translation
-                buf.R_sole[i] = S.rotation
-                buf.p_sole[i] = S.translation
+        state = self._filter_state
+        if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views); one compiled call
+            fk = self._fk
+            ft_force, ft_torque = meas.ft_force, meas.ft_torque
+            zmp_ok = _k.measure_feet(meas.q, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t,
+                                     *self._fk_frames, self._frames_R, self._frames_t, ft_force[_LEFT], ft_force[_RIGHT],
+                                     ft_torque[_LEFT], ft_torque[_RIGHT], buf.f_sensor, buf.m_sensor, buf.foot_mass,
+                                     buf.foot_com, self.sole_center, self.spec.min_normal_force, GRAVITY, buf.out,
+                                     buf.zmp, self._filter_alpha, state, self._filter_started)
+            return self._measured_from(state, zmp_ok)
+        m, d = self.model, self.data  # other joint types: pinocchio's placements
+        pin.forwardKinematics(m, d, meas.q)
+        for i, s in enumerate(Side):
+            M = pin.updateFramePlacement(m, d, self.sensor_ids[s])
+            S = pin.updateFramePlacement(m, d, self.sole_ids[s])
+            buf.R_sensor[i] = M.rotation
+            buf.p_sensor[i] = M.translation
+            buf.R_sole[i] = S.rotation
+            buf.p_sole[i] = S.translation
         ft_force, ft_torque = meas.ft_force, meas.ft_torque
         buf.f_sensor[0] = ft_force[_LEFT]
         buf.f_sensor[1] = ft_force[_RIGHT]
@@ -451,10 +458,12 @@ class TeleopStabilizer(Stabilizer):
         zmp_ok = feet_measurement(buf.R_sensor, buf.p_sensor, buf.f_sensor, buf.m_sensor, buf.foot_mass,
                                   buf.foot_com, buf.R_sole, buf.p_sole, self.sole_center, self.spec.min_normal_force,
                                   GRAVITY, buf.out, buf.zmp)
-        state = self._filter_state
         filter_measurement(buf.out, buf.zmp, zmp_ok, self._filter_alpha, state, self._filter_started)
+        return self._measured_from(state, zmp_ok)
+
+    def _measured_from(self, state: np.ndarray, zmp_ok: bool) -> _Measured:
         f = state.tolist()
-        loaded = buf.out[:, 3].tolist()
+        loaded = self._buf.out[:, 3].tolist()
         cop = {}
         if loaded[0] != 0.0:
             cop[_LEFT] = state[2:4].copy()
