@@ -272,7 +272,7 @@ def _scenario_overrides(root: Section) -> dict[str, dict[str, dict]]:
         entry = sec.section(name)
         parts = {}
         for k in SCENARIO_OVERRIDE_KEYS:
-            if entry.has(k):
+            if entry.raw(k, None) is not None:
                 parts[k] = dict(entry.section(k).data)
         entry.finish()
         if not parts:

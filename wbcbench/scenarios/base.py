@@ -182,7 +182,7 @@ def _robot_sized(data: Any, path: Path, robot: Robot) -> Any:
     key by key) and the description saying so."""
     if not isinstance(data, dict):
         return data
-    sizes = robot_sizes(str(data.get("name", path.stem)), robot)
+    sizes = robot_sizes(str(data.get("name", path.stem)), robot) if isinstance(data.get("name", ""), str) else {}
     if not sizes:
         return data
     data = dict(data)
@@ -202,7 +202,10 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
 
     path = scenario_path(name_or_path)
     file = str(path)
-    root = Section(_robot_sized(load_yaml(path), path, robot), file)
+    data = load_yaml(path)
+    sized = _robot_sized(data, path, robot)
+    # an error in a value the profile replaced names both files
+    root = Section(sized, file if sized is data else f"{file} (with the sizes of {robot.profile.file})")
     kind = root.str("kind", "stand")
     known = available_kinds()
     if kind not in known:
