@@ -9,7 +9,7 @@ import yaml
 
 from wbcbench import load_robot
 from wbcbench.errors import ConfigError
-from wbcbench.report import matrix, reproduce
+from wbcbench.report import matrix, report, reproduce
 from wbcbench.robots.profile import PROFILE_DIR
 from wbcbench.scenarios.base import load_scenario
 
@@ -67,3 +67,8 @@ def test_reproduce_for_another_robot_has_our_numbers_only(monkeypatch, tmp_path)
     assert config["robot"] == "g1"
     md = (tmp_path / "report.md").read_text()
     assert "Robot: g1" in md and "every 'paper' column is n/a" in md
+    # the same from the run directories alone
+    again = report([o.run_dir for o in res.outcomes], tmp_path / "again")
+    assert again.results["robot"]["name"] == "g1"
+    assert again.results["tables"]["table2"]["values"]["tsid-torque"]["walk-20cm"]["zmp_error_m.x.mean"] == \
+        cell["zmp_error_m.x.mean"]

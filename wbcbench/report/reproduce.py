@@ -351,7 +351,8 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
     """Remake the tables and figures from existing run directories, without simulating.
 
     A run directory that cannot be read (missing or truncated log, missing summary) is left out with a
-    one-line error in `ReportResult.errors` (and in the report); the others still report.
+    one-line error in `ReportResult.errors` (and in the report); the others still report. Runs all of one robot
+    other than TALOS report as `reproduce --robot` does (our numbers only).
 
     Raises:
         ReportError: no run directory given.
@@ -365,7 +366,13 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
             outcomes.append(load_run(d))
         except ReportError as exc:
             errors.append(str(exc))
-    results, figures = write_report(outcomes, out_dir, command="report", errors=errors, started_at=t0)
+    robots = {(o.summary or {}).get("robot", "talos") for o in outcomes}
+    robot = None
+    if len(robots) == 1 and robots != {"talos"}:  # runs of another robot: our numbers only, as reproduce --robot
+        from .runs import cached_robot
+
+        robot = cached_robot(robots.pop())
+    results, figures = write_report(outcomes, out_dir, command="report", errors=errors, started_at=t0, robot=robot)
     return ReportResult(Path(out_dir), results, outcomes, figures, errors, results["wall_time_s"])
 
 
