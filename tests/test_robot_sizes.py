@@ -51,8 +51,9 @@ def test_reproduce_for_another_robot_has_our_numbers_only(monkeypatch, tmp_path)
     """`reproduce --robot g1` on a tiny matrix: the cells run on the G1, every published value is n/a, and the
     report says which robot and which sizes its profile gives."""
     monkeypatch.setattr(matrix, "PAPER_MATRIX", (("tsid-torque", "walk-20cm"),))
-    monkeypatch.setattr(matrix, "FAST_MATRIX", ())
-    monkeypatch.setattr(matrix, "available_scenarios", lambda: ["walk-20cm"])   # no -quick variant: a cap
+    monkeypatch.setattr(matrix, "FAST_MATRIX", (("tsid-torque", "walk-20cm-fast"),))
+    # no -quick variants: the walks are cut at the cap
+    monkeypatch.setattr(matrix, "available_scenarios", lambda: ["walk-20cm", "walk-20cm-fast"])
     monkeypatch.setattr(matrix, "QUICK_WALK_CAP_S", 0.3)
     res = reproduce(tmp_path, quick=True, jobs=1, progress=False, sanity=False, keyframes=False, robot="g1")
     results = json.loads((tmp_path / "results.json").read_text())
@@ -63,6 +64,7 @@ def test_reproduce_for_another_robot_has_our_numbers_only(monkeypatch, tmp_path)
     assert cell["status"] == "ok" and cell["zmp_error_m.x.mean"]["paper"] is None
     assert isinstance(cell["zmp_error_m.x.mean"]["ours"], float)
     assert all(not t["paper_reference_rows"] for t in results["tables"].values())
+    assert results["fast_walk"]["values"]["tsid-torque"]["paper"] == "n/a"
     config = json.loads((Path(res.outcomes[0].run_dir) / "config.json").read_text())
     assert config["robot"] == "g1"
     md = (tmp_path / "report.md").read_text()

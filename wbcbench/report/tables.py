@@ -126,7 +126,7 @@ def _robot_only(results: dict, robot) -> None:
                 if isinstance(leaf, dict) and "paper" in leaf:
                     leaf["paper"] = None
     for v in results["fast_walk"]["values"].values():
-        v["paper"] = None
+        v["paper"] = "n/a"
     results["note"] = (f"Robot: {robot.name}. The published numbers are TALOS' (paper 000): every 'paper' value is "
                        f"n/a here; 'ours' are computed by wbcbench from our MuJoCo runs of {robot.name}.")
     results["robot"] = {"name": robot.name, "description": robot.profile.description,
