@@ -1,6 +1,6 @@
 """The report subcommands of the command line: `reproduce`, `report` and `compare`.
 
-    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] --out DIR
+    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] [--robot NAME] --out DIR
     wbcbench report RUN_DIR... --out DIR
     wbcbench compare RUN_A RUN_B
 """

@@ -70,8 +70,8 @@ def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | Non
                   jobs: int | None = None, wall_time_s: float | None = None,
                   errors: list[str] | None = None, robot=None) -> dict:
     """The whole results.json content (JSON-ready: NaN already replaced by None). `robot`: a `Robot` other than
-    TALOS, whose report has no published numbers (every "paper" leaf None, printed n/a) and states the sizes its
-    profile gives the scenarios (results["robot"])."""
+    TALOS, whose report has no published numbers (every "paper" value None or "n/a", printed n/a) and states the
+    sizes its profile gives the scenarios (results["robot"])."""
     sensed = [o for o in outcomes if o.section == "sensing"]
     outcomes = [o for o in outcomes if o.section != "sensing"]
     cells = index_outcomes(outcomes)
