@@ -28,6 +28,7 @@ from .errors import ConfigError, WbcError
 from .recorder import Recorder, read_log
 from .robots import Robot, Side, load_robot
 from .scenarios import Scenario, load_scenario
+from .scenarios.base import robot_sizes
 from .sim.model import SimOptions
 from .estimation.fall import FallPredictor
 from .faults import FaultInjector
@@ -180,7 +181,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     except OSError as exc:
         raise ConfigError(f"cannot write the run directory {run_dir}: {exc.strerror or exc}", key="--out") from None
     config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
-              "scenario_file": spec.file, "scenario_kind": spec.kind, "controller": controller,
+              "scenario_file": spec.file, "scenario_kind": spec.kind,
+              **({"scenario_sizes": sizes} if (sizes := robot_sizes(spec.name, robot)) else {}),
+              "controller": controller,
               "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
               "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
               "sim": {"timestep": options.timestep, "integrator": options.integrator,

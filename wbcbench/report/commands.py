@@ -1,6 +1,6 @@
 """The report subcommands of the command line: `reproduce`, `report` and `compare`.
 
-    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] --out DIR
+    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] [--robot NAME] --out DIR
     wbcbench report RUN_DIR... --out DIR
     wbcbench compare RUN_A RUN_B
 """
@@ -32,6 +32,9 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
                    help="no key-frame strip per table cell in the report (they are rendered where the cell ran)")
     r.add_argument("--video", action="store_true",
                    help="also render each table cell's video (RUN_DIR/video.mp4), linked from the report")
+    r.add_argument("--robot", default="talos",
+                   help="robot name or profile YAML (default talos); another robot's report has our numbers only, "
+                        "at the scenario sizes of its profile")
     r.add_argument("--sensors", default=None,
                    help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
@@ -58,7 +61,7 @@ def run_command(args: argparse.Namespace) -> int:
                         sanity=not args.no_sanity, sensors=args.sensors,
                         controllers=args.controllers.split(",") if args.controllers else None,
                         scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
-                        keyframes=not args.no_keyframes, video=args.video)
+                        keyframes=not args.no_keyframes, video=args.video, robot=args.robot)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

@@ -62,6 +62,7 @@ class Job:
         sensors: the sensor profile of the run (None: ideal).
         keyframes: also render the run's key-frame strip (RUN_DIR/keyframes.png) where it ran.
         video: also render the run's video (RUN_DIR/video.mp4) where it ran.
+        robot: the robot profile the job runs on.
     """
 
     section: str
@@ -73,6 +74,7 @@ class Job:
     sensors: str | None = None
     keyframes: bool = False
     video: bool = False
+    robot: str = "talos"
 
     @property
     def name(self) -> str:

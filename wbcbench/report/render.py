@@ -275,10 +275,22 @@ def _preamble(res: dict) -> list[str]:
         meta.append(f"{what}: {res['wall_time_s']:.1f} s")
     meta.append(f"generated: {res['generated_at']}")
     lines.append("; ".join(meta) + ".")
+    if res.get("robot"):
+        lines += ["", _robot_line(res["robot"])]
     if res.get("quick"):
         lines += ["", "Quick mode: walks use their '-quick' scenario when one exists, else are cut at a duration "
                   "cap; the numbers are therefore NOT comparable with the paper's full runs."]
     return lines
+
+
+def _robot_line(robot: dict) -> str:
+    """What a report of another robot than TALOS says first: our numbers only, and the sizes its scenarios ran at."""
+    sizes = "; ".join(f"{name}: " + ", ".join(f"{k} {v}" for part in entry.values() for k, v in part.items())
+                      for name, entry in robot["scenario_sizes"].items())
+    return (f"Robot: {robot['name']} ({robot['description']}). The published numbers are TALOS': every 'paper' "
+            "column is n/a, the numbers are ours only. "
+            + (f"Scenario sizes from its profile (the rest as in the scenario files): {sizes}." if sizes else
+               "Every scenario at the size of its file."))
 
 
 KEY_FRAMES_NOTE = ("Six frames per run at equal times from its start to its end (follow camera; green: planned "

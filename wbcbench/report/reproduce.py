@@ -88,7 +88,7 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     run_dir = Path(runs_root) / job.name
     _send("start", job.name)
     try:
-        result = run(job.scenario_run, job.controller, "talos", None, job.duration_cap_s, run_dir,
+        result = run(job.scenario_run, job.controller, job.robot, None, job.duration_cap_s, run_dir,
                      progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
@@ -224,17 +224,18 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
 
 def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: str, quick: bool | None = None,
                  jobs: int | None = None, started_at: float | None = None,
-                 errors: list[str] | None = None) -> tuple[dict, list[FigureInfo]]:
+                 errors: list[str] | None = None, robot=None) -> tuple[dict, list[FigureInfo]]:
     """Write results.json, report.md, report.html and the figures; returns (results, figures).
 
     `started_at` (a `time.perf_counter()` value) makes results["wall_time_s"] the time since then, figures
-    included.
+    included. `robot` (a `Robot`, None for TALOS): the runs' robot; its report has no published numbers.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figures = draw_figures(outcomes, out / "figures")
     wall = None if started_at is None else time.perf_counter() - started_at
-    results = build_results(outcomes, command=command, quick=quick, jobs=jobs, wall_time_s=wall, errors=errors)
+    results = build_results(outcomes, command=command, quick=quick, jobs=jobs, wall_time_s=wall, errors=errors,
+                            robot=robot)
     results["figures"] = [f.file for f in figures]
     results["key_frames"] = key_frames(outcomes, out)
     (out / "results.json").write_text(json.dumps(results, indent=1, allow_nan=False))
@@ -267,7 +268,7 @@ def key_frames(outcomes: list[RunOutcome], out_dir: Path) -> list[dict]:
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
               scenarios: list[str] | None = None, ray: str | None = None, keyframes: bool = True,
-              video: bool = False) -> ReportResult:
+              video: bool = False, robot: str = "talos") -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -285,6 +286,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         keyframes: render a key-frame strip of each table cell (paper and fast sections) in the worker that ran
             it, shown in the report; a cell whose rendering fails says why in one line.
         video: also render each table cell's video (RUN_DIR/video.mp4, 1280x720), linked from the report.
+        robot: the robot (a profile name or YAML path); another robot than TALOS gets the same report with our
+            numbers only (the published ones are TALOS'), its profile's scenario sizes stated.
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -296,6 +299,9 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     n_jobs = default_jobs() if jobs is None else int(jobs)
     if n_jobs < 1:
         raise WbcError(f"--jobs must be >= 1, got {jobs}")
+    from .runs import cached_robot
+
+    robot_obj = cached_robot(robot)  # an unknown robot fails before anything runs
     if sensors is not None:
         from ..sensing import load_sensor_profile
 
@@ -318,8 +324,14 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
 
         plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
                 for j in plan]
+    if robot != "talos":
+        from dataclasses import replace
+
+        plan = [replace(j, robot=robot) for j in plan]
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     command = "reproduce --quick" if quick else "reproduce"
+    if robot != "talos":
+        command += f" --robot {robot}"
     if sensors:
         command += f" --sensors {sensors}"
     if controllers:
@@ -330,8 +342,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         command += " --video"
     elif not keyframes:
         command += " --no-keyframes"
-    results, figures = write_report(outcomes, out, command=command,
-                                    quick=quick, jobs=n_jobs, started_at=t0)
+    results, figures = write_report(outcomes, out, command=command, quick=quick, jobs=n_jobs, started_at=t0,
+                                    robot=None if robot == "talos" else robot_obj)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
 
 
@@ -339,7 +351,8 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
     """Remake the tables and figures from existing run directories, without simulating.
 
     A run directory that cannot be read (missing or truncated log, missing summary) is left out with a
-    one-line error in `ReportResult.errors` (and in the report); the others still report.
+    one-line error in `ReportResult.errors` (and in the report); the others still report. Runs all of one robot
+    other than TALOS report as `reproduce --robot` does (our numbers only).
 
     Raises:
         ReportError: no run directory given.
@@ -353,7 +366,13 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
             outcomes.append(load_run(d))
         except ReportError as exc:
             errors.append(str(exc))
-    results, figures = write_report(outcomes, out_dir, command="report", errors=errors, started_at=t0)
+    robots = {(o.summary or {}).get("robot", "talos") for o in outcomes}
+    robot = None
+    if len(robots) == 1 and robots != {"talos"}:  # runs of another robot: our numbers only, as reproduce --robot
+        from .runs import cached_robot
+
+        robot = cached_robot(robots.pop())
+    results, figures = write_report(outcomes, out_dir, command="report", errors=errors, started_at=t0, robot=robot)
     return ReportResult(Path(out_dir), results, outcomes, figures, errors, results["wall_time_s"])
 
 

@@ -68,8 +68,10 @@ def table_results(table_id: str, cells: dict[tuple[str, str], RunOutcome]) -> di
 
 def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | None = None,
                   jobs: int | None = None, wall_time_s: float | None = None,
-                  errors: list[str] | None = None) -> dict:
-    """The whole results.json content (JSON-ready: NaN already replaced by None)."""
+                  errors: list[str] | None = None, robot=None) -> dict:
+    """The whole results.json content (JSON-ready: NaN already replaced by None). `robot`: a `Robot` other than
+    TALOS, whose report has no published numbers (every "paper" value None or "n/a", printed n/a) and states the
+    sizes its profile gives the scenarios (results["robot"])."""
     sensed = [o for o in outcomes if o.section == "sensing"]
     outcomes = [o for o in outcomes if o.section != "sensing"]
     cells = index_outcomes(outcomes)
@@ -103,6 +105,8 @@ def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | Non
                 "metrics": o.metrics or None}
         if o.metrics:
             results["metrics"].setdefault(o.controller, {})[o.scenario] = o.metrics
+    if robot is not None:
+        _robot_only(results, robot)
     if sensed:
         results["sensing"] = sensing_results(sensed, cells)
     teleop = {o.scenario_run or o.scenario: {"controller": o.controller, "status": o.status, **o.metrics["teleop"]}
@@ -110,6 +114,23 @@ def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | Non
     if teleop:
         results["teleop"] = teleop
     return json_ready(results)
+
+
+def _robot_only(results: dict, robot) -> None:
+    """Our numbers only for a robot other than the paper's: the published values out, the robot and the scenario
+    sizes of its profile in."""
+    for t in results["tables"].values():
+        t["paper_reference_rows"] = {}
+        for row in (r for per_c in t["values"].values() for r in per_c.values()):
+            for leaf in row.values():
+                if isinstance(leaf, dict) and "paper" in leaf:
+                    leaf["paper"] = None
+    for v in results["fast_walk"]["values"].values():
+        v["paper"] = "n/a"
+    results["note"] = (f"Robot: {robot.name}. The published numbers are TALOS' (paper 000): every 'paper' value is "
+                       f"n/a here; 'ours' are computed by wbcbench from our MuJoCo runs of {robot.name}.")
+    results["robot"] = {"name": robot.name, "description": robot.profile.description,
+                        "scenario_sizes": robot.profile.scenario_overrides}
 
 
 SENSING_METRICS = (("zmp x mean [m]", "zmp_error_m.x.mean"), ("zmp y mean [m]", "zmp_error_m.y.mean"),

@@ -112,6 +112,9 @@ class SteppingSpec:
     max_lateral: float = 0.12
     max_turn: float = 0.35
     min_clearance: float = 0.0
+    #: default of the terrain walks' `max_leg_extension` (largest hip-ankle distance of a loaded leg the centroidal
+    #: plan may ask for, a fraction of the leg at its joints' zero); None: the scenario kind's default
+    max_leg_extension: float | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +141,8 @@ class RobotProfile:
     repulsors: dict[Side, RepulsorSpec] = field(default_factory=dict)
     collision_check: dict[Side, CollisionCheckSpec] = field(default_factory=dict)
     stepping: SteppingSpec = field(default_factory=SteppingSpec)
+    #: scenario name -> {"params": {...}, "terrain": {...}}: this robot's sizes of a scenario (`scenarios:`)
+    scenario_overrides: dict[str, dict[str, dict]] = field(default_factory=dict)
     file: str = field(default="", compare=False)
     #: joint-name prefix -> effort [N m] / velocity [rad/s] limit, for joints whose URDF gives none (or a wrong one)
     effort_overrides: dict[str, float] = field(default_factory=dict)
@@ -247,9 +252,34 @@ def _stepping(root: Section) -> SteppingSpec:
         max_backward=st.float("max_backward", d.max_backward, positive=True, max=1.0),
         max_lateral=st.float("max_lateral", d.max_lateral, positive=True, max=1.0),
         max_turn=st.float("max_turn", d.max_turn, positive=True, max=1.5),
-        min_clearance=st.float("min_clearance", d.min_clearance, min=0.0, max=0.2))
+        min_clearance=st.float("min_clearance", d.min_clearance, min=0.0, max=0.2),
+        max_leg_extension=(st.float("max_leg_extension", min=0.0, max=1.0) if st.has("max_leg_extension")
+                           else None))
     st.finish()
     return spec
+
+
+SCENARIO_OVERRIDE_KEYS = ("params", "terrain")
+"""What a profile's `scenarios:` entry may replace in a scenario file."""
+
+
+def _scenario_overrides(root: Section) -> dict[str, dict[str, dict]]:
+    """`scenarios:` scenario name -> {params: {...}, terrain: {...}}: keys replaced in that scenario's file when it
+    runs on this robot (the robot's sizes of a shipped scenario). The scenario validates the merged values."""
+    sec = root.section("scenarios", {})
+    out = {}
+    for name in list(sec.data):
+        entry = sec.section(name)
+        parts = {}
+        for k in SCENARIO_OVERRIDE_KEYS:
+            if entry.raw(k, None) is not None:
+                parts[k] = dict(entry.section(k).data)
+        entry.finish()
+        if not parts:
+            raise sec.error(name, f"give at least one of {', '.join(SCENARIO_OVERRIDE_KEYS)}")
+        out[str(name)] = parts
+    sec.finish()
+    return out
 
 
 def load_profile(name_or_path: str | Path) -> RobotProfile:
@@ -341,6 +371,7 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         repulsors=_repulsors(root),
         collision_check=_collision_check(root),
         stepping=_stepping(root),
+        scenario_overrides=_scenario_overrides(root),
         file=file,
     )
     fall.finish()

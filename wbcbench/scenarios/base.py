@@ -171,14 +171,41 @@ def _parse_model_error(root: Section):
     return parse_model_error(root.section("model_error"))
 
 
+def robot_sizes(name: str, robot: Robot) -> dict[str, dict]:
+    """The robot profile's sizes of scenario `name` (its `scenarios:` entry: {"params": ..., "terrain": ...}), or
+    {} when it runs the file's."""
+    return robot.profile.scenario_overrides.get(name, {})
+
+
+def _robot_sized(data: Any, path: Path, robot: Robot) -> Any:
+    """The scenario file's mapping with the keys the robot profile gives for it replaced (`params` and `terrain`
+    key by key) and the description saying so."""
+    if not isinstance(data, dict):
+        return data
+    sizes = robot_sizes(str(data.get("name", path.stem)), robot) if isinstance(data.get("name", ""), str) else {}
+    if not sizes:
+        return data
+    data = dict(data)
+    for part, values in sizes.items():
+        base = data.get(part) or {}
+        data[part] = {**base, **values} if isinstance(base, dict) else base
+    said = "; ".join(f"{part} {', '.join(f'{k}: {v}' for k, v in values.items())}" for part, values in sizes.items())
+    data["description"] = (f"{data.get('description', '')} Sized for {robot.name} by its profile: {said}.").strip()
+    return data
+
+
 def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
-    """Load and validate a scenario by name or path; `duration` overrides the file's."""
+    """Load and validate a scenario by name or path; `duration` overrides the file's. A scenario the robot's profile
+    sizes (`scenarios:` in the profile) runs with the profile's `params` and `terrain` keys in place of the file's."""
     from . import kinds  # noqa: F401  (registers the scenario kinds)
     from . import teleop_kind  # noqa: F401  (registers the teleop kind)
 
     path = scenario_path(name_or_path)
     file = str(path)
-    root = Section(load_yaml(path), file)
+    data = load_yaml(path)
+    sized = _robot_sized(data, path, robot)
+    # an error in a value the profile replaced names both files
+    root = Section(sized, file if sized is data else f"{file} (with the sizes of {robot.profile.file})")
     kind = root.str("kind", "stand")
     known = available_kinds()
     if kind not in known:

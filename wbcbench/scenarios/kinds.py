@@ -334,8 +334,8 @@ class TerrainWalkScenario(WalkScenario):
     params: goal [x, y] (final feet midpoint) or placements [[side, x, y], ...]; single_support,
     double_support, initial_double_support, final_double_support [s]; swing_clearance [m]; friction (mu of
     the planner, default 0.5); max_step_length / max_step_height [m]; max_leg_extension: largest hip-ankle
-    distance the centroidal plan may ask for, as a fraction of the straight leg (default 0.94, about what the
-    flat walks use; 0 switches the bound off).
+    distance the centroidal plan may ask for, as a fraction of the straight leg (default: the profile's
+    `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off).
     """
 
     kind = "terrain-walk"
@@ -359,7 +359,8 @@ class TerrainWalkScenario(WalkScenario):
         self.friction = params.float("friction", 0.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.30, positive=True)
         self.max_step_height = params.float("max_step_height", 0.15, positive=True)
-        self.max_leg_extension = params.float("max_leg_extension", 0.94, min=0.0, max=1.0)
+        reach = self.robot.profile.stepping.max_leg_extension
+        self.max_leg_extension = params.float("max_leg_extension", 0.94 if reach is None else reach, min=0.0, max=1.0)
 
     def _leg_reach(self, q0, com0):
         """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint; straight leg: the
