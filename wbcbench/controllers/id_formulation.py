@@ -158,7 +158,8 @@ class InverseDynamicsFormulation:
                  *, hard_tasks: Sequence[Task] = (), position_limits: tuple[np.ndarray, np.ndarray],
                  velocity_limit: np.ndarray, effort_limit: np.ndarray, regularization_dv: float = 1e-6,
                  regularization_wrench: float = 1e-5, wrench_axis_weights: Sequence[float] | None = None,
-                 wrench_target_weight: float = 0.0, joint_limit_horizon: float = 0.01, transition_time: float = 0.05, dt: float = 1e-3):
+                 wrench_target_weight: float = 0.0, joint_limit_horizon: float = 0.01, transition_time: float = 0.05,
+                 dt: float = 1e-3):
         self.model = model
         self.data = model.createData()
         self.nv = model.nv
