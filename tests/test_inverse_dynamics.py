@@ -101,6 +101,28 @@ def test_zero_weight_task_changes_nothing(talos):
     assert np.abs(ctrl.dv - dv0).max() > 1e-3
 
 
+def test_wrench_axis_weights_move_the_cop_between_the_feet(talos):
+    """A lateral CoM reference in double support needs a roll moment about the feet's midpoint. With every wrench
+    axis weighted 1 a newton metre of sole moment is as cheap as a newton, so the feet twist (ankle roll torques);
+    with the shipped weights (moments 2, normal force 0.1, after TSID's Contact6d) the QP shifts normal force
+    to one foot instead, with far smaller sole moments and ankle roll torques."""
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    assert spec.regularization_wrench_axes == (1.0, 1.0, 0.1, 2.0, 2.0, 2.0)
+    uniform = replace(spec, regularization_wrench_axes=(1.0,) * 6)
+    com = np.array([0.0, 0.04, 0.87])
+    out = {}
+    for name, ts in (("uniform", uniform), ("shipped", spec)):
+        sim, ctrl, meas = _controller(talos, taskset=ts)
+        ctrl.step(meas, References(t=0.0, com=PointReference(com)))
+        _check_tick(ctrl, meas.q, meas.v)
+        roll = [talos.joint_names.index(f"leg_{s.value}_6_joint") for s in Side]
+        out[name] = (ctrl.wrench[Side.LEFT].copy(), ctrl.wrench[Side.RIGHT].copy(), np.abs(ctrl.tau[roll]).sum())
+    (lu, ru, roll_u), (lt, rt, roll_t) = out["uniform"], out["shipped"]
+    assert abs(lt[2] - rt[2]) > 4 * abs(lu[2] - ru[2])  # the normal force now differs between the feet
+    assert abs(lt[3]) + abs(rt[3]) < 0.4 * (abs(lu[3]) + abs(ru[3]))  # and the sole roll moments shrink
+    assert roll_t < 0.3 * roll_u
+
+
 def test_masked_axis_is_left_free(talos):
     """With only the x-y CoM task (height axis masked out), the CoM height reference has no effect."""
     spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
@@ -185,6 +207,9 @@ def _bad_taskset(tmp_path, talos, old, new):
     ("weight: 0.02, kp: 10.0", "weight: 0.02, kp: -10.0", ["tasks[3].kp", ">= 0"]),
     ("weight: 1.0, kp: 100.0", "weight: -1.0, kp: 100.0", ["tasks[2].weight", ">= 0"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  kq: 1.0\n", ["contacts.kq", "unknown key"]),
+    ("wrench_axes: [1.0, 1.0, 0.1, 2.0, 2.0, 2.0]", "wrench_axes: [1.0, 1.0, 2.0]",
+     ["regularization.wrench_axes", "6 values"]),
+    ("wrench_axes: [1.0, 1.0, 0.1,", "wrench_axes: [1.0, 1.0, -0.1,", ["regularization.wrench_axes", ">= 0"]),
 ])
 def test_bad_task_files_name_file_and_key(talos, tmp_path, old, new, needles):
     p = _bad_taskset(tmp_path, talos, old, new)

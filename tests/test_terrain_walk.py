@@ -93,3 +93,28 @@ def test_planner_errors_before_simulation(tmp_path, old, new, needle):
     assert "\n" not in line and "Traceback" not in line
     assert needle in line, line
     assert not (out / "log.parquet").exists()
+
+
+def test_terrain_walk_com_height_sets_the_planned_height(talos, tmp_path):
+    """`com_height` of a terrain walk: the centroidal plan starts at the standing CoM, carries the CoM at that height
+    above the treads, and ends there on the second tread (20 cm up); without it, at the standing height."""
+    from wbcbench.scenarios import load_scenario
+    from wbcbench.sim.simulator import Simulator
+
+    q = Simulator(talos).measure().q
+    com0 = pin.centerOfMass(talos.model, talos.model.createData(), q)
+    text = (SCEN / "stairs-quick.yaml").read_text()
+    p = tmp_path / "stairs-low.yaml"
+    p.write_text(text.replace("  swing_clearance: 0.05", "  swing_clearance: 0.05\n  com_height: 0.80"))
+    heights = {}
+    for name, path in (("default", "stairs-quick"), ("low", str(p))):
+        scen = load_scenario(path, talos)
+        scen.setup(q, com0)
+        z = scen.walk.p_world_com[:, 2]
+        assert z[0] == pytest.approx(com0[2], abs=1e-6)
+        heights[name] = z[-1]
+    d = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, d, q)
+    ground = min(d.oMf[talos.sole_frame_id(s)].translation[2] for s in Side)
+    assert heights["low"] == pytest.approx(ground + 0.20 + 0.80, abs=0.01)
+    assert heights["default"] == pytest.approx(com0[2] + 0.20, abs=0.01)

@@ -4,7 +4,7 @@ TSID's split (robot, tasks, contacts, formulation, solver), in our style. Decisi
 x = [dv (nv); w_1 (6); ...; w_k (6)]: joint accelerations and one wrench per active contact (LOCAL contact frame,
 at its origin, exerted by the ground on the robot)::
 
-    min   sum_i w_i || A_i dv - b_i ||^2 + r_dv ||dv||^2 + r_w ||w||^2 + w_f sum_c ||w_c - w_c*||^2
+    min   sum_i w_i || A_i dv - b_i ||^2 + r_dv ||dv||^2 + r_w sum_c ||a * w_c||^2 + w_f sum_c ||w_c - w_c*||^2
     s.t.  M_b dv + h_b = J_c,b^T w                    floating-base rows of the dynamics (6)
           J_c dv = -J_c_dot v + Kp e_c - Kd J_c v     rigid contacts (6 per active contact)
           A_j dv = b_j                                hard tasks (equality constraints)
@@ -12,8 +12,11 @@ at its origin, exerted by the ground on the robot)::
           a_min <= dv_joints <= a_max                 joint position and velocity limits as acceleration bounds
           -tau_max <= M_a dv + h_a - J_c,a^T w <= tau_max   torque limits (a separate problem, see below)
 
-with tau = M_a dv + h_a - J_c,a^T w. `w_c*` are wrench targets (`References.wrench_targets`), weighted by
-`wrench_target_weight` (0: none).
+with tau = M_a dv + h_a - J_c,a^T w. `a` (6,) weighs the wrench's axes in its regularisation (`wrench_axis_weights`,
+default all 1); TSID's Contact6d uses a = (1, 1, 1e-3, 2, 2, 2): a moment about the sole costs 4e6 times as much as
+the same number of newtons of normal force, so in double support the QP moves the CoP between the feet by shifting
+normal force from one foot to the other rather than by ankle torques. `w_c*` are wrench targets
+(`References.wrench_targets`), weighted by `wrench_target_weight` (0: none).
 
 The formulation owns the tasks, the contacts with their force ramps (a leaving contact's maximum normal force goes
 to zero over `transition_time` before it is removed; an arriving one ramps in), the free-motion task of each
@@ -100,7 +103,7 @@ class _Layout:
         n, n_eq = nv + 6 * nc, 6 + me
         H = np.zeros((n, n))
         diag = H.reshape(-1)[::n + 1]
-        diag[nv:] = F.regularization_wrench
+        diag[nv:] = np.tile(F.wrench_regularization_diagonal, nc)
         g = np.zeros(n)
         A_eq, b_eq = np.zeros((n_eq, n)), np.zeros(n_eq)
         C = np.zeros((18 * nc + na, n))
@@ -141,7 +144,9 @@ class InverseDynamicsFormulation:
             (e.g. a swing-foot `FrameTask`); in the cost only then.
         hard_tasks: tasks kept as equality constraints (after the contacts' rows).
         position_limits: (q_lo, q_hi) (na,) [rad]; velocity_limit, effort_limit: (na,) [rad/s], [N m].
-        regularization_dv, regularization_wrench: weights of ||dv||^2 and ||w||^2.
+        regularization_dv, regularization_wrench: weights of ||dv||^2 and ||a * w||^2.
+        wrench_axis_weights: a (6,), >= 0, per axis of a contact wrench (fx fy fz tx ty tz) in its
+            regularisation (None: all 1).
         wrench_target_weight: w_f of ||w_c - w_c*||^2 [1/N^2], applied on ticks with wrench targets.
         joint_limit_horizon: [s] horizon turning joint position limits into acceleration bounds.
         transition_time: [s] of a contact's force ramp.
@@ -154,9 +159,9 @@ class InverseDynamicsFormulation:
     def __init__(self, model: pin.Model, tasks: Sequence[Task], contacts: Mapping, free_tasks: Mapping,
                  *, hard_tasks: Sequence[Task] = (), position_limits: tuple[np.ndarray, np.ndarray],
                  velocity_limit: np.ndarray, effort_limit: np.ndarray, regularization_dv: float = 1e-6,
-                 regularization_wrench: float = 1e-5, wrench_target_weight: float = 0.0,
-                 joint_limit_horizon: float = 0.01, transition_time: float = 0.05, dt: float = 1e-3,
-                 compiled_frames: bool = False):
+                 regularization_wrench: float = 1e-5, wrench_axis_weights: Sequence[float] | None = None,
+                 wrench_target_weight: float = 0.0, joint_limit_horizon: float = 0.01, transition_time: float = 0.05,
+                 dt: float = 1e-3, compiled_frames: bool = False):
         self.model = model
         self.compiled_frames = compiled_frames
         self.data = model.createData()
@@ -172,6 +177,10 @@ class InverseDynamicsFormulation:
         self.v_max, self.tau_max = velocity_limit, effort_limit
         self.regularization_dv = regularization_dv
         self.regularization_wrench = regularization_wrench
+        a = np.ones(6) if wrench_axis_weights is None else np.asarray(wrench_axis_weights, dtype=float)
+        if a.shape != (6,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+            raise ValueError(f"wrench_axis_weights must be 6 finite values >= 0, got {wrench_axis_weights!r}")
+        self.wrench_regularization_diagonal = regularization_wrench * a**2
         self.wrench_target_weight = wrench_target_weight
         self.joint_limit_horizon = joint_limit_horizon
         self.transition_time = transition_time
@@ -298,15 +307,15 @@ class InverseDynamicsFormulation:
         return L.problem
 
     def _fill_wrench_targets(self, L: _Layout, active: tuple) -> None:
-        """The wrench block of the cost: r_w + w_f on the diagonal and -w_f w* in g on ticks with targets."""
+        """The wrench block of the cost: r_w a^2 + w_f on the diagonal and -w_f w* in g on ticks with targets."""
         targets, w = self._targets, self.wrench_target_weight
         if targets is not None and w > 0.0:
-            L.H_diag_w[...] = self.regularization_wrench + w
+            L.H_diag_w.reshape(-1, 6)[...] = self.wrench_regularization_diagonal + w
             for i, name in enumerate(active):
                 np.multiply(targets[name], -w, out=L.g_w[6 * i:6 * i + 6])
             L.targets_set = True
         elif L.targets_set:
-            L.H_diag_w[...] = self.regularization_wrench
+            L.H_diag_w.reshape(-1, 6)[...] = self.wrench_regularization_diagonal
             L.g_w[...] = 0.0
             L.targets_set = False
 

@@ -82,6 +82,7 @@ class InverseDynamicsController(Controller):
             m, soft, contacts, swing, hard_tasks=hard, position_limits=robot.position_limits,
             velocity_limit=robot.velocity_limit, effort_limit=robot.effort_limit,
             regularization_dv=spec.regularization_dv, regularization_wrench=spec.regularization_wrench,
+            wrench_axis_weights=spec.regularization_wrench_axes,
             wrench_target_weight=spec.regularization_wrench_target, joint_limit_horizon=spec.joint_limit_horizon,
             transition_time=c.transition_time, dt=dt, compiled_frames=self.compiled_frames)
         self.data = F.data

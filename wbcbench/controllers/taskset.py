@@ -55,7 +55,8 @@ class ContactSpec:
 
 @dataclass(frozen=True)
 class TaskSetSpec:
-    """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||w||^2;
+    """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||a * w||^2,
+    `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one."""
 
@@ -64,6 +65,7 @@ class TaskSetSpec:
     swing_foot: TaskSpec
     regularization_dv: float = 1e-6
     regularization_wrench: float = 1e-5
+    regularization_wrench_axes: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     joint_limit_horizon: float = 0.01
     regularization_wrench_target: float = 0.0
     solver: str = "daqp"
@@ -188,6 +190,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
+                       regularization_wrench_axes=tuple(reg.vector("wrench_axes", [1.0] * 6, length=6,
+                                                                   nonnegative=True).tolist()),
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,

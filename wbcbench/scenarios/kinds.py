@@ -335,7 +335,9 @@ class TerrainWalkScenario(WalkScenario):
     double_support, initial_double_support, final_double_support [s]; swing_clearance [m]; friction (mu of
     the planner, default 0.5); max_step_length / max_step_height [m]; max_leg_extension: largest hip-ankle
     distance the centroidal plan may ask for, as a fraction of the straight leg (default: the profile's
-    `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off).
+    `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off);
+    com_height [m]: the CoM height above the support the centroidal plan aims at (default: the initial one; a lower
+    one is reached during the initial double support).
     """
 
     kind = "terrain-walk"
@@ -361,6 +363,7 @@ class TerrainWalkScenario(WalkScenario):
         self.max_step_height = params.float("max_step_height", 0.15, positive=True)
         reach = self.robot.profile.stepping.max_leg_extension
         self.max_leg_extension = params.float("max_leg_extension", 0.94 if reach is None else reach, min=0.0, max=1.0)
+        self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
 
     def _leg_reach(self, q0, com0):
         """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint; straight leg: the
@@ -424,8 +427,9 @@ class TerrainWalkScenario(WalkScenario):
                 plan = contacts_from_placements(terrain, start, self.placements, timing=timing, sole=rect, config=cfg)
             else:
                 plan = plan_contacts(terrain, start, self.goal, timing=timing, sole=rect, config=cfg)
+            height = float(com0[2] - ground) if self.com_height is None else self.com_height
             walk = generate_multicontact_walk(
-                plan, CentroidalConfig(mass=self.robot.mass, com_height=float(com0[2] - ground),
+                plan, CentroidalConfig(mass=self.robot.mass, com_height=height,
                                        friction=self.friction, dt=self.spec.control_dt,
                                        leg_reach=self._leg_reach(q0, com0)),
                 swing_clearance=self.clearance, p_world_com_init=com0)
