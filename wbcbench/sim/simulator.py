@@ -17,6 +17,7 @@ from .contact_kernel import ContactRecords, sole_wrenches
 from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, state_layout, state_size, tick_aux
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
+from .spd_kernel import spd_torque
 from ..scene import Terrain
 
 
@@ -28,6 +29,14 @@ class FallStatus:
 
 _STANDING = FallStatus(False)
 _NO_RECORDS = (np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int32))  # read_tick's contact records before the first
+
+
+_NONE = np.zeros(0)
+
+
+def _f64(x) -> np.ndarray:
+    """A command's array as float64 (None: empty, i.e. zero for `spd_torque`)."""
+    return _NONE if x is None else np.asarray(x, dtype=np.float64)
 
 
 class Simulator:
@@ -79,6 +88,8 @@ class Simulator:
         self._command = Command(tau=np.zeros(robot.na))
         self._tick = 0
         self._spd_M = np.zeros((self.model.nv, self.model.nv))
+        self._kp64, self._kd64, self._effort64 = (np.ascontiguousarray(x, dtype=np.float64)
+                                                  for x in (self.kp, self.kd, self.effort))
         self._sole_ids = np.array(list(self._sole_geoms.values()), dtype=np.int32)
         self._sole_wrench = np.zeros((len(self._sole_ids), 6))
         self._contacts: ContactRecords | None = None  # located from the first contact
@@ -256,20 +267,12 @@ class Simulator:
         """Stable PD (Tan et al. 2011) with the next acceleration predicted from the full dynamics."""
         m, d, b = self.model, self.data, self.bridge
         cmd = self._command
-        q = d.qpos[b.mj_q_idx]
-        v = d.qvel[b.mj_v_idx]
-        v_ref = cmd.v if cmd.v is not None else 0.0
-        p_term = self.kp * (cmd.q - q - self.dt * v) + self.kd * (v_ref - v)
         mujoco.mj_fullM(m, d, self._spd_M)
-        A = self._spd_M.copy()
-        A[b.mj_v_idx, b.mj_v_idx] += self.dt * self.kd
-        rhs = -d.qfrc_bias + d.qfrc_passive + d.qfrc_constraint + d.qfrc_applied
-        rhs[b.mj_v_idx] += p_term + (cmd.tau if cmd.tau is not None else 0.0)
-        acc = np.linalg.solve(A, rhs)
-        tau = p_term - self.kd * self.dt * acc[b.mj_v_idx]
-        if cmd.tau is not None:
-            tau = tau + cmd.tau
-        return np.clip(tau, -self.effort, self.effort)
+        out = np.empty(self.robot.na)
+        spd_torque(self._spd_M, d.qpos, d.qvel, b.mj_q_idx, b.mj_v_idx, _f64(cmd.q), _f64(cmd.v), _f64(cmd.tau),
+                   self._kp64, self._kd64, self.dt, d.qfrc_bias, d.qfrc_passive, d.qfrc_constraint, d.qfrc_applied,
+                   self._effort64, out)
+        return out
 
     def step(self, n: int = 1) -> None:
         """Advance n physics steps, applying pushes and (in SPD mode) recomputing the SPD torque each step."""
