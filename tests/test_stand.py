@@ -1,14 +1,16 @@
-"""Standing in simulation: the joint-pd controller keeps TALOS (three modes) and G1 up; pushes are survived;
+"""Standing in simulation: the joint-pd controller keeps TALOS (three modes) and G1 up, IK keeps the G1 on one foot;
 a failing run keeps its log."""
 
 import json
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from wbcbench.controllers.base import Controller, register
 from wbcbench.recorder import read_log
 from wbcbench.runner import run
+from wbcbench.side import Side
 from wbcbench.sim.model import ActuationMode
 
 
@@ -34,6 +36,20 @@ def test_g1_stands_10s_torque(g1, tmp_path):
     res = run("stand", "joint-pd", g1, mode="torque", duration=10.0, out=tmp_path)
     assert not res.summary["fell"], res.summary["fall_reason"]
     assert res.summary["metrics"]["base_height_max_deviation_m"] < 0.02
+
+
+def test_g1_one_foot_ik(g1, tmp_path):
+    """The G1 on one foot with IK in position mode (fell at 3.3 s when the CoM shift took the file's 1.5 s): 2 s
+    on the left foot, the right one lifted, the CoM back over the 7 cm wide sole."""
+    res = run("one-foot", "ik", g1, duration=4.0, out=tmp_path)
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    log, t = res.log, res.log["t"]
+    assert log["contact_right.fz"][t > 2.5].max() < 1.0
+    assert log["contact_left.fz"][-1] == pytest.approx(g1.mass * 9.81, rel=0.05)
+    data = g1.model.createData()
+    pin.framesForwardKinematics(g1.model, data, g1.q0)
+    sole_y = data.oMf[g1.sole_frame_id(Side.LEFT)].translation[1]
+    assert abs(log["com.y"][-1] - sole_y) < 0.02
 
 
 def test_talos_survives_100N_lateral_push(talos, tmp_path):
