@@ -74,11 +74,13 @@ def test_wrench_targets_enter_the_cost(talos):
     F.set_wrench_targets(targets)
     P = F.problem()
     nv = F.nv
-    np.testing.assert_allclose(np.diag(P.H)[nv:], F.regularization_wrench + 0.01)
+    # the regularisation's diagonal per wrench axis (the task set's `regularization.wrench_axes`), every contact
+    reg = np.tile(F.wrench_regularization_diagonal, len(F.names))
+    np.testing.assert_allclose(np.diag(P.H)[nv:], reg + 0.01)
     np.testing.assert_allclose(P.g[nv:], -0.01 * np.concatenate([targets[s] for s in F.names]))
     F.set_wrench_targets(None)
     P = F.problem()
-    np.testing.assert_allclose(np.diag(P.H)[nv:], F.regularization_wrench)
+    np.testing.assert_allclose(np.diag(P.H)[nv:], reg)
     assert not P.g[nv:].any()
 
 

@@ -71,12 +71,13 @@ def test_latency_and_drops(talos):
 
 def test_base_estimator_on_a_walk(tmp_path):
     """walk-20cm (quick) under talos-like sensing, base estimated from IMU + leg kinematics: no fall, base error
-    reported and bounded (measured: 1 cm rms, 2.3 cm max, 0.009 rad)."""
+    reported and bounded (measured: 2.1 cm rms, 4.7 cm max, 0.009 rad with TSID torque's wrench axis weights
+    (1, 1, 0.1, 2, 2, 2); 1.0 cm rms, 2.3 cm max with every axis at 1: the README's TSID torque section)."""
     res = run("walk-20cm-quick", "tsid-torque", out=tmp_path / "w", sensors="talos-like")
     s = res.summary
     assert not s["fell"], s["fall_reason"]
     err = s["metrics"]["base_estimate_error"]
-    assert err["position_max_m"] < 0.04 and err["position_rms_m"] < 0.02 and err["orientation_max_rad"] < 0.02
+    assert err["position_max_m"] < 0.06 and err["position_rms_m"] < 0.03 and err["orientation_max_rad"] < 0.02
     assert err["position_max_m"] > 1e-4  # it is an estimate, not the simulator's state
     assert s["sensors"]["profile"] == "talos-like"
 
