@@ -38,7 +38,7 @@ from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.frame_task import FrameTask
 from wbcbench.tasks.placements import ForwardKinematics, _forward
 
-__all__ = ["FrameBatch", "classical_acceleration", "log3", "origin_motion"]
+__all__ = ["FrameBatch", "classical_acceleration", "log3", "point_motion", "support_product"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -53,17 +53,16 @@ class FrameBatch:
 
     def __init__(self, model: pin.Model, tasks, starts) -> None:
         self.fk = ForwardKinematics(model)
-        framed = [t for t in tasks if not isinstance(t, CoMTask)]
+        pairs = list(zip(tasks, starts, strict=True))
+        framed = [(t, start) for t, start in pairs if not isinstance(t, CoMTask)]
+        self._com = [(t, start) for t, start in pairs if isinstance(t, CoMTask)]
+        self.tasks = tuple(t for t, _ in framed)  # the frame tasks and contacts (the CoM task is `_com`)
         self.supported = self.fk.supported and len(framed) > 0
-        self.tasks = tuple(tasks)
         if not self.supported:
             return
-        nv = model.nv
-        self._com = [(t, start) for t, start in zip(self.tasks, starts, strict=True) if isinstance(t, CoMTask)]
         if len(self._com) > 1:
             raise ValueError("FrameBatch: at most one CoM task")
-        starts = [start for t, start in zip(self.tasks, starts, strict=True) if not isinstance(t, CoMTask)]
-        self.tasks = tuple(framed)
+        nv = model.nv
         k = len(framed)
         parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
         self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
@@ -85,7 +84,7 @@ class FrameBatch:
                     support[i, iv:iv + model.joints[s].nv] = True
         self._support = support
         axes, owner, rows = [], [], []
-        for i, (task, start) in enumerate(zip(self.tasks, starts, strict=True)):
+        for i, (task, start) in enumerate(framed):
             for r, axis in enumerate(task.rows):
                 axes.append(axis)
                 owner.append(i)
@@ -183,37 +182,50 @@ def log3(R, out):
 
 
 @njit
-def origin_motion(JW, dJ, v, support):
-    """The spatial velocity ``(v_o, w) = J v`` and acceleration at zero joint acceleration ``(a_o, w_dot) = dJ v``
-    (6,: linear at the world origin, angular; world axes) of the body whose joints' columns are ``support``
-    (nv,) (pinocchio's WORLD Jacobians ``JW`` and their time variation ``dJ``)."""
-    vo = np.zeros(6)
-    ao = np.zeros(6)
-    for c in range(JW.shape[1]):
+def support_product(M, v, support):
+    """``M[:, support] @ v[support]`` (6,) of a (6, nv) matrix, e.g. pinocchio's WORLD Jacobians ``data.J`` on the
+    columns of the joints supporting a body: its spatial velocity at the world origin ``(v_o, w)``."""
+    out = np.zeros(6)
+    for c in range(M.shape[1]):
         if support[c]:
             vc = v[c]
             for a in range(6):
-                vo[a] += JW[a, c] * vc
-                ao[a] += dJ[a, c] * vc
-    return vo, ao
+                out[a] += M[a, c] * vc
+    return out
+
+
+@njit
+def point_motion(JW, dJ, v, support, p):
+    """Of the point ``p`` (3,) of the body whose joints' columns are ``support``, at zero joint acceleration
+    (pinocchio's WORLD Jacobians ``JW`` and their time variation ``dJ``, world axes): its velocity
+    ``v_o + w x p``, the angular velocity ``w``, the spatial acceleration's linear part ``a_o + w_dot x p`` and the
+    angular acceleration ``w_dot``, from ``(v_o, w) = J v`` and ``(a_o, w_dot) = dJ v`` at the world origin."""
+    vo = support_product(JW, v, support)
+    ao = support_product(dJ, v, support)
+    px, py, pz = p[0], p[1], p[2]
+    wx, wy, wz = vo[3], vo[4], vo[5]
+    dx, dy, dz = ao[3], ao[4], ao[5]
+    pd = np.empty(3)
+    pd[0] = vo[0] + wy * pz - wz * py
+    pd[1] = vo[1] + wz * px - wx * pz
+    pd[2] = vo[2] + wx * py - wy * px
+    a = np.empty(3)
+    a[0] = ao[0] + dy * pz - dz * py
+    a[1] = ao[1] + dz * px - dx * pz
+    a[2] = ao[2] + dx * py - dy * px
+    return pd, vo[3:], a, ao[3:]
 
 
 @njit
 def classical_acceleration(JW, dJ, v, support, p, out):
     """The classical acceleration at zero joint acceleration ``[p_ddot; w_dot]`` (6,, world axes) of the point
-    ``p`` (3,) of that body into ``out``: ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)`` (pinocchio's
-    ``getFrameClassicalAcceleration``, LOCAL_WORLD_ALIGNED)."""
-    vo, ao = origin_motion(JW, dJ, v, support)
-    px, py, pz = p[0], p[1], p[2]
-    wx, wy, wz = vo[3], vo[4], vo[5]
-    dx, dy, dz = ao[3], ao[4], ao[5]
-    pdx = vo[0] + wy * pz - wz * py  # velocity of the point: v_o + w x p
-    pdy = vo[1] + wz * px - wx * pz
-    pdz = vo[2] + wx * py - wy * px
-    out[0] = ao[0] + dy * pz - dz * py + wy * pdz - wz * pdy
-    out[1] = ao[1] + dz * px - dx * pz + wz * pdx - wx * pdz
-    out[2] = ao[2] + dx * py - dy * px + wx * pdy - wy * pdx
-    out[3], out[4], out[5] = dx, dy, dz
+    ``p`` (3,) of that body into ``out``: ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)`` (`point_motion`;
+    pinocchio's ``getFrameClassicalAcceleration``, LOCAL_WORLD_ALIGNED)."""
+    pd, w, a, wd = point_motion(JW, dJ, v, support, p)
+    out[0] = a[0] + w[1] * pd[2] - w[2] * pd[1]
+    out[1] = a[1] + w[2] * pd[0] - w[0] * pd[2]
+    out[2] = a[2] + w[0] * pd[1] - w[1] * pd[0]
+    out[3], out[4], out[5] = wd[0], wd[1], wd[2]
 
 
 @njit
@@ -271,15 +283,10 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
         err[i, 3], err[i, 4], err[i, 5] = w[0], w[1], w[2]
         if with_drift:
             if local[i]:  # spatial acceleration at the frame origin, in the frame's axes
-                vo, ao = origin_motion(J, dJ, v, support[i])
-                px, py, pz = t[i, 0], t[i, 1], t[i, 2]
-                dx, dy, dz = ao[3], ao[4], ao[5]
-                a0 = ao[0] + dy * pz - dz * py
-                a1 = ao[1] + dz * px - dx * pz
-                a2 = ao[2] + dx * py - dy * px
+                _, _, sa, wd = point_motion(J, dJ, v, support[i], t[i])
                 for a in range(3):
-                    acc[i, a] = R[i, 0, a] * a0 + R[i, 1, a] * a1 + R[i, 2, a] * a2
-                    acc[i, 3 + a] = R[i, 0, a] * dx + R[i, 1, a] * dy + R[i, 2, a] * dz
+                    acc[i, a] = R[i, 0, a] * sa[0] + R[i, 1, a] * sa[1] + R[i, 2, a] * sa[2]
+                    acc[i, 3 + a] = R[i, 0, a] * wd[0] + R[i, 1, a] * wd[1] + R[i, 2, a] * wd[2]
             else:
                 classical_acceleration(J, dJ, v, support[i], t[i], acc[i])
     col = np.empty(6)

@@ -48,7 +48,7 @@ import pinocchio as pin
 from wbcbench.jit import njit
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
-from wbcbench.tasks.frame_batch import classical_acceleration
+from wbcbench.tasks.frame_batch import classical_acceleration, support_product
 from wbcbench.tasks.placements import ForwardKinematics, _forward_gather
 from wbcbench.tasks.task import Task
 from wbcbench.tasks.registry import register_task
@@ -214,14 +214,8 @@ def _velocity_kernel(JW, v, J, inp, velocity, drift):
 def _point_velocity(JW, v, mask, X):
     """Velocity (3,) of the world point ``X`` moving with the joint of support ``mask``, and that joint's angular
     velocity (3,), world axes."""
-    lin = np.zeros(3)
-    w = np.zeros(3)
-    for col in range(JW.shape[1]):
-        if mask[col]:
-            vc = v[col]
-            for a in range(3):
-                lin[a] += JW[a, col] * vc
-                w[a] += JW[3 + a, col] * vc
+    vo = support_product(JW, v, mask)  # (v_o, w) at the world origin
+    lin, w = vo[:3].copy(), vo[3:].copy()
     lin[0] += w[1] * X[2] - w[2] * X[1]
     lin[1] += w[2] * X[0] - w[0] * X[2]
     lin[2] += w[0] * X[1] - w[1] * X[0]
@@ -570,17 +564,27 @@ class SelfCollisionTask(Task):
         numpy reference of the same is in the tests (tests/tasks/self_collision_reference.py). The kernel's
         buffers are the task's own, overwritten at the next configuration (the cache holds one configuration;
         the public methods return copies)."""
+        out = self._position_outputs(model)
+        k = _position_kernel(R_all, t_all, data.J, self._geometry, out)
+        return self._new_cache(key, out, k, t_all[0] + out.rx, t_all)
+
+    def _position_outputs(self, model: pin.Model) -> PositionOutputs:
+        """The position kernel's buffers (allocated for the model's nv, kept between ticks)."""
         out = self._outputs
         if out is None or out.J.shape[1] != model.nv:
             n, nv = self.dim, model.nv
             out = self._outputs = PositionOutputs(np.empty(n), np.empty(n), np.empty((n, nv)), np.empty((n, 3)),
                                                   np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
                                                   np.empty(3), self._act)
-        C, dist, J, G, HC, HK, REL, RW, rx, act = out
-        k = _position_kernel(R_all, t_all, data.J, self._geometry, out)
-        idx = act[:k].copy()
-        self._cache = _Cache(key=key, C=C, distances=dist, J=J, active=idx.tolist(), rx=rx, x=t_all[0] + rx,
-                             act=idx, G=G, HC=HC, HK=HK, REL=REL, RW=RW, origins=t_all)
+            self._rows_args = None  # they hold the old buffers
+        return out
+
+    def _new_cache(self, key: tuple, out: PositionOutputs, k: int, x: FloatArray, origins: FloatArray) -> _Cache:
+        """The cache of a configuration from the position kernel's outputs (``k`` active repulsors first in
+        ``out.act``), the protected point ``x`` and the joints' origins."""
+        idx = out.act[:k].copy()
+        self._cache = _Cache(key=key, C=out.C, distances=out.dist, J=out.J, active=idx.tolist(), rx=out.rx, x=x,
+                             act=idx, G=out.G, HC=out.HC, HK=out.HK, REL=out.REL, RW=out.RW, origins=origins)
         return self._cache
 
     def _evaluate_velocity(self, model: pin.Model, data: pin.Data) -> _Cache:
@@ -626,11 +630,7 @@ class SelfCollisionTask(Task):
         key = (id(data), q.tobytes())
         cache = self._cache
         if cache.key != key or (drift_out is not None and cache.vkey is None):
-            out = self._outputs
-            if out is None or out.J.shape[1] != model.nv:
-                self._evaluate_jit(model, data, key, *self._placements)  # allocates the buffers
-                out = self._outputs
-                self._rows_args = None
+            out = self._position_outputs(model)
             args = self._rows_args
             if args is None:  # the kernel's fixed arguments, in its order around q, the Jacobians and v
                 g = self._geometry
@@ -646,10 +646,7 @@ class SelfCollisionTask(Task):
             JW = data.J
             k = _rows_flat(q, *args[0], JW, data.dJ if with_velocity else JW, v, *args[1], x, velocity, drift,
                            with_velocity)
-            act = out.act
-            idx = act[:k].copy()
-            cache = self._cache = _Cache(key, None, out.C, out.dist, out.J, idx.tolist(), out.rx, x, idx, out.G,
-                                         out.HC, out.HK, out.REL, out.RW, None, None, self._placements[1])
+            cache = self._new_cache(key, out, k, x, self._placements[1])
             if with_velocity:
                 cache.velocity, cache.drift, cache.vkey = velocity, drift, v.tobytes()
         elif drift_out is not None:
