@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from wbcbench.cli import main
@@ -181,3 +182,29 @@ def test_a_failed_background_write_is_raised_and_the_earlier_groups_kept(tmp_pat
     with pytest.raises(OSError, match="No space left"):  # the disk is still full: the last rows cannot go
         rec.close()
     assert read_log(tmp_path / "log.parquet")["x"].tolist() == list(range(20))
+
+
+def test_derived_columns_are_filled_per_row_group(tmp_path: Path):
+    """`Recorder.derive`: a column computed from the others once per row group (in the writer thread) holds, in
+    the file, the value of every row, the last partial group included; rows a tick left unwritten stay NaN."""
+    from wbcbench.recorder import Recorder, read_log
+
+    rec = Recorder(tmp_path / "log.parquet", chunk=7)
+    x, y, z = rec.add_channel("x"), rec.add_channel("y", ["a", "b"]), rec.add_channel("z")
+
+    def fill(block):
+        block[:, y.start] = 2.0 * block[:, x.start]
+        block[:, y.start + 1] = block[:, x.start] ** 2
+
+    rec.derive(fill)
+    for k in range(23):
+        rec.row[x] = k
+        if k % 2:
+            rec.row[z] = -k
+        rec.commit()
+    rec.close()
+    log = read_log(tmp_path / "log.parquet")
+    k = np.arange(23.0)
+    np.testing.assert_array_equal(log["y.a"], 2 * k)
+    np.testing.assert_array_equal(log["y.b"], k ** 2)
+    np.testing.assert_array_equal(np.isnan(log["z"]), k % 2 == 0)

@@ -33,7 +33,14 @@ class Recorder:
         self._writer: pq.ParquetWriter | None = None
         self._pending: threading.Thread | None = None
         self._pending_error: BaseException | None = None
+        self._derived: list = []
         self.rows_written = 0
+
+    def derive(self, fill) -> None:
+        """Columns computed from others once per row group instead of once per tick: ``fill(block)`` writes them
+        into the flushed rows (an (n, columns) float64 array, row-major), in the writer thread before the write
+        (e.g. a compiled pass that releases the GIL). Its errors surface like a failed write."""
+        self._derived.append(fill)
 
     def add_channel(self, name: str, components: list[str] | None = None) -> slice:
         if self._buf is not None:
@@ -52,14 +59,16 @@ class Recorder:
     def row(self) -> np.ndarray:
         """The row being filled (write into it with the slices returned by add_channel)."""
         if self._buf is None:
-            # column-major: each column of a flushed block is contiguous and goes to Arrow without a copy
-            self._buf = np.full((self.chunk, len(self.columns)), np.nan, order="F")
+            # row-major: a tick's writes land in one contiguous row (a few cache lines) rather than one line
+            # and one page per column; the writer thread transposes a flushed block for Arrow
+            self._buf = np.full((self.chunk, len(self.columns)), np.nan)
         return self._buf[self._n]
 
     def commit(self) -> None:
-        self.row  # noqa: B018  (allocates on first use)
-        self._n += 1
-        if self._n == self.chunk:
+        if self._buf is None:
+            self.row  # noqa: B018  (allocates on first use)
+        n = self._n = self._n + 1
+        if n == self.chunk:
             self.flush()
 
     def flush(self, wait: bool = False) -> None:
@@ -69,25 +78,28 @@ class Recorder:
         self._join()
         if self._buf is None or self._n == 0:
             return
+        # the filled rows; not reused before the write is done (the other buffer is filled meanwhile)
         block = self._buf[: self._n]
-        # zero-copy columns of the column-major buffer: it is not reused before the write is done
-        table = pa.Table.from_arrays([pa.array(block[:, i]) for i in range(block.shape[1])], names=self.columns)
         if self._writer is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            # no dictionary encoding: float channels almost never repeat, and trying costs half the write time
-            self._writer = pq.ParquetWriter(self.path, table.schema, compression="zstd", use_dictionary=False)
+            schema = pa.schema([(name, pa.float64()) for name in self.columns])
+            # no dictionary encoding: float channels almost never repeat, and trying costs half the write time;
+            # the floats' bytes split into streams (exponents together) then LZ4: measured on a walk log, 7.4 MB
+            # in 1.9 us per row, against 8.9 MB in 3.3 us with zstd on the plain floats
+            self._writer = pq.ParquetWriter(self.path, schema, compression="lz4", use_dictionary=False,
+                                            use_byte_stream_split=True)
         n, self._n = self._n, 0
         self._buf, self._spare = (self._spare, self._buf)
         if self._buf is None:
-            self._buf = np.full((self.chunk, len(self.columns)), np.nan, order="F")
+            self._buf = np.full((self.chunk, len(self.columns)), np.nan)
         else:
             self._buf[:] = np.nan
-        self._pending = threading.Thread(target=self._write, args=(table, n), name="wbcbench-log-writer", daemon=True)
+        self._pending = threading.Thread(target=self._write, args=(block, n), name="wbcbench-log-writer", daemon=True)
         self._pending.start()
         if wait:
             self._join()
 
-    def _write(self, table: pa.Table, n: int) -> None:
+    def _write(self, block: np.ndarray, n: int) -> None:
         # below the run's thread: on a core it shares with the loop (a pinned run) the write takes the time the
         # loop leaves (a paced run sleeps between ticks) instead of delaying ticks by a group's write
         try:
@@ -95,6 +107,11 @@ class Recorder:
         except (AttributeError, OSError):  # no per-thread priority here: the write runs as it is
             pass
         try:
+            for fill in self._derived:
+                fill(block)
+            columns = np.asfortranarray(block)  # each column contiguous: Arrow takes them without a copy
+            table = pa.Table.from_arrays([pa.array(columns[:, i]) for i in range(columns.shape[1])],
+                                         names=self.columns)
             self._writer.write_table(table)
             self.rows_written += n
         except BaseException as exc:  # raised in the caller's thread by the next flush or close

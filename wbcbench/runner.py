@@ -34,6 +34,7 @@ from .estimation.fall import FallPredictor
 from .faults import FaultInjector
 from .sensing import make_sensor_model
 from .stabilizers.base import MissingReferenceError
+from .tasks.placements import CenterOfMass
 from .sim.simulator import Simulator
 
 
@@ -241,6 +242,13 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     stopper = None
 
     model, data = robot.model, robot.model.createData()
+    # the ground-truth CoM and its velocity: computed from the logged q and v for a whole row group at a time
+    # (compiled, in the log's writer thread), or per tick by pinocchio for joint types the kernel lacks
+    com_kernel = CenterOfMass(model)
+    if com_kernel.supported and s_vcom.start == s_com.start + 3:
+        rec.derive(lambda block: com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start))
+    else:
+        com_kernel = None
     q_true = sim.true_q()
     scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
     duration = spec.duration if spec.duration > 0 else scen.planned_duration
@@ -277,8 +285,10 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         except MissingReferenceError as exc:  # the scenario lacks what the controller's stabilizer needs
             raise ConfigError(f"scenario '{spec.name}' with controller '{controller}': {exc}",
                               file=spec.file) from None
+        control_dt = spec.control_dt
+        ideal_sensing = sensing.ideal  # the controller sees the simulator's measurement as it is
         for tick in range(n_ticks):
-            t = tick * spec.control_dt
+            t = tick * control_dt
             if tick == k_branch:
                 approach = time.perf_counter() - wall0
                 try:
@@ -307,7 +317,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 p.observe(t, refs)
             c0 = time.perf_counter()
             cmd = ctrl.step(meas, refs)
-            ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
+            ctrl_us[tick] = step_us = (time.perf_counter() - c0) * 1e6
             if injector.enabled:
                 cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
             if predictor is not None:
@@ -331,9 +341,10 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             # wrenches and F/T readings go into the row in the same call
             state, fs = sim.read_tick(row, truth_dst)
             true_meas = sim.measurement(state)  # ground truth before the sensor layer
-            row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
-            row[s_vcom] = data.vcom[0]
-            row[i_t] = (tick + 1) * spec.control_dt
+            if com_kernel is None:  # else filled per row group from the logged q and v (below)
+                row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
+                row[s_vcom] = data.vcom[0]
+            row[i_t] = (tick + 1) * control_dt
             if refs.com is not None:
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
@@ -348,12 +359,12 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                     if target.rotation is not None:
                         cells[3:] = target.rotation.reshape(-1)
             row[s_in_all] = in_contact[refs.contacts]
-            meas = sensing.measure(true_meas)
+            meas = true_meas if ideal_sensing else sensing.measure(true_meas)
             if injector.enabled:
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
-            row[s_time] = ctrl_us[tick]
+            row[s_time] = step_us
             for sl, val in zip(s_extra, ctrl.log_values()):
                 row[sl] = val
             if s_scen:

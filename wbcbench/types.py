@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
@@ -95,11 +95,10 @@ class PointReference:
     @classmethod
     def unchecked(cls, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> "PointReference":
         """From (3,) float64 arrays already checked (e.g. rows of a precomputed plan): no conversion, no copy."""
-        ref = object.__new__(cls)
-        setattr_ = object.__setattr__
-        setattr_(ref, "position", position)
-        setattr_(ref, "velocity", velocity)
-        setattr_(ref, "acceleration", acceleration)
+        ref = _new(cls)
+        _POINT_SET[0](ref, position)
+        _POINT_SET[1](ref, velocity)
+        _POINT_SET[2](ref, acceleration)
         return ref
 
 
@@ -139,12 +138,11 @@ class PoseReference:
                   acceleration: np.ndarray) -> "PoseReference":
         """From float64 arrays of the right shapes already checked ((3,), (3, 3) or None, (6,), (6,); e.g. rows
         of a precomputed plan): no conversion, no copy."""
-        ref = object.__new__(cls)
-        setattr_ = object.__setattr__
-        setattr_(ref, "position", position)
-        setattr_(ref, "rotation", rotation)
-        setattr_(ref, "velocity", velocity)
-        setattr_(ref, "acceleration", acceleration)
+        ref = _new(cls)
+        _POSE_SET[0](ref, position)
+        _POSE_SET[1](ref, rotation)
+        _POSE_SET[2](ref, velocity)
+        _POSE_SET[3](ref, acceleration)
         return ref
 
     @classmethod
@@ -182,18 +180,37 @@ class References:
     wrench_targets: dict = field(default_factory=dict)
     contact_poses: dict = field(default_factory=dict)
 
+    @classmethod
+    def planned(cls, t: float, contacts: frozenset, com: PointReference | None, zmp: np.ndarray | None,
+                feet: dict) -> "References":
+        """A tick of a plan from values already checked (no targets or stabilizer fields): as the constructor,
+        without its per-field machinery (a walk makes one every tick)."""
+        new = _new(cls)
+        t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
+        t_(new, t)
+        contacts_(new, contacts)
+        com_(new, com)
+        zmp_(new, zmp)
+        feet_(new, feet)
+        targets_(new, {})
+        wrench_targets_(new, {})
+        contact_poses_(new, {})
+        return new
+
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict) -> "References":
         """A copy with the fields a stabilizer corrects replaced (`dataclasses.replace` without its per-field
         machinery: a stabilizer does this every tick)."""
-        new = object.__new__(References)
-        setattr_ = object.__setattr__
-        for name in _REFERENCE_FIELDS:
-            setattr_(new, name, getattr(self, name))
-        setattr_(new, "com", com)
-        setattr_(new, "targets", targets)
-        setattr_(new, "wrench_targets", wrench_targets)
-        setattr_(new, "contact_poses", contact_poses)
+        new = _new(References)
+        t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
+        t_(new, self.t)
+        contacts_(new, self.contacts)
+        com_(new, com)
+        zmp_(new, self.zmp)
+        feet_(new, self.feet)
+        targets_(new, targets)
+        wrench_targets_(new, wrench_targets)
+        contact_poses_(new, contact_poses)
         return new
 
     def missing(self, names) -> list[str]:
@@ -206,7 +223,13 @@ class References:
         return out
 
 
-_REFERENCE_FIELDS = tuple(f.name for f in fields(References))
+# the fast constructors set the slots of these frozen classes through their descriptors (what the dataclass
+# __init__ does through object.__setattr__, by name)
+_new = object.__new__
+_POINT_SET = tuple(PointReference.__dict__[n].__set__ for n in ("position", "velocity", "acceleration"))
+_POSE_SET = tuple(PoseReference.__dict__[n].__set__ for n in ("position", "rotation", "velocity", "acceleration"))
+_REFERENCE_SET = tuple(References.__dict__[n].__set__ for n in ("t", "contacts", "com", "zmp", "feet", "targets",
+                                                                "wrench_targets", "contact_poses"))
 
 
 @dataclass(frozen=True, slots=True)

@@ -118,3 +118,30 @@ def test_cli_unknown_task_type_and_stabilizer_type(talos, tmp_path):
         assert out.returncode == 2, out.stderr
         lines = out.stderr.strip().splitlines()
         assert len(lines) == 1 and needle in lines[0] and str(path) in lines[0], out.stderr
+
+
+def test_the_fast_reference_constructors_set_every_field():
+    """`References.planned` and `corrected` (slot by slot, for the per-tick paths) give what the constructor and
+    `dataclasses.replace` give, for every field References has; `PointReference.unchecked` likewise."""
+    from dataclasses import fields
+
+    from wbcbench.robots import Side
+    from wbcbench.types import PoseReference
+
+    com = PointReference(np.array([0.1, 0.0, 0.9]))
+    zmp = np.array([0.05, 0.0, 0.0])
+    feet = {Side.LEFT: PoseReference(np.array([0.2, 0.1, 0.05]))}
+    made = References.planned(0.5, frozenset({Side.RIGHT}), com, zmp, feet)
+    full = References(t=0.5, contacts=frozenset({Side.RIGHT}), com=com, zmp=zmp, feet=feet)
+    names = [f.name for f in fields(References)]
+    for n in names:
+        assert getattr(made, n) is getattr(full, n) or getattr(made, n) == getattr(full, n), n
+    assert made.targets is not References.planned(0.5, frozenset(), None, None, {}).targets  # fresh dicts
+    new_com = PointReference(np.array([0.0, 0.1, 0.8]))
+    fixed = full.corrected(new_com, {"hand": 1}, {Side.RIGHT: np.ones(6)}, {Side.RIGHT: "pose"})
+    expect = replace(full, com=new_com, targets={"hand": 1}, wrench_targets=fixed.wrench_targets,
+                     contact_poses={Side.RIGHT: "pose"})
+    for n in names:
+        assert getattr(fixed, n) is getattr(expect, n) or getattr(fixed, n) == getattr(expect, n), n
+    p = PointReference.unchecked(com.position, com.velocity, com.acceleration)
+    assert p == com

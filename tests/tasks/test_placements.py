@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from wbcbench.tasks.placements import ForwardKinematics
+from wbcbench.tasks.placements import CenterOfMass, ForwardKinematics
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -47,3 +47,30 @@ def test_a_subset_of_joints(erd_talos):
     R, t = fk.joints(q, joints, np.empty((4, 3, 3)), np.empty((4, 3)))
     np.testing.assert_array_equal(R, R_all[joints])
     np.testing.assert_array_equal(t, t_all[joints])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_center_of_mass_and_its_velocity_are_pinocchios(erd_talos, seed):
+    """The compiled CoM and CoM velocity (the log's ground truth) equal pinocchio's centerOfMass(q, v) to
+    rounding, one row and a block of rows (random states: base anywhere, every joint moving)."""
+    model = erd_talos.model
+    data = model.createData()
+    com = CenterOfMass(model)
+    assert com.supported
+    rng = np.random.default_rng(seed)
+    nq, nv = model.nq, model.nv
+    rows = np.full((5, 3 + nq + nv + 6 + 2), np.nan)  # columns: padding, q, v, com, com_vel, padding
+    for r in range(5):
+        q, _ = erd_talos.random_state(seed * 10 + r)
+        rows[r, 3:3 + nq] = q
+        rows[r, 3 + nq:3 + nq + nv] = rng.normal(scale=2.0, size=nv)
+    one = rows[0].copy()
+    com.write(one, 3, 3 + nq, 3 + nq + nv)
+    com.write_rows(rows, 3, 3 + nq, 3 + nq + nv)
+    np.testing.assert_array_equal(one, rows[0])
+    for r in range(5):
+        pin.centerOfMass(model, data, rows[r, 3:3 + nq], rows[r, 3 + nq:3 + nq + nv], False)
+        out = rows[r, 3 + nq + nv:3 + nq + nv + 6]
+        np.testing.assert_allclose(out[:3], data.com[0], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(out[3:], data.vcom[0], rtol=0, atol=1e-12)
+    assert np.isnan(rows[:, :3]).all() and np.isnan(rows[:, -2:]).all()  # nothing written outside

@@ -64,6 +64,7 @@ class InverseDynamicsController(Controller):
         if taskset is None or isinstance(taskset, (str, Path)):
             taskset = load_taskset(taskset or taskset_path(robot, self.name), robot)
         self.spec = spec = taskset
+        self._log_active = np.zeros(2)  # the contact_active log values (the caller copies them each tick)
         m = self.model = robot.model
         self.nv = m.nv
         tasks = [build_task(robot, t) for t in spec.tasks]
@@ -267,8 +268,9 @@ class InverseDynamicsController(Controller):
         vals = [self.qp_status, self.tau]
         if self.stabilizer is not None:
             vals.append(self.stabilizer.log)
-        vals += [F.wrenches[Side.LEFT], F.wrenches[Side.RIGHT],
-                 [float(F.contacts[Side.LEFT].active), float(F.contacts[Side.RIGHT].active)]]
+        active = self._log_active
+        active[0], active[1] = F.contacts[Side.LEFT].active, F.contacts[Side.RIGHT].active
+        vals += [F.wrenches[Side.LEFT], F.wrenches[Side.RIGHT], active]
         return vals
 
     def status(self) -> dict:

@@ -232,15 +232,23 @@ class Simulator:
         (left, right: force then torque) in consecutive columns starting at ``dst`` (int64: q, v, tau, wrenches,
         F/T)."""
         d = self.data
+        views = self._views
+        if views[0] is not d:  # MuJoCo's fixed-size arrays, viewed once per MjData (each access makes a view)
+            views = self._views = (d, d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos)
         n = d.ncon
         rec = self._contacts
         if n and (rec is None or rec.data is not d):
             rec = self._locate_contacts()
         floats, ints = (rec.floats, rec.ints) if rec is not None else _NO_RECORDS
         state = np.empty(self._state_size)
-        numbers = read_tick(d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.efc_force, n, floats, ints,
-                            self._pyramidal, self._state_layout, self._tick_aux, state, self._sole_wrench, row, dst)
-        return state, self._fall(*numbers)
+        finite, height, cos_tilt = read_tick(views[1], views[2], views[3], views[4], views[5], d.efc_force, n, floats,
+                                             ints, self._pyramidal, self._state_layout, self._tick_aux, state,
+                                             self._sole_wrench, row, dst)
+        if finite and height >= self._min_base_height and cos_tilt >= self._cos_max_tilt:
+            return state, _STANDING
+        return state, self._fall(finite, height, cos_tilt)
+
+    _views = (None,)
 
     def _locate_contacts(self) -> ContactRecords:
         rec = self._contacts = ContactRecords(self.data)
@@ -251,11 +259,10 @@ class Simulator:
     def apply(self, command: Command) -> None:
         """Set the command used by the following physics steps (held until the next call)."""
         self._command = command
-        na = self.robot.na
         ctrl = self.data.ctrl
         act = self._act
         if self.mode is ActuationMode.TORQUE:
-            ctrl[act] = command.tau if command.tau is not None else np.zeros(na)
+            ctrl[act] = command.tau if command.tau is not None else 0.0
         elif self.mode is ActuationMode.POSITION:
             v = command.v if command.v is not None else 0.0
             ctrl[act] = command.q + self._kd_over_kp * v

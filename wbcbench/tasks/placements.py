@@ -17,7 +17,7 @@ import pinocchio as pin
 
 from wbcbench.jit import njit
 
-__all__ = ["ForwardKinematics"]
+__all__ = ["CenterOfMass", "ForwardKinematics"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -81,6 +81,98 @@ class ForwardKinematics:
         (k, 3), world."""
         _forward(q, self._kinds, self._parents, self._idx_q, self._R0, self._t0, self.R, self.t)
         _frames(self.R, self.t, *arrays, R_out, t_out)
+
+
+class CenterOfMass:
+    """The centre of mass of ``model`` and its velocity for (q, v), compiled: pinocchio's
+    ``centerOfMass(model, data, q, v)`` (``data.com[0]``, ``data.vcom[0]``) with the sums in another order (equal
+    to rounding; the tests compare them). For free-flyer and axis-aligned revolute joints
+    (`ForwardKinematics.supported`).
+
+    The velocity is the Jacobian's sum over the joints: a revolute joint j turning at qdot_j about its world axis
+    a_j moves its subtree's centre of mass at ``qdot_j a_j x (c_j - o_j)``, weighted by the subtree's mass; the
+    free flyer moves everything as a rigid body (its velocity in its own frame, as pinocchio's)."""
+
+    def __init__(self, model: pin.Model):
+        self.fk = ForwardKinematics(model)
+        self.supported = self.fk.supported
+        n = model.njoints
+        self._idx_v = np.array([model.joints[j].idx_v if j > 0 else 0 for j in range(n)], dtype=np.intp)
+        self._mass = np.array([model.inertias[j].mass for j in range(n)])
+        self._lever = np.array([model.inertias[j].lever for j in range(n)])
+        self._msub = np.zeros(n)
+        self._csub = np.zeros((n, 3))
+
+    def write(self, x: FloatArray, iq: int, iv: int, out: int) -> None:
+        """Read q at ``x[iq:iq+nq]`` and v at ``x[iv:iv+nv]``; write the CoM [m] and its velocity [m/s], world, at
+        ``x[out:out+6]`` (e.g. one log row holding all three)."""
+        fk = self.fk
+        _center_of_mass(x, iq, iv, out, fk._kinds, fk._parents, fk._idx_q, self._idx_v, fk._R0, fk._t0, self._mass,
+                        self._lever, fk.R, fk.t, self._msub, self._csub)
+
+    def write_rows(self, rows: FloatArray, iq: int, iv: int, out: int) -> None:
+        """`write` for each row of ``rows`` (n, columns) in one call (without the GIL: e.g. a log block in a
+        writer thread). Not to be called from two threads at once (the object's work arrays)."""
+        fk = self.fk
+        _center_of_mass_rows(rows, iq, iv, out, fk._kinds, fk._parents, fk._idx_q, self._idx_v, fk._R0, fk._t0,
+                             self._mass, self._lever, fk.R, fk.t, self._msub, self._csub)
+
+
+@njit
+def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, lever, R, t, msub, csub):
+    """`CenterOfMass.write`: placements, each body's mass-weighted centre, the subtrees' sums (children after
+    their parents in pinocchio's order), then the CoM and its velocity."""
+    n = kinds.shape[0]
+    _forward(x[iq:], kinds, parents, idx_q, R0, t0, R, t)
+    for j in range(n):
+        m = mass[j]
+        msub[j] = m
+        for a in range(3):
+            csub[j, a] = m * (R[j, a, 0] * lever[j, 0] + R[j, a, 1] * lever[j, 1] + R[j, a, 2] * lever[j, 2]
+                              + t[j, a])
+    for j in range(n - 1, 0, -1):
+        p = parents[j]
+        msub[p] += msub[j]
+        for a in range(3):
+            csub[p, a] += csub[j, a]
+    total = msub[0]
+    vx = vy = vz = 0.0
+    for j in range(1, n):
+        # the subtree's first moment about the joint's origin: sum of m_i (c_i - o_j)
+        rx = csub[j, 0] - msub[j] * t[j, 0]
+        ry = csub[j, 1] - msub[j] * t[j, 1]
+        rz = csub[j, 2] - msub[j] * t[j, 2]
+        k = kinds[j]
+        i = iv + idx_v[j]
+        if k == 1:  # linear then angular velocity, in the joint's frame
+            lx, ly, lz = x[i], x[i + 1], x[i + 2]
+            wx_, wy_, wz_ = x[i + 3], x[i + 4], x[i + 5]
+            ax = R[j, 0, 0] * wx_ + R[j, 0, 1] * wy_ + R[j, 0, 2] * wz_
+            ay = R[j, 1, 0] * wx_ + R[j, 1, 1] * wy_ + R[j, 1, 2] * wz_
+            az = R[j, 2, 0] * wx_ + R[j, 2, 1] * wy_ + R[j, 2, 2] * wz_
+            m = msub[j]
+            vx += m * (R[j, 0, 0] * lx + R[j, 0, 1] * ly + R[j, 0, 2] * lz)
+            vy += m * (R[j, 1, 0] * lx + R[j, 1, 1] * ly + R[j, 1, 2] * lz)
+            vz += m * (R[j, 2, 0] * lx + R[j, 2, 1] * ly + R[j, 2, 2] * lz)
+        else:
+            c = k - 2
+            w = x[i]
+            ax, ay, az = R[j, 0, c] * w, R[j, 1, c] * w, R[j, 2, c] * w
+        vx += ay * rz - az * ry
+        vy += az * rx - ax * rz
+        vz += ax * ry - ay * rx
+    for a in range(3):
+        x[out + a] = csub[0, a] / total
+    x[out + 3] = vx / total
+    x[out + 4] = vy / total
+    x[out + 5] = vz / total
+
+
+@njit
+def _center_of_mass_rows(rows, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, lever, R, t, msub, csub):
+    """`_center_of_mass` on each row."""
+    for r in range(rows.shape[0]):
+        _center_of_mass(rows[r], iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, lever, R, t, msub, csub)
 
 
 @njit
