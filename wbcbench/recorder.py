@@ -92,8 +92,7 @@ class Recorder:
         self._buf, self._spare = (self._spare, self._buf)
         if self._buf is None:
             self._buf = np.full((self.chunk, len(self.columns)), np.nan)
-        else:
-            self._buf[:] = np.nan
+        # the writer thread writes the block, then resets its buffer (the next one filled) to NaN
         self._pending = threading.Thread(target=self._write, args=(block, n), name="wbcbench-log-writer", daemon=True)
         self._pending.start()
         if wait:
@@ -116,6 +115,8 @@ class Recorder:
             self.rows_written += n
         except BaseException as exc:  # raised in the caller's thread by the next flush or close
             self._pending_error = exc
+        finally:
+            block.base[:] = np.nan  # rows a tick leaves unwritten are NaN in the file
 
     def _join(self) -> None:
         if self._pending is not None:

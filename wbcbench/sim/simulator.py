@@ -28,6 +28,7 @@ class FallStatus:
 
 
 _STANDING = FallStatus(False)
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 _NO_RECORDS = (np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int32))  # read_tick's contact records before the first
 
 
@@ -158,9 +159,8 @@ class Simulator:
     def measurement(self, state: np.ndarray) -> Measurement:
         """The `Measurement` whose arrays are views of `state` (from `read_state`, not to be reused)."""
         q, v, imu, gyro, acc, fl, tl, fr, tr = self._measurement_slices
-        return Measurement(t=self._tick * self.dt, q=state[q], v=state[v], imu_quat=state[imu], gyro=state[gyro],
-                           accelerometer=state[acc], ft_force={Side.LEFT: state[fl], Side.RIGHT: state[fr]},
-                           ft_torque={Side.LEFT: state[tl], Side.RIGHT: state[tr]})
+        return Measurement(self._tick * self.dt, state[q], state[v], state[imu], state[gyro], state[acc],
+                           {_LEFT: state[fl], _RIGHT: state[fr]}, {_LEFT: state[tl], _RIGHT: state[tr]})
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
