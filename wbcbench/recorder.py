@@ -64,12 +64,15 @@ class Recorder:
             self._buf = np.full((self.chunk, len(self.columns)), np.nan)
         return self._buf[self._n]
 
-    def commit(self) -> None:
+    def commit(self) -> np.ndarray:
+        """Keep the row filled and return the next one (the same as `row` then)."""
         if self._buf is None:
             self.row  # noqa: B018  (allocates on first use)
         n = self._n = self._n + 1
         if n == self.chunk:
             self.flush()
+            n = 0
+        return self._buf[n]
 
     def flush(self, wait: bool = False) -> None:
         """Write the rows filled so far as a row group. The compression and the file write run in a thread

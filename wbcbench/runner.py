@@ -287,6 +287,10 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                               file=spec.file) from None
         control_dt = spec.control_dt
         ideal_sensing = sensing.ideal  # the controller sees the simulator's measurement as it is
+        row = rec.row  # the row of this tick's log (the recorder hands out the next one at each commit)
+        # the per-tick calls, looked up once
+        references, ctrl_step, apply, physics = scen.references, ctrl.step, sim.apply, sim.step
+        read_tick, measurement, log_values, commit = sim.read_tick, sim.measurement, ctrl.log_values, rec.commit
         for tick in range(n_ticks):
             t = tick * control_dt
             if tick == k_branch:
@@ -312,11 +316,11 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                         wall_start -= ahead
             if observe is not None:  # a scenario that re-plans from the measurement (e.g. step adjustment)
                 observe(t, meas)
-            refs = scen.references(t)
+            refs = references(t)
             for p in observers:
                 p.observe(t, refs)
             c0 = time.perf_counter()
-            cmd = ctrl.step(meas, refs)
+            cmd = ctrl_step(meas, refs)
             ctrl_us[tick] = step_us = (time.perf_counter() - c0) * 1e6
             if injector.enabled:
                 cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
@@ -329,18 +333,17 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                         stopper = JointPD(robot, ctrl.mode, spec.control_dt)
                         stopper.q_ref = meas.q[7:].copy()
                     cmd = stopper.step(meas, refs)
-            sim.apply(cmd)
-            sim.step(substeps)
+            apply(cmd)
+            physics(substeps)
             # ---- record the state after the step (ground truth) and what was commanded
-            row = rec.row
             if predictor is not None:
                 row[s_fall] = fall_log
             if s_late is not None:
                 row[s_late] = lateness[tick]
             # the next tick's measurement, recorded with the state it belongs to: q, v, applied torque, contact
             # wrenches and F/T readings go into the row in the same call
-            state, fs = sim.read_tick(row, truth_dst)
-            true_meas = sim.measurement(state)  # ground truth before the sensor layer
+            state, fs = read_tick(row, truth_dst)
+            true_meas = measurement(state)  # ground truth before the sensor layer
             if com_kernel is None:  # else filled per row group from the logged q and v (below)
                 row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
                 row[s_vcom] = data.vcom[0]
@@ -365,7 +368,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
             row[s_time] = step_us
-            for sl, val in zip(s_extra, ctrl.log_values()):
+            for sl, val in zip(s_extra, log_values()):
                 row[sl] = val
             if s_scen:
                 for sl, val in zip(s_scen, scen.log_values()):
@@ -376,7 +379,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 for sl, val in zip(slices, p.values()):
                     row[sl] = val
             try:
-                rec.commit()
+                row = commit()  # the next tick's row
             except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
                 raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[i_t]:.3f} s "
                                     f"({exc.strerror or exc}); the ticks written before are kept") from None
