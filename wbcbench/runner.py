@@ -287,6 +287,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                               file=spec.file) from None
         control_dt = spec.control_dt
         ideal_sensing = sensing.ideal  # the controller sees the simulator's measurement as it is
+        faults_on = injector.enabled
         row = rec.row  # the row of this tick's log (the recorder hands out the next one at each commit)
         # the per-tick calls, looked up once
         references, ctrl_step, apply, physics = scen.references, ctrl.step, sim.apply, sim.step
@@ -322,7 +323,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             c0 = time.perf_counter()
             cmd = ctrl_step(meas, refs)
             ctrl_us[tick] = step_us = (time.perf_counter() - c0) * 1e6
-            if injector.enabled:
+            if faults_on:
                 cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
             if predictor is not None:
                 fall_log = predictor.update(meas)
@@ -352,18 +353,20 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
                 row[s_zmp] = refs.zmp
-            for s, foot in refs.feet.items():
-                row[s_fref[s]] = foot.position
-            for name, sl in s_targets.items():
-                target = refs.targets.get(name)
-                if target is not None:
-                    cells = row[sl]
-                    cells[:3] = target.position
-                    if target.rotation is not None:
-                        cells[3:] = target.rotation.reshape(-1)
+            if refs.feet:
+                for s, foot in refs.feet.items():
+                    row[s_fref[s]] = foot.position
+            if s_targets:
+                for name, sl in s_targets.items():
+                    target = refs.targets.get(name)
+                    if target is not None:
+                        cells = row[sl]
+                        cells[:3] = target.position
+                        if target.rotation is not None:
+                            cells[3:] = target.rotation.reshape(-1)
             row[s_in_all] = in_contact[refs.contacts]
             meas = true_meas if ideal_sensing else sensing.measure(true_meas)
-            if injector.enabled:
+            if faults_on:
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)

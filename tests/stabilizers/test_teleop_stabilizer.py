@@ -56,6 +56,31 @@ def test_foot_force_difference_sign_unloads_the_overloaded_foot():
     assert roll2 == pytest.approx(-roll)
 
 
+@pytest.mark.parametrize("limit", [None, 0.02])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_torso_roll_kernel_is_the_law_bit_for_bit(seed, limit):
+    """The stabilizer's compiled Eq. 4-5 and torso rotation (`_kernels.torso_roll`) give the numpy law's numbers
+    exactly: roll, Rx(roll) R0, rate and acceleration (model forces floored at zero as the law's caller does)."""
+    from wbcbench.stabilizers import _kernels
+
+    rng = np.random.default_rng(seed)
+    g = AdmittanceGains(kd=(3e-5,), kv=(2e-6,), ka=(1e-9,), limit=limit)
+    R0 = pin.rpy.rpyToMatrix(*rng.uniform(-0.3, 0.3, 3))
+    for _ in range(20):
+        wl, wr = rng.normal(400, 300, 6), rng.normal(400, 300, 6)
+        fl, fr = float(rng.normal(400, 300)), float(rng.normal(400, 300))
+        roll, wx, ax = foot_force_difference((max(wl[2], 0.0), max(wr[2], 0.0)), (fl, fr), g, DT)
+        c, s = np.cos(roll), np.sin(roll)
+        R_law = np.array([R0[0], c * R0[1] - s * R0[2], s * R0[1] + c * R0[2]])
+        R, w, a = np.empty((3, 3)), np.empty(6), np.empty(6)
+        got = _kernels.torso_roll(wl, wr, fl, fr, g.kd[0], g.kv[0], g.ka[0], np.nan if limit is None else limit, DT,
+                                  R0, R, w, a)
+        assert got == roll
+        np.testing.assert_array_equal(R, R_law)
+        np.testing.assert_array_equal(w, [0, 0, 0, wx, 0, 0])
+        np.testing.assert_array_equal(a, [0, 0, 0, ax, 0, 0])
+
+
 @settings(max_examples=60, deadline=None)
 @given(x=st.floats(-0.08, 0.08), y=st.floats(-0.2, 0.2), mass=st.floats(20.0, 120.0))
 def test_zmp_distributor_realises_the_zmp_and_the_weight(x, y, mass):

@@ -231,9 +231,16 @@ class WalkScenario(Scenario):
 
     def references(self, t):
         w = self.walk
-        table = self._table if self._table is not None and self._table.walk is w else self._tabulate(w)
+        table = self._table
+        if table is None or table.walk is not w:
+            table = self._tabulate(w)
         k = min(int(round(t / w.dt)), w.n_ticks - 1)
-        return table.references(t, k)
+        i = k - table.k0  # among the references made ahead (`_WalkTable.make_ahead`)?
+        if 0 <= i < len(table.ahead):
+            ref = table.ahead[i]
+            if ref.t == t:
+                return ref
+        return table.make_ahead(t, k)
 
     _table = None
 
@@ -290,20 +297,18 @@ class _WalkTable:
     #: burst as one by one between a controller's step and the physics (which leave the caches cold)
     AHEAD = 50
 
-    def references(self, t: float, k: int) -> References:
-        i = k - self._k0
-        if 0 <= i < len(self._ahead):
-            ref = self._ahead[i]
-            if ref.t == t:
-                return ref
+    #: the references of ticks k0, k0 + 1, ... made ahead (at times j dt: a caller asking at another time of a
+    #: tick gets a new one)
+    k0, ahead = 0, ()
+
+    def make_ahead(self, t: float, k: int) -> References:
+        """The references of tick k at time t, and those of the next `AHEAD` - 1 ticks kept in `ahead`."""
         ahead = [self._make(t, k)]
         dt = self.walk.dt
         for j in range(k + 1, min(k + self.AHEAD, self.walk.n_ticks)):
             ahead.append(self._make(j * dt, j))
-        self._k0, self._ahead = k, ahead
+        self.k0, self.ahead = k, ahead
         return ahead[0]
-
-    _k0, _ahead = 0, ()
 
     def _make(self, t: float, k: int) -> References:
         code = self.code[k]

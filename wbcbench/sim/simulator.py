@@ -29,6 +29,7 @@ class FallStatus:
 
 _STANDING = FallStatus(False)
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
+_TORQUE = ActuationMode.TORQUE
 _NO_RECORDS = (np.zeros((0, 1)), np.zeros((0, 1), dtype=np.int32))  # read_tick's contact records before the first
 
 
@@ -233,8 +234,8 @@ class Simulator:
         F/T)."""
         d = self.data
         views = self._views
-        if views[0] is not d:  # MuJoCo's fixed-size arrays, viewed once per MjData (each access makes a view)
-            views = self._views = (d, d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos)
+        if views[0] is not d:
+            views = self._make_views()
         n = d.ncon
         rec = self._contacts
         if n and (rec is None or rec.data is not d):
@@ -250,6 +251,13 @@ class Simulator:
 
     _views = (None,)
 
+    def _make_views(self) -> tuple:
+        """MuJoCo's fixed-size arrays of the data the per-tick calls use, viewed once per MjData (each attribute
+        access makes a new view): the data, qpos, qvel, sensordata, actuator_force, geom_xpos, ctrl."""
+        d = self.data
+        self._views = (d, d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.ctrl)
+        return self._views
+
     def _locate_contacts(self) -> ContactRecords:
         rec = self._contacts = ContactRecords(self.data)
         self._tick_aux = tick_aux(self._soles2, rec.offsets, self.bridge.actuator_idx)
@@ -259,9 +267,12 @@ class Simulator:
     def apply(self, command: Command) -> None:
         """Set the command used by the following physics steps (held until the next call)."""
         self._command = command
-        ctrl = self.data.ctrl
+        views = self._views
+        if views[0] is not self.data:
+            views = self._make_views()
+        ctrl = views[6]
         act = self._act
-        if self.mode is ActuationMode.TORQUE:
+        if self.mode is _TORQUE:
             ctrl[act] = command.tau if command.tau is not None else 0.0
         elif self.mode is ActuationMode.POSITION:
             v = command.v if command.v is not None else 0.0

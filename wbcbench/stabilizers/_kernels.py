@@ -16,7 +16,8 @@ import numpy as np
 from ..jit import njit
 from ..tasks.placements import _forward, _frames
 
-__all__ = ["ankle_admittance", "com_admittance", "feet_measurement", "filter_measurement", "model_cop", "reference_split"]
+__all__ = ["ankle_admittance", "com_admittance", "feet_measurement", "filter_measurement", "model_cop", "reference_split",
+           "torso_roll"]
 
 
 @njit
@@ -202,6 +203,31 @@ def com_admittance(p, v, a, e0, e1, kd, kv, ka, limit, dt, out):
     out[1, 1] -= kv[1] * e1 / dt
     out[2, 0] -= ka[0] * e0 / dt**2
     out[2, 1] -= ka[1] * e1 / dt**2
+
+
+@njit(exact=True)
+def torso_roll(w_left, w_right, f_left, f_right, kd, kv, ka, limit, dt, R0, R, w, a):
+    """Paper 004 Eq. 4-5 (`teleop.foot_force_difference` on the model's normal forces ``w_left[2]``,
+    ``w_right[2]`` floored at 0 and the measured ones ``f_left``, ``f_right`` [N]) and the torso's reference from
+    it: ``R`` (3, 3) = Rx(roll) ``R0``, ``w`` / ``a`` (6,) the roll rate and acceleration (angular x). The same
+    operations as the numpy law, in the same order; ``limit`` NaN: none. Returns the roll [rad]."""
+    ml = 0.0 if 0.0 > w_left[2] else w_left[2]   # Python's max(w, 0.0)
+    mr = 0.0 if 0.0 > w_right[2] else w_right[2]
+    D = (ml - mr) - (f_left - f_right)
+    roll = -kd * D
+    if limit == limit and abs(roll) > limit:
+        roll = roll * (limit / abs(roll))
+    c, s = math.cos(roll), math.sin(roll)
+    for j in range(3):
+        R[0, j] = R0[0, j]
+        R[1, j] = c * R0[1, j] - s * R0[2, j]
+        R[2, j] = s * R0[1, j] + c * R0[2, j]
+    for j in range(6):
+        w[j] = 0.0
+        a[j] = 0.0
+    w[3] = -kv * D / dt
+    a[3] = -ka * D / (dt * dt)
+    return roll
 
 
 @njit

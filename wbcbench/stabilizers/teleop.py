@@ -388,6 +388,8 @@ class TeleopStabilizer(Stabilizer):
         self._com_gains = None if spec.com_admittance is None else _gain_arrays(spec.com_admittance)
         g = spec.ankle_admittance
         self._ankle_gains = None if g is None else (float(g.kd[0]), float(g.kd[1]), _limit(g.limit))
+        g = spec.foot_force_difference
+        self._torso_gains = None if g is None else (float(g.kd[0]), float(g.kv[0]), float(g.ka[0]), _limit(g.limit))
         self._fk = ForwardKinematics(m)
         self._fk_frames = self._fk.frame_arrays([*(self.sensor_ids[s] for s in Side), *(self.sole_ids[s] for s in Side)])
         self._frames_R, self._frames_t = np.zeros((4, 3, 3)), np.zeros((4, 3))
@@ -517,26 +519,19 @@ class TeleopStabilizer(Stabilizer):
         # Eq. 4-5
         g = spec.foot_force_difference
         if g is not None and self._torso_nominal is not None and both:
-            wl, wr = feedback.wrenches[Side.LEFT], feedback.wrenches[Side.RIGHT]
-            f_model = (max(wl[2], 0.0), max(wr[2], 0.0))
-            f_meas = (meas_.normal_force[Side.LEFT], meas_.normal_force[Side.RIGHT])
-            roll, wx, ax = foot_force_difference(f_model, f_meas, g, dt)
             base = targets.get(spec.torso_task)
             R_nominal, p_nominal = self._torso_nominal_arrays
             if base is not None:
                 p0, R0 = base.position, (base.rotation if base.rotation is not None else R_nominal)
             else:
                 p0, R0 = p_nominal, R_nominal
-            c, s_ = math.cos(roll), math.sin(roll)
-            R = np.empty((3, 3))  # Rx(roll) R0
-            R[0] = R0[0]
-            np.subtract(c * R0[1], s_ * R0[2], out=R[1])
-            np.add(s_ * R0[1], c * R0[2], out=R[2])
+            # `foot_force_difference` on the model's and the measured normal forces, and Rx(roll) R0: one call
+            R, w, a = np.empty((3, 3)), np.empty(6), np.empty(6)
+            nf = meas_.normal_force
+            log[6] = _k.torso_roll(feedback.wrenches[_LEFT], feedback.wrenches[_RIGHT], nf[_LEFT], nf[_RIGHT],
+                                   *self._torso_gains, dt, R0, R, w, a)
             targets = dict(targets)
-            w, a = np.zeros(6), np.zeros(6)
-            w[3], a[3] = wx, ax
             targets[spec.torso_task] = PoseReference.unchecked(np.array(p0, dtype=np.float64), R, w, a)
-            log[6] = roll
         # Eq. 6-7
         wrench_targets = refs.wrench_targets
         z = spec.zmp_distributor
