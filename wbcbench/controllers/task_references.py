@@ -37,6 +37,6 @@ class TaskReferences:
 
 def _set_pose(task: FrameTask, target) -> None:
     R = target.rotation
-    if R is None:
-        R = task.reference.rotation
+    if R is None:  # hold the task's orientation (its stored array: set_pose copies it)
+        R = task._R_ref if task._R_ref is not None else task.reference.rotation
     task.set_pose(target.position, R, target.velocity, target.acceleration)
