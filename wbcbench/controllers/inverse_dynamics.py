@@ -36,6 +36,8 @@ from .id_formulation import InverseDynamicsFormulation
 from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log values every tick)
+
 QP_OK, QP_RELAXED, QP_FALLBACK = 0, 1, 2
 
 
@@ -265,13 +267,11 @@ class InverseDynamicsController(Controller):
 
     def log_values(self) -> list:
         F = self.formulation
-        vals = [self.qp_status, self.tau]
-        if self.stabilizer is not None:
-            vals.append(self.stabilizer.log)
-        active = self._log_active
-        active[0], active[1] = F.contacts[Side.LEFT].active, F.contacts[Side.RIGHT].active
-        vals += [F.wrenches[Side.LEFT], F.wrenches[Side.RIGHT], active]
-        return vals
+        active, contacts, wrenches = self._log_active, F.contacts, F.wrenches
+        active[0], active[1] = contacts[_LEFT].active, contacts[_RIGHT].active
+        if self.stabilizer is None:
+            return [self.qp_status, self.tau, wrenches[_LEFT], wrenches[_RIGHT], active]
+        return [self.qp_status, self.tau, self.stabilizer.log, wrenches[_LEFT], wrenches[_RIGHT], active]
 
     def status(self) -> dict:
         return {"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback}
