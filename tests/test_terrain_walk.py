@@ -124,8 +124,10 @@ def test_terrain_walk_com_height_sets_the_planned_height(talos, tmp_path):
     low, default = tmp_path / "stairs-low.yaml", tmp_path / "stairs-default.yaml"
     low.write_text(text.replace("  com_height: 0.84", "  com_height: 0.80"))
     default.write_text(text.replace("  com_height: 0.84\n", ""))
+    null = tmp_path / "stairs-null.yaml"   # null (a robot profile's way to undo the file's height): the standing one
+    null.write_text(text.replace("  com_height: 0.84", "  com_height: null"))
     heights = {}
-    for name, path in (("default", str(default)), ("low", str(low))):
+    for name, path in (("default", str(default)), ("low", str(low)), ("null", str(null))):
         scen = load_scenario(path, talos)
         scen.setup(q, com0)
         z = scen.walk.p_world_com[:, 2]
@@ -136,3 +138,4 @@ def test_terrain_walk_com_height_sets_the_planned_height(talos, tmp_path):
     ground = min(d.oMf[talos.sole_frame_id(s)].translation[2] for s in Side)
     assert heights["low"] == pytest.approx(ground + 0.20 + 0.80, abs=0.01)
     assert heights["default"] == pytest.approx(com0[2] + 0.20, abs=0.01)
+    assert heights["null"] == heights["default"]
