@@ -362,8 +362,8 @@ class TerrainWalkScenario(WalkScenario):
     the planner, default 0.5); max_step_length / max_step_height [m]; max_leg_extension: largest hip-ankle
     distance the centroidal plan may ask for, as a fraction of the straight leg (default: the profile's
     `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off);
-    com_height [m]: the CoM height above the support the centroidal plan aims at (default: the initial one; a lower
-    one is reached during the initial double support).
+    com_height [m]: the CoM height above the support the centroidal plan aims at (default, or null: the initial one; a
+    lower one is reached during the initial double support).
     """
 
     kind = "terrain-walk"
@@ -389,7 +389,9 @@ class TerrainWalkScenario(WalkScenario):
         self.max_step_height = params.float("max_step_height", 0.15, positive=True)
         reach = self.robot.profile.stepping.max_leg_extension
         self.max_leg_extension = params.float("max_leg_extension", 0.94 if reach is None else reach, min=0.0, max=1.0)
-        self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
+        # null: the standing height (a robot profile's sizes may give it to undo a scenario file's height)
+        self.com_height = (params.float("com_height", positive=True) if params.raw("com_height", None) is not None
+                           else None)
 
     def _leg_reach(self, q0, com0):
         """The robot's `LegReach` at q0 (hip: first joint of each leg, ankle: the sole's joint; straight leg: the
