@@ -45,6 +45,7 @@ class SelfCollisionMonitor:
             self.model = build_self_collision_model(robot)
             self.data = mujoco.MjData(self.model)
             self._bridge = StateBridge(robot, self.model)
+            self._qpos_source = _qpos_map(sim, self._bridge, self.model.nq)
         m = self.model
         check = robot.profile.collision_check
 
@@ -69,10 +70,17 @@ class SelfCollisionMonitor:
         """The (side, body link) pairs in contact at the simulator's current state."""
         d = self.data
         if self._bridge is not None:
-            self._bridge.q_to_mj(self.sim.true_q(), d.qpos)
+            if self._qpos_source is not None:  # the same numbers as through pinocchio's order, in one gather
+                np.take(self.sim.data.qpos, self._qpos_source, out=d.qpos)
+            else:
+                self._bridge.q_to_mj(self.sim.true_q(), d.qpos)
             mujoco.mj_kinematics(self.model, d)
             mujoco.mj_collision(self.model, d)
         n = d.ncon
+        if not n:
+            if self.in_contact:
+                self.in_contact = set()
+            return self.in_contact
         found = set()
         if n:
             g1, g2, dist = d.contact.geom1[:n], d.contact.geom2[:n], d.contact.dist[:n]
@@ -85,6 +93,22 @@ class SelfCollisionMonitor:
         return found
 
 
+def _qpos_map(sim, bridge: StateBridge, nq: int) -> np.ndarray | None:
+    """Indices i such that the kinematic copy's qpos is the simulator's qpos[i]: the composition of the two
+    models' conversions to and from pinocchio's q (permutations both), or None when the simulator has no such
+    state (then the copy is set through `true_q`)."""
+    sb = getattr(sim, "bridge", None)
+    data = getattr(sim, "data", None)
+    if not isinstance(sb, StateBridge) or data is None or getattr(data, "qpos", None) is None:
+        return None
+    q_index = sb.q_from_mj(np.arange(len(data.qpos), dtype=float))  # simulator qpos index per pinocchio q entry
+    src = np.full(nq, -1.0)
+    bridge.q_to_mj(q_index, src)
+    if (src < 0).any():
+        return None
+    return src.astype(np.intp)
+
+
 class SelfCollisionProbe:
     """Runner probe (`wbcbench.runner.run(..., probes=[SelfCollisionProbe()])`): per-tick gripper-body contact
     counts in the log and the self-collision metrics in the summary (module docstring)."""
@@ -95,6 +119,7 @@ class SelfCollisionProbe:
         self.ticks = 0
         self.pair_ticks: dict[str, int] = {}
         self._previous: set[tuple[Side, str]] = set()
+        self._counts = np.zeros(3)
 
     def attach(self, sim) -> dict[str, list[str]]:
         """Called once with the simulator; returns the log channels (name -> components)."""
@@ -104,6 +129,10 @@ class SelfCollisionProbe:
     def values(self) -> list:
         """Called after every control tick: the channel values, in `attach`'s order."""
         now = self.monitor.update()
+        counts = self._counts
+        if not now and not self._previous:  # the usual tick: nothing in contact, before or now
+            counts[:] = 0.0
+            return [counts]
         self.events += len(now - self._previous)
         self._previous = now
         if now:
@@ -112,7 +141,8 @@ class SelfCollisionProbe:
                 key = f"{side.value}:{link}"
                 self.pair_ticks[key] = self.pair_ticks.get(key, 0) + 1
         left = sum(1 for s, _ in now if s is Side.LEFT)
-        return [np.array([len(now), left, len(now) - left], dtype=float)]
+        counts[:] = (len(now), left, len(now) - left)
+        return [counts]
 
     def metrics(self, log: dict) -> dict:
         return {"self_collisions": self.events, "self_collision_ticks": self.ticks,

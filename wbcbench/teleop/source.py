@@ -85,6 +85,23 @@ class _Trajectory:
         return len(self.valid)
 
 
+@dataclass
+class _Rows:
+    """A recording's per-tick references stacked for the common tick (`TeleopReferenceSource._row_targets`): the
+    effectors in DEFAULT_TARGETS order, P (n, 3, 3), R (n, 3, 3, 3), V, A (n, 3, 6) (the trajectory's dicts are
+    views of them), and the same for the ticks k of the engagement blend (k dt < engage_time, at t = k dt, where the
+    row is valid: `engaged_ok`), computed once with the blend's own code."""
+
+    P: np.ndarray
+    R: np.ndarray
+    V: np.ndarray
+    A: np.ndarray
+    valid: np.ndarray
+    clamped: np.ndarray  # (n, 3) bool
+    engaged: tuple = ()
+    engaged_ok: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+
 
 @dataclass(frozen=True)
 class TeleopSourceConfig:
@@ -146,6 +163,7 @@ class TeleopReferenceSource:
         if self.anchor != "absolute" and not self.live:
             cal = self.retargeter.sample(float(self.source.times[0]) if self.start is None else self.start)
             self._set_anchor(cal.references)
+        self._rows = None
         self.trajectory = None if self.live else self._precompute()
         cfg = self.config
         # a recording through the simulated impaired link: references from what arrived; the trajectory above
@@ -164,16 +182,26 @@ class TeleopReferenceSource:
         self.command_filter = CommandFilter(self.robot, q0, self.config.safety, self.dt)
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
         self._last_valid: dict | None = None
+        self._last_valid_row: int | None = None
         self._filtered: dict[str, pin.SE3] = {}
         self._valid_prev = None
         self._loss_start = None
         self._wall0 = None
         self.record_t: list[float] = []
         self.record_valid: list[bool] = []
-        self.record_pose: dict[str, list[np.ndarray]] = {k: [] for k in DEFAULT_TARGETS}
+        n_ticks = 0 if self.trajectory is None else self.trajectory.n
+        self._poses = np.full((n_ticks + 2, len(DEFAULT_TARGETS), 12), np.nan)
+        self._n_pose = 0
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
+        if self.link is not None or self._rows is None:
+            self._rows = None  # the common tick's rows: a recording replayed directly
+        else:
+            self._engaged_rows()
+            self.command_filter.bind_rows(DEFAULT_TARGETS)
+            index = {e: i for i, e in enumerate(DEFAULT_TARGETS)}
+            self._row_tasks = tuple((index[e], tuple(tasks)) for e, tasks in self.task_names.items())
 
     def skeleton_summary(self) -> dict:
         """How the source's skeleton was read: the length unit, the up axis and the segment mapping."""
@@ -251,14 +279,109 @@ class TeleopReferenceSource:
             out["position"][e], out["rotation"][e] = pos, rot
             out["velocity"][e], out["acceleration"][e] = vel, acc
             out["clamped"][e] = (np.array([s.clamped[e] for s in samples]) | moved)[k]
-        return _Trajectory(**out, valid=inside & frame_valid[k])
+        # one array per quantity, effectors stacked (the common tick reads rows of them); the dicts are views
+        valid = inside & frame_valid[k]
+        stacked = {}
+        for key in ("position", "rotation", "velocity", "acceleration"):
+            stacked[key] = np.ascontiguousarray(np.stack([out[key][e] for e in DEFAULT_TARGETS], axis=1),
+                                                dtype=np.float64)
+            out[key] = {e: stacked[key][:, i] for i, e in enumerate(DEFAULT_TARGETS)}
+        self._rows = _Rows(stacked["position"], stacked["rotation"], stacked["velocity"], stacked["acceleration"],
+                           valid, np.stack([out["clamped"][e] for e in DEFAULT_TARGETS], axis=1))
+        return _Trajectory(**out, valid=valid)
 
     def _recorded_targets(self, t: float) -> tuple[dict, bool, dict]:
         tr = self.trajectory
         k = min(int(round(t / self.dt)), tr.n - 1)
-        out = {e: (pin.SE3(tr.rotation[e][k], tr.position[e][k]), tr.velocity[e][k].copy(),
-                   tr.acceleration[e][k].copy()) for e in DEFAULT_TARGETS}
-        return out, bool(tr.valid[k]), {e: bool(tr.clamped[e][k]) for e in DEFAULT_TARGETS}
+        return self._trajectory_row(k), bool(tr.valid[k]), {e: bool(tr.clamped[e][k]) for e in DEFAULT_TARGETS}
+
+    def _trajectory_row(self, k: int) -> dict:
+        tr = self.trajectory
+        return {e: (pin.SE3(tr.rotation[e][k], tr.position[e][k]), tr.velocity[e][k].copy(),
+                    tr.acceleration[e][k].copy()) for e in DEFAULT_TARGETS}
+
+    def _engaged_rows(self) -> None:
+        """The engagement blend of the valid rows of ticks k with k dt < engage_time, at t = k dt (`_Rows`)."""
+        rows = self._rows
+        n = 0
+        while n < rows.P.shape[0] and n * self.dt < self.engage_time:
+            n += 1
+        P, R = np.empty((n, 3, 3)), np.empty((n, 3, 3, 3))
+        V, A = np.empty((n, 3, 6)), np.empty((n, 3, 6))
+        ok = rows.valid[:n].copy()
+        for k in np.flatnonzero(ok):
+            k = int(k)
+            blended = self._engage(k * self.dt, self._trajectory_row(k))
+            for i, e in enumerate(DEFAULT_TARGETS):
+                M, vel, acc = blended[e]
+                P[k, i], R[k, i], V[k, i], A[k, i] = M.translation, M.rotation, vel, acc
+        rows.engaged, rows.engaged_ok = (P, R, V, A), ok
+
+    def _row_targets(self, t: float) -> dict | None:
+        """The common tick of a recording, from the stacked rows: a valid row (blended from the precomputed
+        engagement rows while t < engage_time) that the command filter lets through untouched; the same
+        bookkeeping and references as `targets` without building a pose object. None where it is not that tick
+        (invalid, an engagement time off the tick grid, a filter intervention): `targets` does it."""
+        rows = self._rows
+        k_tick = int(round(t / self.dt))
+        k = min(k_tick, len(rows.valid) - 1)
+        if not rows.valid[k]:
+            return None
+        if t < self.engage_time:
+            ok = rows.engaged_ok
+            if not (k_tick < len(ok) and ok[k_tick] and t == k_tick * self.dt):
+                return None
+            P, R, V, A = rows.engaged
+            j = k_tick
+        else:
+            P, R, V, A, j = rows.P, rows.R, rows.V, rows.A, k
+        if not self.command_filter.pass_rows(t, j, P, R, V, A):
+            return None
+        # what `targets` does on a valid tick
+        if self._valid_prev is False and self._loss_start is not None:
+            self.loss_durations.append(t - self._loss_start)
+            self._loss_start = None
+        self._last_valid, self._last_valid_row = None, k
+        self._hold_from = None
+        self._valid_prev = True
+        if rows.clamped[k].any():
+            for i, e in enumerate(DEFAULT_TARGETS):
+                self.clamped_ticks[e] += int(rows.clamped[k, i])
+        self.record_t.append(t)
+        self.record_valid.append(True)
+        buf = self._pose_buffer()
+        c = self._n_pose
+        buf[c, :, :3] = P[j]
+        buf[c, :, 3:] = R[j].reshape(3, 9)
+        self._n_pose = c + 1
+        named = {}
+        unchecked = PoseReference.unchecked
+        for i, tasks in self._row_tasks:
+            ref = unchecked(P[j, i], R[j, i], V[j, i], A[j, i])
+            for task in tasks:
+                named[task] = ref
+        return named
+
+    def _pose_buffer(self) -> np.ndarray:
+        """The recorded poses' buffer, with room for one more tick."""
+        buf = self._poses
+        if self._n_pose >= len(buf):
+            grown = np.full((max(2 * len(buf), 1024), len(DEFAULT_TARGETS), 12), np.nan)
+            grown[:len(buf)] = buf
+            buf = self._poses = grown
+        return buf
+
+    @property
+    def record_pose(self) -> dict[str, np.ndarray]:
+        """Per effector, the references handed to the controller each tick (position, rotation row-major; NaN
+        where the effector had none), (ticks, 12)."""
+        return {e: self._poses[:self._n_pose, i] for i, e in enumerate(DEFAULT_TARGETS)}
+
+    def _last_valid_targets(self) -> dict | None:
+        """The last valid tick's targets before the engagement blend (kept as a row index by the common tick)."""
+        if self._last_valid is None and self._last_valid_row is not None:
+            return self._trajectory_row(self._last_valid_row)
+        return self._last_valid
 
     def _live_targets(self, t: float) -> tuple[dict, bool, dict]:
         if self.realtime:
@@ -327,6 +450,10 @@ class TeleopReferenceSource:
     def targets(self, t: float) -> dict:
         """The named frame-task references at time t [s] (effector targets through the anchor, spline or filter,
         signal-loss policy and engagement blend), with the health bookkeeping."""
+        if self._rows is not None:
+            named = self._row_targets(t)
+            if named is not None:
+                return named
         if self.link is not None:
             targets, valid, clamped = self._link_targets(t)
         else:
@@ -335,7 +462,7 @@ class TeleopReferenceSource:
             if self._valid_prev is False and self._loss_start is not None:
                 self.loss_durations.append(t - self._loss_start)
                 self._loss_start = None
-            self._last_valid = targets  # held (at rest) if the stream is lost: made then, not every tick
+            self._last_valid, self._last_valid_row = targets, None  # held (at rest) if the stream is lost
             self._hold_from = None
         else:
             if self._valid_prev is not False:
@@ -343,9 +470,10 @@ class TeleopReferenceSource:
                 if self._valid_prev is True:
                     self.loss_events += 1
                 self._loss_start = t
-                if self._last_valid is not None:
-                    self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in self._last_valid.items()}
-                    self._last_valid = None
+                last_valid = self._last_valid_targets()
+                if last_valid is not None:
+                    self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in last_valid.items()}
+                    self._last_valid, self._last_valid_row = None, None
                 self._hold_from = {k: pin.SE3(v[0]) for k, v in self._held.items()}
             targets = self._safe_targets(t)
         self._valid_prev = valid
@@ -363,10 +491,16 @@ class TeleopReferenceSource:
             self.clamped_ticks[k] += int(c)
         self.record_t.append(t)
         self.record_valid.append(valid)
-        for k in DEFAULT_TARGETS:
+        buf = self._pose_buffer()
+        for i, k in enumerate(DEFAULT_TARGETS):
             M = targets[k][0] if k in targets else None
-            self.record_pose[k].append(np.concatenate([M.translation, M.rotation.reshape(-1)]) if M is not None
-                                       else np.full(12, np.nan))
+            row = buf[self._n_pose, i]
+            if M is None:
+                row[:] = np.nan
+            else:
+                row[:3] = M.translation
+                row[3:] = M.rotation.reshape(-1)
+        self._n_pose += 1
         named = {}
         for effector, tasks in self.task_names.items():
             if effector not in targets:  # garbage before any valid reference: the task keeps its own
