@@ -24,6 +24,9 @@ from .model import build_self_collision_model, self_collision_geom_name
 
 __all__ = ["SelfCollisionMonitor", "SelfCollisionProbe"]
 
+_NO_CONTACT = np.zeros(3)
+_NO_CONTACT.flags.writeable = False
+
 
 class SelfCollisionMonitor:
     """Which (side, body link) pairs are in contact in a `Simulator` now; `update()` once per control tick.
@@ -119,7 +122,6 @@ class SelfCollisionProbe:
         self.ticks = 0
         self.pair_ticks: dict[str, int] = {}
         self._previous: set[tuple[Side, str]] = set()
-        self._counts = np.zeros(3)
 
     def attach(self, sim) -> dict[str, list[str]]:
         """Called once with the simulator; returns the log channels (name -> components)."""
@@ -129,10 +131,8 @@ class SelfCollisionProbe:
     def values(self) -> list:
         """Called after every control tick: the channel values, in `attach`'s order."""
         now = self.monitor.update()
-        counts = self._counts
         if not now and not self._previous:  # the usual tick: nothing in contact, before or now
-            counts[:] = 0.0
-            return [counts]
+            return [_NO_CONTACT]
         self.events += len(now - self._previous)
         self._previous = now
         if now:
@@ -141,8 +141,7 @@ class SelfCollisionProbe:
                 key = f"{side.value}:{link}"
                 self.pair_ticks[key] = self.pair_ticks.get(key, 0) + 1
         left = sum(1 for s, _ in now if s is Side.LEFT)
-        counts[:] = (len(now), left, len(now) - left)
-        return [counts]
+        return [np.array([len(now), left, len(now) - left], dtype=float)]
 
     def metrics(self, log: dict) -> dict:
         return {"self_collisions": self.events, "self_collision_ticks": self.ticks,
