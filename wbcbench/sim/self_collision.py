@@ -24,6 +24,7 @@ from .model import build_self_collision_model, self_collision_geom_name
 
 __all__ = ["SelfCollisionMonitor", "SelfCollisionProbe"]
 
+_SAME_LAYOUT = np.zeros(0, dtype=np.intp)  # `_qpos_map`: the copy's qpos is the simulator's, entry for entry
 _NO_CONTACT = np.zeros(3)
 _NO_CONTACT.flags.writeable = False
 
@@ -73,8 +74,9 @@ class SelfCollisionMonitor:
         """The (side, body link) pairs in contact at the simulator's current state."""
         d = self.data
         if self._bridge is not None:
-            if self._qpos_source is not None:  # the same numbers as through pinocchio's order, in one gather
-                np.take(self.sim.data.qpos, self._qpos_source, out=d.qpos)
+            src = self._qpos_source
+            if src is not None:  # the same numbers as through pinocchio's order, in one copy
+                d.qpos[:] = self.sim.data.qpos if src is _SAME_LAYOUT else self.sim.data.qpos[src]
             else:
                 self._bridge.q_to_mj(self.sim.true_q(), d.qpos)
             mujoco.mj_kinematics(self.model, d)
@@ -98,8 +100,9 @@ class SelfCollisionMonitor:
 
 def _qpos_map(sim, bridge: StateBridge, nq: int) -> np.ndarray | None:
     """Indices i such that the kinematic copy's qpos is the simulator's qpos[i]: the composition of the two
-    models' conversions to and from pinocchio's q (permutations both), or None when the simulator has no such
-    state (then the copy is set through `true_q`)."""
+    models' conversions to and from pinocchio's q (permutations both); `_SAME_LAYOUT` when that is every entry in
+    place (the copy is built from the same robot), None when the simulator has no such state (then the copy is set
+    through `true_q`)."""
     sb = getattr(sim, "bridge", None)
     data = getattr(sim, "data", None)
     if not isinstance(sb, StateBridge) or data is None or getattr(data, "qpos", None) is None:
@@ -109,6 +112,8 @@ def _qpos_map(sim, bridge: StateBridge, nq: int) -> np.ndarray | None:
     bridge.q_to_mj(q_index, src)
     if (src < 0).any():
         return None
+    if len(data.qpos) == nq and np.array_equal(src, np.arange(nq)):
+        return _SAME_LAYOUT
     return src.astype(np.intp)
 
 

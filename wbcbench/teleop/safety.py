@@ -274,6 +274,7 @@ class CommandFilter:
             starts.append(starts[-1] + len(reach[-1]))
         self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
                           np.array(starts, dtype=np.int64))
+        self._row_args = (*self._row_last, *self._row_body, self._limits)
         self._sync_rows()
 
     def pass_rows(self, t: float, k: int, P: np.ndarray, R: np.ndarray, V: np.ndarray, A: np.ndarray) -> bool:
@@ -295,7 +296,7 @@ class CommandFilter:
         lim = self._limits
         lim[2], lim[3] = cfg.max_speed * dt, cfg.max_angular_speed * dt
         lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
-        if not _screen_rows(k, P, R, V, A, *self._row_last, *self._row_body, lim):
+        if not _screen_rows(k, P, R, V, A, *self._row_args):
             return False
         self.flags[:] = 0.0
         self._t_prev = t

@@ -96,10 +96,11 @@ class _Rows:
     R: np.ndarray
     V: np.ndarray
     A: np.ndarray
-    valid: np.ndarray
+    valid: list  # (n,) bools (Python's: read one per tick)
     clamped: np.ndarray  # (n, 3) bool
+    any_clamped: list  # (n,) bools
     engaged: tuple = ()
-    engaged_ok: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    engaged_ok: list = field(default_factory=list)
 
 
 
@@ -189,9 +190,7 @@ class TeleopReferenceSource:
         self._wall0 = None
         self.record_t: list[float] = []
         self.record_valid: list[bool] = []
-        n_ticks = 0 if self.trajectory is None else self.trajectory.n
-        self._poses = np.full((n_ticks + 2, len(DEFAULT_TARGETS), 12), np.nan)
-        self._n_pose = 0
+        self._pose_log: list = []  # per tick: the poses (3, 12), or the common tick's row (`record_pose`)
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
@@ -286,8 +285,9 @@ class TeleopReferenceSource:
             stacked[key] = np.ascontiguousarray(np.stack([out[key][e] for e in DEFAULT_TARGETS], axis=1),
                                                 dtype=np.float64)
             out[key] = {e: stacked[key][:, i] for i, e in enumerate(DEFAULT_TARGETS)}
+        clamped = np.stack([out["clamped"][e] for e in DEFAULT_TARGETS], axis=1)
         self._rows = _Rows(stacked["position"], stacked["rotation"], stacked["velocity"], stacked["acceleration"],
-                           valid, np.stack([out["clamped"][e] for e in DEFAULT_TARGETS], axis=1))
+                           valid.tolist(), clamped, clamped.any(axis=1).tolist())
         return _Trajectory(**out, valid=valid)
 
     def _recorded_targets(self, t: float) -> tuple[dict, bool, dict]:
@@ -308,9 +308,8 @@ class TeleopReferenceSource:
             n += 1
         P, R = np.empty((n, 3, 3)), np.empty((n, 3, 3, 3))
         V, A = np.empty((n, 3, 6)), np.empty((n, 3, 6))
-        ok = rows.valid[:n].copy()
-        for k in np.flatnonzero(ok):
-            k = int(k)
+        ok = rows.valid[:n]
+        for k in (k for k in range(n) if ok[k]):
             blended = self._engage(k * self.dt, self._trajectory_row(k))
             for i, e in enumerate(DEFAULT_TARGETS):
                 M, vel, acc = blended[e]
@@ -344,16 +343,12 @@ class TeleopReferenceSource:
         self._last_valid, self._last_valid_row = None, k
         self._hold_from = None
         self._valid_prev = True
-        if rows.clamped[k].any():
+        if rows.any_clamped[k]:
             for i, e in enumerate(DEFAULT_TARGETS):
                 self.clamped_ticks[e] += int(rows.clamped[k, i])
         self.record_t.append(t)
         self.record_valid.append(True)
-        buf = self._pose_buffer()
-        c = self._n_pose
-        buf[c, :, :3] = P[j]
-        buf[c, :, 3:] = R[j].reshape(3, 9)
-        self._n_pose = c + 1
+        self._pose_log.append(j if P is rows.P else -1 - j)  # the row, read when `record_pose` is
         named = {}
         unchecked = PoseReference.unchecked
         for i, tasks in self._row_tasks:
@@ -362,20 +357,21 @@ class TeleopReferenceSource:
                 named[task] = ref
         return named
 
-    def _pose_buffer(self) -> np.ndarray:
-        """The recorded poses' buffer, with room for one more tick."""
-        buf = self._poses
-        if self._n_pose >= len(buf):
-            grown = np.full((max(2 * len(buf), 1024), len(DEFAULT_TARGETS), 12), np.nan)
-            grown[:len(buf)] = buf
-            buf = self._poses = grown
-        return buf
-
     @property
     def record_pose(self) -> dict[str, np.ndarray]:
         """Per effector, the references handed to the controller each tick (position, rotation row-major; NaN
         where the effector had none), (ticks, 12)."""
-        return {e: self._poses[:self._n_pose, i] for i, e in enumerate(DEFAULT_TARGETS)}
+        out = np.full((len(self._pose_log), len(DEFAULT_TARGETS), 12), np.nan)
+        rows = self._rows
+        for c, entry in enumerate(self._pose_log):
+            if isinstance(entry, np.ndarray):
+                out[c] = entry
+            else:  # a row of the common tick: of the trajectory (j >= 0) or of the engagement blend (-1 - j)
+                P, R = (rows.P, rows.R) if entry >= 0 else rows.engaged[:2]
+                j = entry if entry >= 0 else -1 - entry
+                out[c, :, :3] = P[j]
+                out[c, :, 3:] = R[j].reshape(-1, 9)
+        return {e: out[:, i] for i, e in enumerate(DEFAULT_TARGETS)}
 
     def _last_valid_targets(self) -> dict | None:
         """The last valid tick's targets before the engagement blend (kept as a row index by the common tick)."""
@@ -491,16 +487,13 @@ class TeleopReferenceSource:
             self.clamped_ticks[k] += int(c)
         self.record_t.append(t)
         self.record_valid.append(valid)
-        buf = self._pose_buffer()
+        poses = np.full((len(DEFAULT_TARGETS), 12), np.nan)
         for i, k in enumerate(DEFAULT_TARGETS):
-            M = targets[k][0] if k in targets else None
-            row = buf[self._n_pose, i]
-            if M is None:
-                row[:] = np.nan
-            else:
-                row[:3] = M.translation
-                row[3:] = M.rotation.reshape(-1)
-        self._n_pose += 1
+            if k in targets:
+                M = targets[k][0]
+                poses[i, :3] = M.translation
+                poses[i, 3:] = M.rotation.reshape(-1)
+        self._pose_log.append(poses)
         named = {}
         for effector, tasks in self.task_names.items():
             if effector not in targets:  # garbage before any valid reference: the task keeps its own
