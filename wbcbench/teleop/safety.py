@@ -275,6 +275,9 @@ class CommandFilter:
         self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
                           np.array(starts, dtype=np.int64))
         self._row_args = (*self._row_last, *self._row_body, self._limits)
+        # the kernel loaded now, not at the first tick it serves (a paced run's clock is running by then)
+        _screen_rows(0, np.zeros((1, n, 3)), np.zeros((1, n, 3, 3)), np.zeros((1, n, 6)), np.zeros((1, n, 6)),
+                     *(a.copy() for a in self._row_args))
         self._sync_rows()
 
     def pass_rows(self, t: float, k: int, P: np.ndarray, R: np.ndarray, V: np.ndarray, A: np.ndarray) -> bool:
