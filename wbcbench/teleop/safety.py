@@ -24,6 +24,10 @@ Every intervention is counted per kind and effector (`counts`), the first ones k
 (`events`), and the tick's flags are logged (`teleop_filter` channel). The defaults let the shipped recordings
 through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad/s, 135 m/s^2, 470 rad/s^2 at
 x2; a test checks that nothing is filtered) and stop teleports and garbage.
+
+The usual tick needs none of this: `_screen` decides it per effector in one compiled call, and `pass_rows` for all
+the effectors of a recording's stacked rows at once (wbcbench/teleop/source.py), leaving the same state as
+`__call__` would.
 """
 
 from __future__ import annotations

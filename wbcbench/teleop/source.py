@@ -16,6 +16,11 @@ sending as far as the receiver can tell (its delay beyond the fastest delivery s
 arrived) plus `predict_latency`, the fixed one-way latency the receiver cannot observe (e.g. half the round trip).
 Each tick's age and horizon are kept (`stream_age`, `stream_horizon`) for the log; on the simulated link, so is
 the undelayed reference of the hands (`truth`: the recording's spline at t, what the robot should be doing now).
+
+A recording replayed directly has its common tick (a valid row the command filter has nothing to do on) served from
+the precomputed rows stacked per tick, screened by the filter in one compiled call, without pose objects
+(`_row_targets`); everything else takes the general path, with the same results bit for bit
+(tests/teleop/test_source_rows.py).
 """
 
 from __future__ import annotations
@@ -194,9 +199,9 @@ class TeleopReferenceSource:
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
-        if self.link is not None or self._rows is None:
-            self._rows = None  # the common tick's rows: a recording replayed directly
-        else:
+        if self.link is not None:  # the common tick's rows: only for a recording replayed directly
+            self._rows = None
+        elif self._rows is not None:
             self._engaged_rows()
             self.command_filter.bind_rows(DEFAULT_TARGETS)
             index = {e: i for i, e in enumerate(DEFAULT_TARGETS)}
