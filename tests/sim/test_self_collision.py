@@ -53,6 +53,26 @@ def test_monitor_counts_gripper_in_hip_and_nothing_in_half_sitting(talos):
     assert {link for _, link in hits} & {"leg_left_1_link", "leg_left_2_link", "leg_left_3_link", "base_link"}
 
 
+def test_the_copy_is_set_to_the_simulated_configuration(talos):
+    """The kinematic copy takes the simulator's qpos directly: the same numbers as through pinocchio's q."""
+    sim = Simulator(talos, mode="spd", options=SimOptions(self_collision="detect"))
+    mon = SelfCollisionMonitor(sim)
+    q = _q_in_hip(talos)
+    q[:3] += (0.1, -0.2, 0.05)
+    quat = np.array([0.1, -0.2, 0.3, 0.9])
+    q[3:7] = quat / np.linalg.norm(quat)
+    sim.reset(q)
+    mon.update()
+    expected = np.zeros(mon.model.nq)
+    mon._bridge.q_to_mj(sim.true_q(), expected)
+    np.testing.assert_array_equal(mon.data.qpos, expected)
+    for source in (np.arange(mon.model.nq), None):  # the general gather, and the way through pinocchio's q
+        mon._qpos_source = source
+        mon.data.qpos[:] = 0.0
+        mon.update()
+        np.testing.assert_array_equal(mon.data.qpos, expected)
+
+
 def test_physical_contacts_act_and_are_counted(talos):
     sim = Simulator(talos, mode="spd", options=SimOptions(self_collision="physical"))
     assert sim.model.ngeom > Simulator(talos, mode="spd").model.ngeom

@@ -28,6 +28,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..jit import njit
 from ..robots import Robot, Side
 from ..stabilizers.teleop import reference_wrench_targets
 from ..tasks import SelfCollisionTask
@@ -37,6 +38,19 @@ from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
 __all__ = ["TSIDTeleop", "teleop_taskset"]
+
+
+@njit(exact=True)
+def _max(x: np.ndarray) -> float:
+    """np.max of a non-empty 1-D array (NaN if any element is), without numpy's reduction machinery."""
+    m = x[0]
+    for i in range(x.shape[0]):
+        v = x[i]
+        if np.isnan(v):
+            return v
+        if v > m:
+            m = v
+    return m
 
 TASKSET_NAME = "teleop"
 
@@ -155,9 +169,10 @@ class TSIDTeleop(InverseDynamicsController):
 
     def log_values(self) -> list:
         vals = super().log_values()
+        out = self._collision_log
         for i, task in enumerate(self.collision_tasks[:2]):
-            self._collision_log[i] = float(np.max(task.values(self.model, self.data)))
-        vals += [self._target_log, self._collision_log]
+            out[i] = _max(task.values(self.model, self.data))  # this tick's values: the task's cache of the step
+        vals += [self._target_log, out]
         return vals
 
     def status(self) -> dict:

@@ -105,6 +105,7 @@ from .base import Scenario, ScenarioSpec, register_kind
 #: prediction horizon used [ms], the receiver's counters (cumulative), and whether the tick's source was valid
 STREAM_LOG = ("age_ms", "horizon_ms", "received", "accepted", "lost", "malformed", "duplicates", "reordered",
               "valid")
+_BOTH_FEET = frozenset(Side)
 _POSE_COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
 
 @register_kind
@@ -257,7 +258,7 @@ class TeleopScenario(Scenario):
     def references(self, t: float) -> References:
         """Both feet down, the CoM held, the operator's hands and head as the named frame tasks' references
         (`TeleopReferenceSource`, wbcbench/teleop/source.py)."""
-        return References(t=t, contacts=frozenset(Side), com=self._com_ref,
+        return References(t=t, contacts=_BOTH_FEET, com=self._com_ref,
                           targets=self.reference_source.targets(t))
 
     @property

@@ -24,6 +24,10 @@ from .model import build_self_collision_model, self_collision_geom_name
 
 __all__ = ["SelfCollisionMonitor", "SelfCollisionProbe"]
 
+_SAME_LAYOUT = np.zeros(0, dtype=np.intp)  # `_qpos_map`: the copy's qpos is the simulator's, entry for entry
+_NO_CONTACT = np.zeros(3)
+_NO_CONTACT.flags.writeable = False
+
 
 class SelfCollisionMonitor:
     """Which (side, body link) pairs are in contact in a `Simulator` now; `update()` once per control tick.
@@ -45,6 +49,7 @@ class SelfCollisionMonitor:
             self.model = build_self_collision_model(robot)
             self.data = mujoco.MjData(self.model)
             self._bridge = StateBridge(robot, self.model)
+            self._qpos_source = _qpos_map(sim, self._bridge, self.model.nq)
         m = self.model
         check = robot.profile.collision_check
 
@@ -69,10 +74,18 @@ class SelfCollisionMonitor:
         """The (side, body link) pairs in contact at the simulator's current state."""
         d = self.data
         if self._bridge is not None:
-            self._bridge.q_to_mj(self.sim.true_q(), d.qpos)
+            src = self._qpos_source
+            if src is not None:  # the same numbers as through pinocchio's order, in one copy
+                d.qpos[:] = self.sim.data.qpos if src is _SAME_LAYOUT else self.sim.data.qpos[src]
+            else:
+                self._bridge.q_to_mj(self.sim.true_q(), d.qpos)
             mujoco.mj_kinematics(self.model, d)
             mujoco.mj_collision(self.model, d)
         n = d.ncon
+        if not n:
+            if self.in_contact:
+                self.in_contact = set()
+            return self.in_contact
         found = set()
         if n:
             g1, g2, dist = d.contact.geom1[:n], d.contact.geom2[:n], d.contact.dist[:n]
@@ -83,6 +96,25 @@ class SelfCollisionMonitor:
                     found.add(hit)
         self.in_contact = found
         return found
+
+
+def _qpos_map(sim, bridge: StateBridge, nq: int) -> np.ndarray | None:
+    """Indices i such that the kinematic copy's qpos is the simulator's qpos[i]: the composition of the two
+    models' conversions to and from pinocchio's q (permutations both); `_SAME_LAYOUT` when that is every entry in
+    place (the copy is built from the same robot), None when the simulator has no such state (then the copy is set
+    through `true_q`)."""
+    sb = getattr(sim, "bridge", None)
+    data = getattr(sim, "data", None)
+    if not isinstance(sb, StateBridge) or data is None or getattr(data, "qpos", None) is None:
+        return None
+    q_index = sb.q_from_mj(np.arange(len(data.qpos), dtype=float))  # simulator qpos index per pinocchio q entry
+    src = np.full(nq, -1.0)
+    bridge.q_to_mj(q_index, src)
+    if (src < 0).any():
+        return None
+    if len(data.qpos) == nq and np.array_equal(src, np.arange(nq)):
+        return _SAME_LAYOUT
+    return src.astype(np.intp)
 
 
 class SelfCollisionProbe:
@@ -104,6 +136,8 @@ class SelfCollisionProbe:
     def values(self) -> list:
         """Called after every control tick: the channel values, in `attach`'s order."""
         now = self.monitor.update()
+        if not now and not self._previous:  # the usual tick: nothing in contact, before or now
+            return [_NO_CONTACT]
         self.events += len(now - self._previous)
         self._previous = now
         if now:

@@ -24,6 +24,10 @@ Every intervention is counted per kind and effector (`counts`), the first ones k
 (`events`), and the tick's flags are logged (`teleop_filter` channel). The defaults let the shipped recordings
 through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad/s, 135 m/s^2, 470 rad/s^2 at
 x2; a test checks that nothing is filtered) and stop teleports and garbage.
+
+The usual tick needs none of this: `_screen` decides it per effector in one compiled call, and `pass_rows` for all
+the effectors of a recording's stacked rows at once (wbcbench/teleop/source.py), leaving the same state as
+`__call__` would.
 """
 
 from __future__ import annotations
@@ -99,6 +103,28 @@ def _screen(p, R, vel, acc, has_last, last_p, last_R, raw_p, raw_R, offset, cent
 
 
 @njit
+def _screen_rows(k, P, R, V, A, last_p, last_R, raw_p, raw_R, offsets, centres, reach, starts, lim):
+    """`_screen` of row k of every effector (P (n, e, 3), R (n, e, 3, 3), V, A (n, e, 6)) against its last
+    output and raw reference (``last_p`` (e, 3), ...; every effector has them); the body spheres of effector i are
+    ``centres[starts[i]:starts[i + 1]]``. True when all pass; their rows are then copied into the last states (what
+    the filter keeps after a tick it passes untouched), which are left alone otherwise."""
+    n = P.shape[1]
+    for e in range(n):
+        c0, c1 = starts[e], starts[e + 1]
+        if not _screen(P[k, e], R[k, e], V[k, e], A[k, e], True, last_p[e], last_R[e], raw_p[e], raw_R[e],
+                       offsets[e], centres[c0:c1], reach[c0:c1], lim):
+            return False
+    for e in range(n):
+        for i in range(3):
+            last_p[e, i] = P[k, e, i]
+            raw_p[e, i] = P[k, e, i]
+            for j in range(3):
+                last_R[e, i, j] = R[k, e, i, j]
+                raw_R[e, i, j] = R[k, e, i, j]
+    return True
+
+
+@njit
 def _dist(a, b):
     return np.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
 
@@ -161,6 +187,11 @@ class CommandFilter:
         self._limits[4:] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
                             config.max_angular_acceleration)
         self._arrays: dict[str, tuple] = {}
+        # the row path (`bind_rows`, `pass_rows`): the last states of its effectors stacked, and whether they are
+        # those of the dicts above (`_rows_ready`) or newer (`_dicts_stale`: the dicts are rebuilt before use)
+        self._row_effectors: tuple[str, ...] | None = None
+        self._rows_ready = False
+        self._dicts_stale = False
 
     @staticmethod
     def _body_spheres(robot, q: np.ndarray) -> dict:
@@ -232,8 +263,82 @@ class CommandFilter:
         elif self.events and self.events[-1]["kind"] == kind and self.events[-1]["effector"] == effector:
             self.events[-1]["t_last"] = t
 
+    def bind_rows(self, effectors) -> None:
+        """Prepare `pass_rows` for references given as stacked rows of these effectors, in this order."""
+        eff = tuple(effectors)
+        n = len(eff)
+        self._row_effectors = eff
+        self._row_last = (np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)))
+        offsets, centres, reach, starts = np.zeros((n, 3)), [], [], [0]
+        for i, e in enumerate(eff):
+            off, c, r = self._body_arrays.get(e, self._no_body)
+            offsets[i] = off
+            centres.append(np.asarray(c, float).reshape(-1, 3))
+            reach.append(np.asarray(r, float).reshape(-1))
+            starts.append(starts[-1] + len(reach[-1]))
+        self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
+                          np.array(starts, dtype=np.int64))
+        self._row_args = (*self._row_last, *self._row_body, self._limits)
+        # the kernel loaded now, not at the first tick it serves (a paced run's clock is running by then)
+        _screen_rows(0, np.zeros((1, n, 3)), np.zeros((1, n, 3, 3)), np.zeros((1, n, 6)), np.zeros((1, n, 6)),
+                     *(a.copy() for a in self._row_args))
+        self._sync_rows()
+
+    def pass_rows(self, t: float, k: int, P: np.ndarray, R: np.ndarray, V: np.ndarray, A: np.ndarray) -> bool:
+        """The common tick in one compiled call: the references of `bind_rows`' effectors are row k of P (n, e, 3),
+        R (n, e, 3, 3), V, A (n, e, 6). True when the filter lets every one through untouched (the tick is then
+        done: its state and flags are what `__call__` would have left, and the output is the input); False when
+        this cannot be decided here (a first tick, a re-join, an intervention): nothing changed, call `__call__`."""
+        if not self.config.enabled:
+            self.flags[:] = 0.0
+            return True
+        t_prev = self._t_prev
+        if t_prev is None or not self._rows_ready or self._rejoin:
+            return False
+        dt = t - t_prev
+        if dt <= 0.0:
+            return False
+        cfg = self.config
+        scale = max(1.0, dt / self.dt)
+        lim = self._limits
+        lim[2], lim[3] = cfg.max_speed * dt, cfg.max_angular_speed * dt
+        lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
+        if not _screen_rows(k, P, R, V, A, *self._row_args):
+            return False
+        self.flags[:] = 0.0
+        self._t_prev = t
+        self._dicts_stale = True
+        return True
+
+    def _sync_dicts(self) -> None:
+        """After `pass_rows`: the last outputs as the poses `__call__` keeps (each the raw reference too)."""
+        lp, lR = self._row_last[0], self._row_last[1]
+        for i, e in enumerate(self._row_effectors):
+            M = pin.SE3(lR[i].copy(), lp[i].copy())
+            self._last[e] = self._raw_last[e] = M
+            p, R = M.translation, M.rotation
+            self._arrays[e] = (p, R, p, R)
+        self._dicts_stale = False
+
+    def _sync_rows(self) -> None:
+        """After `__call__`: its last states into the stacked ones, when every row effector has them."""
+        eff = self._row_effectors
+        self._rows_ready = all(e in self._last and e in self._arrays for e in eff)
+        if self._rows_ready:
+            for i, e in enumerate(eff):
+                for dst, src in zip(self._row_last, self._arrays[e]):
+                    dst[i] = src
+
     def __call__(self, t: float, targets: dict) -> dict:
         """{effector: (SE3, velocity (6,), acceleration (6,))} -> the same, filtered (module docstring)."""
+        if self._dicts_stale:
+            self._sync_dicts()
+        out = self._filter(t, targets)
+        if self._row_effectors is not None:
+            self._sync_rows()
+        return out
+
+    def _filter(self, t: float, targets: dict) -> dict:
         self.flags[:] = 0.0
         if not self.config.enabled:
             return targets

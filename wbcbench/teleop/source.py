@@ -16,6 +16,11 @@ sending as far as the receiver can tell (its delay beyond the fastest delivery s
 arrived) plus `predict_latency`, the fixed one-way latency the receiver cannot observe (e.g. half the round trip).
 Each tick's age and horizon are kept (`stream_age`, `stream_horizon`) for the log; on the simulated link, so is
 the undelayed reference of the hands (`truth`: the recording's spline at t, what the robot should be doing now).
+
+A recording replayed directly has its common tick (a valid row the command filter has nothing to do on) served from
+the precomputed rows stacked per tick, screened by the filter in one compiled call, without pose objects
+(`_row_targets`); everything else takes the general path, with the same results bit for bit
+(tests/teleop/test_source_rows.py).
 """
 
 from __future__ import annotations
@@ -85,6 +90,24 @@ class _Trajectory:
         return len(self.valid)
 
 
+@dataclass
+class _Rows:
+    """A recording's per-tick references stacked for the common tick (`TeleopReferenceSource._row_targets`): the
+    effectors in DEFAULT_TARGETS order, P (n, 3, 3), R (n, 3, 3, 3), V, A (n, 3, 6) (the trajectory's dicts are
+    views of them), and the same for the ticks k of the engagement blend (k dt < engage_time, at t = k dt, where the
+    row is valid: `engaged_ok`), computed once with the blend's own code."""
+
+    P: np.ndarray
+    R: np.ndarray
+    V: np.ndarray
+    A: np.ndarray
+    valid: list  # (n,) bools (Python's: read one per tick)
+    clamped: np.ndarray  # (n, 3) bool
+    any_clamped: list  # (n,) bools
+    engaged: tuple = ()
+    engaged_ok: list = field(default_factory=list)
+
+
 
 @dataclass(frozen=True)
 class TeleopSourceConfig:
@@ -146,6 +169,7 @@ class TeleopReferenceSource:
         if self.anchor != "absolute" and not self.live:
             cal = self.retargeter.sample(float(self.source.times[0]) if self.start is None else self.start)
             self._set_anchor(cal.references)
+        self._rows = None
         self.trajectory = None if self.live else self._precompute()
         cfg = self.config
         # a recording through the simulated impaired link: references from what arrived; the trajectory above
@@ -164,16 +188,24 @@ class TeleopReferenceSource:
         self.command_filter = CommandFilter(self.robot, q0, self.config.safety, self.dt)
         self._held = {k: (pin.SE3(v), np.zeros(6), np.zeros(6)) for k, v in self.reference_poses.items()}
         self._last_valid: dict | None = None
+        self._last_valid_row: int | None = None
         self._filtered: dict[str, pin.SE3] = {}
         self._valid_prev = None
         self._loss_start = None
         self._wall0 = None
         self.record_t: list[float] = []
         self.record_valid: list[bool] = []
-        self.record_pose: dict[str, list[np.ndarray]] = {k: [] for k in DEFAULT_TARGETS}
+        self._pose_log: list = []  # per tick: the poses (3, 12), or the common tick's row (`record_pose`)
         self.clamped_ticks = {k: 0 for k in DEFAULT_TARGETS}
         self.loss_events = 0
         self.loss_durations: list[float] = []
+        if self.link is not None:  # the common tick's rows: only for a recording replayed directly
+            self._rows = None
+        elif self._rows is not None:
+            self._engaged_rows()
+            self.command_filter.bind_rows(DEFAULT_TARGETS)
+            index = {e: i for i, e in enumerate(DEFAULT_TARGETS)}
+            self._row_tasks = tuple((index[e], tuple(tasks)) for e, tasks in self.task_names.items())
 
     def skeleton_summary(self) -> dict:
         """How the source's skeleton was read: the length unit, the up axis and the segment mapping."""
@@ -251,14 +283,106 @@ class TeleopReferenceSource:
             out["position"][e], out["rotation"][e] = pos, rot
             out["velocity"][e], out["acceleration"][e] = vel, acc
             out["clamped"][e] = (np.array([s.clamped[e] for s in samples]) | moved)[k]
-        return _Trajectory(**out, valid=inside & frame_valid[k])
+        # one array per quantity, effectors stacked (the common tick reads rows of them); the dicts are views
+        valid = inside & frame_valid[k]
+        stacked = {}
+        for key in ("position", "rotation", "velocity", "acceleration"):
+            stacked[key] = np.ascontiguousarray(np.stack([out[key][e] for e in DEFAULT_TARGETS], axis=1),
+                                                dtype=np.float64)
+            out[key] = {e: stacked[key][:, i] for i, e in enumerate(DEFAULT_TARGETS)}
+        clamped = np.stack([out["clamped"][e] for e in DEFAULT_TARGETS], axis=1)
+        self._rows = _Rows(stacked["position"], stacked["rotation"], stacked["velocity"], stacked["acceleration"],
+                           valid.tolist(), clamped, clamped.any(axis=1).tolist())
+        return _Trajectory(**out, valid=valid)
 
     def _recorded_targets(self, t: float) -> tuple[dict, bool, dict]:
         tr = self.trajectory
         k = min(int(round(t / self.dt)), tr.n - 1)
-        out = {e: (pin.SE3(tr.rotation[e][k], tr.position[e][k]), tr.velocity[e][k].copy(),
-                   tr.acceleration[e][k].copy()) for e in DEFAULT_TARGETS}
-        return out, bool(tr.valid[k]), {e: bool(tr.clamped[e][k]) for e in DEFAULT_TARGETS}
+        return self._trajectory_row(k), bool(tr.valid[k]), {e: bool(tr.clamped[e][k]) for e in DEFAULT_TARGETS}
+
+    def _trajectory_row(self, k: int) -> dict:
+        tr = self.trajectory
+        return {e: (pin.SE3(tr.rotation[e][k], tr.position[e][k]), tr.velocity[e][k].copy(),
+                    tr.acceleration[e][k].copy()) for e in DEFAULT_TARGETS}
+
+    def _engaged_rows(self) -> None:
+        """The engagement blend of the valid rows of ticks k with k dt < engage_time, at t = k dt (`_Rows`)."""
+        rows = self._rows
+        n = 0
+        while n < rows.P.shape[0] and n * self.dt < self.engage_time:
+            n += 1
+        P, R = np.empty((n, 3, 3)), np.empty((n, 3, 3, 3))
+        V, A = np.empty((n, 3, 6)), np.empty((n, 3, 6))
+        ok = rows.valid[:n]
+        for k in (k for k in range(n) if ok[k]):
+            blended = self._engage(k * self.dt, self._trajectory_row(k))
+            for i, e in enumerate(DEFAULT_TARGETS):
+                M, vel, acc = blended[e]
+                P[k, i], R[k, i], V[k, i], A[k, i] = M.translation, M.rotation, vel, acc
+        rows.engaged, rows.engaged_ok = (P, R, V, A), ok
+
+    def _row_targets(self, t: float) -> dict | None:
+        """The common tick of a recording, from the stacked rows: a valid row (blended from the precomputed
+        engagement rows while t < engage_time) that the command filter lets through untouched; the same
+        bookkeeping and references as `targets` without building a pose object. None where it is not that tick
+        (invalid, an engagement time off the tick grid, a filter intervention): `targets` does it."""
+        rows = self._rows
+        k_tick = int(round(t / self.dt))
+        k = min(k_tick, len(rows.valid) - 1)
+        if not rows.valid[k]:
+            return None
+        if t < self.engage_time:
+            ok = rows.engaged_ok
+            if not (k_tick < len(ok) and ok[k_tick] and t == k_tick * self.dt):
+                return None
+            P, R, V, A = rows.engaged
+            j = k_tick
+        else:
+            P, R, V, A, j = rows.P, rows.R, rows.V, rows.A, k
+        if not self.command_filter.pass_rows(t, j, P, R, V, A):
+            return None
+        # what `targets` does on a valid tick
+        if self._valid_prev is False and self._loss_start is not None:
+            self.loss_durations.append(t - self._loss_start)
+            self._loss_start = None
+        self._last_valid, self._last_valid_row = None, k
+        self._hold_from = None
+        self._valid_prev = True
+        if rows.any_clamped[k]:
+            for i, e in enumerate(DEFAULT_TARGETS):
+                self.clamped_ticks[e] += int(rows.clamped[k, i])
+        self.record_t.append(t)
+        self.record_valid.append(True)
+        self._pose_log.append(j if P is rows.P else -1 - j)  # the row, read when `record_pose` is
+        named = {}
+        unchecked = PoseReference.unchecked
+        for i, tasks in self._row_tasks:
+            ref = unchecked(P[j, i], R[j, i], V[j, i], A[j, i])
+            for task in tasks:
+                named[task] = ref
+        return named
+
+    @property
+    def record_pose(self) -> dict[str, np.ndarray]:
+        """Per effector, the references handed to the controller each tick (position, rotation row-major; NaN
+        where the effector had none), (ticks, 12)."""
+        out = np.full((len(self._pose_log), len(DEFAULT_TARGETS), 12), np.nan)
+        rows = self._rows
+        for c, entry in enumerate(self._pose_log):
+            if isinstance(entry, np.ndarray):
+                out[c] = entry
+            else:  # a row of the common tick: of the trajectory (j >= 0) or of the engagement blend (-1 - j)
+                P, R = (rows.P, rows.R) if entry >= 0 else rows.engaged[:2]
+                j = entry if entry >= 0 else -1 - entry
+                out[c, :, :3] = P[j]
+                out[c, :, 3:] = R[j].reshape(-1, 9)
+        return {e: out[:, i] for i, e in enumerate(DEFAULT_TARGETS)}
+
+    def _last_valid_targets(self) -> dict | None:
+        """The last valid tick's targets before the engagement blend (kept as a row index by the common tick)."""
+        if self._last_valid is None and self._last_valid_row is not None:
+            return self._trajectory_row(self._last_valid_row)
+        return self._last_valid
 
     def _live_targets(self, t: float) -> tuple[dict, bool, dict]:
         if self.realtime:
@@ -327,6 +451,10 @@ class TeleopReferenceSource:
     def targets(self, t: float) -> dict:
         """The named frame-task references at time t [s] (effector targets through the anchor, spline or filter,
         signal-loss policy and engagement blend), with the health bookkeeping."""
+        if self._rows is not None:
+            named = self._row_targets(t)
+            if named is not None:
+                return named
         if self.link is not None:
             targets, valid, clamped = self._link_targets(t)
         else:
@@ -335,7 +463,7 @@ class TeleopReferenceSource:
             if self._valid_prev is False and self._loss_start is not None:
                 self.loss_durations.append(t - self._loss_start)
                 self._loss_start = None
-            self._last_valid = targets  # held (at rest) if the stream is lost: made then, not every tick
+            self._last_valid, self._last_valid_row = targets, None  # held (at rest) if the stream is lost
             self._hold_from = None
         else:
             if self._valid_prev is not False:
@@ -343,9 +471,10 @@ class TeleopReferenceSource:
                 if self._valid_prev is True:
                     self.loss_events += 1
                 self._loss_start = t
-                if self._last_valid is not None:
-                    self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in self._last_valid.items()}
-                    self._last_valid = None
+                last_valid = self._last_valid_targets()
+                if last_valid is not None:
+                    self._held = {k: (pin.SE3(v[0]), np.zeros(6), np.zeros(6)) for k, v in last_valid.items()}
+                    self._last_valid, self._last_valid_row = None, None
                 self._hold_from = {k: pin.SE3(v[0]) for k, v in self._held.items()}
             targets = self._safe_targets(t)
         self._valid_prev = valid
@@ -363,10 +492,13 @@ class TeleopReferenceSource:
             self.clamped_ticks[k] += int(c)
         self.record_t.append(t)
         self.record_valid.append(valid)
-        for k in DEFAULT_TARGETS:
-            M = targets[k][0] if k in targets else None
-            self.record_pose[k].append(np.concatenate([M.translation, M.rotation.reshape(-1)]) if M is not None
-                                       else np.full(12, np.nan))
+        poses = np.full((len(DEFAULT_TARGETS), 12), np.nan)
+        for i, k in enumerate(DEFAULT_TARGETS):
+            if k in targets:
+                M = targets[k][0]
+                poses[i, :3] = M.translation
+                poses[i, 3:] = M.rotation.reshape(-1)
+        self._pose_log.append(poses)
         named = {}
         for effector, tasks in self.task_names.items():
             if effector not in targets:  # garbage before any valid reference: the task keeps its own
