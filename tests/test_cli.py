@@ -186,13 +186,17 @@ def test_a_failed_background_write_is_raised_and_the_earlier_groups_kept(tmp_pat
 
 def test_derived_columns_are_filled_per_row_group(tmp_path: Path):
     """`Recorder.derive`: a column computed from the others once per row group (in the writer thread) holds, in
-    the file, the value of every row, the last partial group included; rows a tick left unwritten stay NaN."""
+    the file, the value of every row, the last partial group included; rows a tick left unwritten stay NaN; each
+    group knows where it starts."""
     from wbcbench.recorder import Recorder, read_log
 
     rec = Recorder(tmp_path / "log.parquet", chunk=7)
     x, y, z = rec.add_channel("x"), rec.add_channel("y", ["a", "b"]), rec.add_channel("z")
 
-    def fill(block):
+    firsts = []
+
+    def fill(block, first):
+        firsts.append(first)
         block[:, y.start] = 2.0 * block[:, x.start]
         block[:, y.start + 1] = block[:, x.start] ** 2
 
@@ -208,3 +212,4 @@ def test_derived_columns_are_filled_per_row_group(tmp_path: Path):
     np.testing.assert_array_equal(log["y.a"], 2 * k)
     np.testing.assert_array_equal(log["y.b"], k ** 2)
     np.testing.assert_array_equal(np.isnan(log["z"]), k % 2 == 0)
+    assert firsts == [0, 7, 14, 21]  # each group's first row in the log

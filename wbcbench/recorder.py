@@ -34,12 +34,14 @@ class Recorder:
         self._pending: threading.Thread | None = None
         self._pending_error: BaseException | None = None
         self._derived: list = []
+        self._handed = 0  # rows handed to the writer thread so far
         self.rows_written = 0
 
     def derive(self, fill) -> None:
-        """Columns computed from others once per row group instead of once per tick: ``fill(block)`` writes them
-        into the flushed rows (an (n, columns) float64 array, row-major), in the writer thread before the write
-        (e.g. a compiled pass that releases the GIL). Its errors surface like a failed write."""
+        """Columns computed once per row group instead of once per tick: ``fill(block, first)`` writes them into
+        the flushed rows (an (n, columns) float64 array, row-major; ``first`` the index of its first row in the
+        log), in the writer thread before the write (e.g. a compiled pass that releases the GIL, or a copy of
+        what the caller kept per row). Its errors surface like a failed write."""
         self._derived.append(fill)
 
     def add_channel(self, name: str, components: list[str] | None = None) -> slice:
@@ -86,15 +88,17 @@ class Recorder:
         # the filled rows; not reused before the write is done (the other buffer is filled meanwhile)
         block = self._buf[: self._n]
         n, self._n = self._n, 0
+        first, self._handed = self._handed, self._handed + n
         self._buf, self._spare = (self._spare, self._buf)
         # the writer thread opens the file (first group), writes the block, then resets its buffer (the next one
         # filled) to NaN
-        self._pending = threading.Thread(target=self._write, args=(block, n), name="wbcbench-log-writer", daemon=True)
+        self._pending = threading.Thread(target=self._write, args=(block, n, first), name="wbcbench-log-writer",
+                                         daemon=True)
         self._pending.start()
         if wait:
             self._join()
 
-    def _write(self, block: np.ndarray, n: int) -> None:
+    def _write(self, block: np.ndarray, n: int, first: int) -> None:
         # below the run's thread: on a core it shares with the loop (a pinned run) the write takes the time the
         # loop leaves (a paced run sleeps between ticks) instead of delaying ticks by a group's write
         try:
@@ -111,7 +115,7 @@ class Recorder:
                 self._writer = pq.ParquetWriter(self.path, schema, compression="lz4", use_dictionary=False,
                                                 use_byte_stream_split=True)
             for fill in self._derived:
-                fill(block)
+                fill(block, first)
             columns = np.asfortranarray(block)  # each column contiguous: Arrow takes them without a copy
             table = pa.Table.from_arrays([pa.array(columns[:, i]) for i in range(columns.shape[1])],
                                          names=self.columns)

@@ -246,7 +246,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     # (compiled, in the log's writer thread), or per tick by pinocchio for joint types the kernel lacks
     com_kernel = CenterOfMass(model)
     if com_kernel.supported and s_vcom.start == s_com.start + 3:
-        rec.derive(lambda block: com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start))
+        rec.derive(lambda block, first: com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start))
     else:
         com_kernel = None
     q_true = sim.true_q()
@@ -263,6 +263,15 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         rec.chunk = max(rec.chunk, k_branch + 1)  # nothing written to the file before the branches: they copy it
     fell, reason, error, interrupted = False, "", None, False
     ctrl_us = np.full(n_ticks, np.nan)
+
+    def time_columns(block: np.ndarray, first: int) -> None:
+        """Row k is tick k: its time (the state's, after the step) and the controller's step time, filled per row
+        group (the same numbers as per tick)."""
+        ticks = np.arange(first + 1, first + 1 + len(block))
+        block[:, i_t] = ticks * spec.control_dt
+        block[:, s_time.start] = ctrl_us[first:first + len(block)]
+
+    rec.derive(time_columns)
     lateness = np.zeros(n_ticks) if realtime else None
     # a paced run: no cyclic garbage collection during the loop (a full collection stalls the interpreter for
     # milliseconds; the loop's objects are freed by reference counting), what exists now moved out of its reach
@@ -348,7 +357,6 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             if com_kernel is None:  # else filled per row group from the logged q and v (below)
                 row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
                 row[s_vcom] = data.vcom[0]
-            row[i_t] = (tick + 1) * control_dt
             if refs.com is not None:
                 row[s_ref] = refs.com.position
             if refs.zmp is not None:
@@ -370,7 +378,6 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 row[s_fault] = injector.log
                 injector.update((tick + 1) * spec.control_dt, sim, ctrl)
                 meas = injector.measurement(meas)
-            row[s_time] = step_us
             for sl, val in zip(s_extra, log_values()):
                 row[sl] = val
             if s_scen:
@@ -384,8 +391,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             try:
                 row = commit()  # the next tick's row
             except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
-                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = {row[i_t]:.3f} s "
-                                    f"({exc.strerror or exc}); the ticks written before are kept") from None
+                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = "
+                                    f"{(tick + 1) * control_dt:.3f} s ({exc.strerror or exc}); the ticks written "
+                                    "before are kept") from None
             if fs.fell:
                 fell, reason = True, fs.reason
                 break
