@@ -4,6 +4,7 @@ interrupted keeps its log up to the last flushed group (and `close()` flushes th
 from __future__ import annotations
 
 import os
+import queue
 import threading
 from pathlib import Path
 
@@ -31,7 +32,11 @@ class Recorder:
         self._spare: np.ndarray | None = None  # the other buffer, while a flushed one is being written
         self._n = 0
         self._writer: pq.ParquetWriter | None = None
-        self._pending: threading.Thread | None = None
+        # one writer thread for the run (made with the first row: starting a thread at a flush took the loop 2-5 ms)
+        self._queue: queue.Queue | None = None
+        self._worker: threading.Thread | None = None
+        self._worker_pid: int | None = None
+        self._busy = False  # a block handed to the writer and not yet written
         self._pending_error: BaseException | None = None
         self._derived: list = []
         self._handed = 0  # rows handed to the writer thread so far
@@ -66,6 +71,7 @@ class Recorder:
             # now, their pages touched: a paced run does not stall at its first flush
             shape = (self.chunk, len(self.columns))
             self._buf, self._spare = np.full(shape, np.nan), np.full(shape, np.nan)
+            self._start_worker()
         return self._buf[self._n]
 
     def commit(self) -> np.ndarray:
@@ -92,19 +98,38 @@ class Recorder:
         self._buf, self._spare = (self._spare, self._buf)
         # the writer thread opens the file (first group), writes the block, then resets its buffer (the next one
         # filled) to NaN
-        self._pending = threading.Thread(target=self._write, args=(block, n, first), name="wbcbench-log-writer",
-                                         daemon=True)
-        self._pending.start()
+        if self._worker is None or self._worker_pid != os.getpid():  # none yet, or this is a forked copy
+            self._start_worker()
+        self._busy = True
+        self._queue.put((block, n, first))
         if wait:
             self._join()
 
-    def _write(self, block: np.ndarray, n: int, first: int) -> None:
+    def _start_worker(self) -> None:
+        self._queue = queue.Queue()
+        self._busy = False
+        self._worker = threading.Thread(target=self._work, args=(self._queue,), name="wbcbench-log-writer",
+                                        daemon=True)
+        self._worker_pid = os.getpid()
+        self._worker.start()
+
+    def _work(self, jobs: queue.Queue) -> None:
         # below the run's thread: on a core it shares with the loop (a pinned run) the write takes the time the
         # loop leaves (a paced run sleeps between ticks) instead of delaying ticks by a group's write
         try:
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
         except (AttributeError, OSError):  # no per-thread priority here: the write runs as it is
             pass
+        while True:
+            job = jobs.get()
+            try:
+                if job is None:
+                    return
+                self._write(*job)
+            finally:
+                jobs.task_done()
+
+    def _write(self, block: np.ndarray, n: int, first: int) -> None:
         try:
             if self._writer is None:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -127,9 +152,10 @@ class Recorder:
             block.base[:] = np.nan  # rows a tick leaves unwritten are NaN in the file
 
     def _join(self) -> None:
-        if self._pending is not None:
-            self._pending.join()
-            self._pending = None
+        if self._busy:
+            if self._worker_pid == os.getpid():
+                self._queue.join()
+            self._busy = False
         if self._pending_error is not None:
             exc, self._pending_error = self._pending_error, None
             raise exc
@@ -140,9 +166,11 @@ class Recorder:
         try:
             self.flush(wait=True)
         finally:
-            if self._pending is not None:  # the flush raised before waiting for the write it started
-                self._pending.join()
-                self._pending = None
+            if self._worker is not None and self._worker_pid == os.getpid():
+                self._queue.join()  # the flush may have raised before waiting for the write it handed over
+                self._queue.put(None)
+                self._worker.join()
+            self._worker, self._busy = None, False
             if self._writer is not None:
                 writer, self._writer = self._writer, None
                 writer.close()

@@ -52,6 +52,13 @@ def _max(x: np.ndarray) -> float:
             m = v
     return m
 
+
+@njit(exact=True)
+def _max2(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out[:] = _max(a), _max(b)`` in one call."""
+    out[0] = _max(a)
+    out[1] = _max(b)
+
 TASKSET_NAME = "teleop"
 
 
@@ -170,8 +177,13 @@ class TSIDTeleop(InverseDynamicsController):
     def log_values(self) -> list:
         vals = super().log_values()
         out = self._collision_log
-        for i, task in enumerate(self.collision_tasks[:2]):
-            out[i] = _max(task.values(self.model, self.data))  # this tick's values: the task's cache of the step
+        tasks, m, d = self.collision_tasks, self.model, self.data
+        # this tick's values: the tasks' cache of the step (their own arrays, not copied)
+        if len(tasks) >= 2:
+            _max2(tasks[0].values(m, d, copy=False), tasks[1].values(m, d, copy=False), out)
+        else:
+            for i, task in enumerate(tasks):
+                out[i] = _max(task.values(m, d, copy=False))
         vals += [self._target_log, out]
         return vals
 

@@ -673,9 +673,11 @@ class SelfCollisionTask(Task):
         out[...] = a if self._all_selected else a[self._selection]
 
     # --------------------------------------------------------------------------------------------- contract
-    def values(self, model: pin.Model, data: pin.Data) -> FloatArray:
-        """``C_i`` per repulsor, (dim,), in [0, 1]."""
-        return self._evaluate(model, data).C.copy()
+    def values(self, model: pin.Model, data: pin.Data, copy: bool = True) -> FloatArray:
+        """``C_i`` per repulsor, (dim,), in [0, 1] (``copy=False``: the task's own array, read-only use, valid until
+        the next evaluation)."""
+        C = self._evaluate(model, data).C
+        return C.copy() if copy else C
 
     def distances(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """``||x - p_i||`` per repulsor, (dim,) [m]."""
