@@ -246,9 +246,12 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     # (compiled, in the log's writer thread), or per tick by pinocchio for joint types the kernel lacks
     com_kernel = CenterOfMass(model)
     if com_kernel.supported and s_vcom.start == s_com.start + 3:
-        rec.derive(lambda block, first: com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start))
+        def com_columns(block: np.ndarray, first: int = 0) -> None:
+            com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start)
+
+        rec.derive(com_columns)
         # load the compiled kernel now: loading it at the first row group holds the interpreter for milliseconds
-        com_kernel.write_rows(np.empty((0, len(rec.columns))), s_q.start, s_v.start, s_com.start)
+        com_columns(np.empty((0, len(rec.columns))))
     else:
         com_kernel = None
     q_true = sim.true_q()
@@ -338,7 +341,7 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 p.observe(t, refs)
             c0 = time.perf_counter()
             cmd = ctrl_step(meas, refs)
-            ctrl_us[tick] = step_us = (time.perf_counter() - c0) * 1e6
+            ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
             if faults_on:
                 cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
             if predictor is not None:

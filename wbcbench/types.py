@@ -185,33 +185,13 @@ class References:
                 feet: dict) -> "References":
         """A tick of a plan from values already checked (no targets or stabilizer fields): as the constructor,
         without its per-field machinery (a walk makes one every tick)."""
-        new = _new(cls)
-        t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
-        t_(new, t)
-        contacts_(new, contacts)
-        com_(new, com)
-        zmp_(new, zmp)
-        feet_(new, feet)
-        targets_(new, {})
-        wrench_targets_(new, {})
-        contact_poses_(new, {})
-        return new
+        return _references(t, contacts, com, zmp, feet, {}, {}, {})
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict) -> "References":
         """A copy with the fields a stabilizer corrects replaced (`dataclasses.replace` without its per-field
         machinery: a stabilizer does this every tick)."""
-        new = _new(References)
-        t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
-        t_(new, self.t)
-        contacts_(new, self.contacts)
-        com_(new, com)
-        zmp_(new, self.zmp)
-        feet_(new, self.feet)
-        targets_(new, targets)
-        wrench_targets_(new, wrench_targets)
-        contact_poses_(new, contact_poses)
-        return new
+        return _references(self.t, self.contacts, com, self.zmp, self.feet, targets, wrench_targets, contact_poses)
 
     def missing(self, names) -> list[str]:
         """The fields among `names` this tick leaves unset (None or empty)."""
@@ -230,6 +210,21 @@ _POINT_SET = tuple(PointReference.__dict__[n].__set__ for n in ("position", "vel
 _POSE_SET = tuple(PoseReference.__dict__[n].__set__ for n in ("position", "rotation", "velocity", "acceleration"))
 _REFERENCE_SET = tuple(References.__dict__[n].__set__ for n in ("t", "contacts", "com", "zmp", "feet", "targets",
                                                                 "wrench_targets", "contact_poses"))
+
+
+def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses) -> References:
+    """A `References` of these fields (`References.planned`, `References.corrected`), set slot by slot."""
+    new = _new(References)
+    t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
+    t_(new, t)
+    contacts_(new, contacts)
+    com_(new, com)
+    zmp_(new, zmp)
+    feet_(new, feet)
+    targets_(new, targets)
+    wrench_targets_(new, wrench_targets)
+    contact_poses_(new, contact_poses)
+    return new
 
 
 @dataclass(frozen=True, slots=True)

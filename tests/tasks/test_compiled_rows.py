@@ -12,6 +12,7 @@ from wbcbench.tasks import (
     CoMTask,
     Contact6D,
     FrameTask,
+    ReferenceNotSetError,
     RepulsionPoint,
     SelfCollisionTask,
     TaskConfigError,
@@ -148,6 +149,10 @@ def test_set_pose_stores_what_set_reference_stores_and_rejects_the_same(erd_talo
     assert b.reference.translation[0] != 5.0
     b.set_pose(p, R)
     assert not b.v_ref.any() and not b.a_ref.any()
+    b.set_pose(p + 1.0, None)  # a translating reference holds the orientation
+    assert np.array_equal(b.reference.rotation, R) and np.array_equal(b.reference.translation, p + 1.0)
+    with pytest.raises(ReferenceNotSetError, match="no orientation to hold"):
+        FrameTask(m, "torso_2_link", kp=1.0).set_pose(p, None)
     with pytest.raises(TaskConfigError, match="rotation"):
         b.set_pose(p, R * 1.1)
     with pytest.raises(TaskConfigError, match="velocity"):

@@ -30,13 +30,6 @@ class TaskReferences:
         for name, target in refs.targets.items():
             task = self.by_name.get(name)
             if task is not None:
-                _set_pose(task, target)
+                task.set_pose(target.position, target.rotation, target.velocity, target.acceleration)
         for side, foot in refs.feet.items():
-            _set_pose(self.free_tasks[side], foot)
-
-
-def _set_pose(task: FrameTask, target) -> None:
-    R = target.rotation
-    if R is None:  # hold the task's orientation (its stored array: set_pose copies it)
-        R = task._R_ref if task._R_ref is not None else task.reference.rotation
-    task.set_pose(target.position, R, target.velocity, target.acceleration)
+            self.free_tasks[side].set_pose(foot.position, foot.rotation, foot.velocity, foot.acceleration)

@@ -138,13 +138,18 @@ class FrameTask(Task):
     def set_pose(
         self,
         position: npt.ArrayLike,
-        rotation: npt.ArrayLike,
+        rotation: npt.ArrayLike | None,
         velocity: npt.ArrayLike | None = None,
         acceleration: npt.ArrayLike | None = None,
     ) -> None:
         """:meth:`set_reference` from a position (3,) and a rotation matrix (3, 3) instead of an SE3, with the
         same checks; float64 arrays of those shapes (what `PoseReference` holds) are checked and copied in one
-        compiled call (a reference is set every tick)."""
+        compiled call (a reference is set every tick). ``rotation`` None holds the reference's current one (a
+        `PoseReference` that only translates)."""
+        if rotation is None:
+            rotation = self._R_ref
+            if rotation is None:
+                raise ReferenceNotSetError(f"{self.owner}: no orientation to hold before a first set_reference")
         if (type(rotation) is np.ndarray and rotation.dtype == _F64 and rotation.shape == (3, 3)
                 and val.is_vector(position, 3) and (velocity is None or val.is_vector(velocity, 6))
                 and (acceleration is None or val.is_vector(acceleration, 6))):

@@ -342,9 +342,7 @@ class TeleopReferenceSource:
         if not self.command_filter.pass_rows(t, j, P, R, V, A):
             return None
         # what `targets` does on a valid tick
-        if self._valid_prev is False and self._loss_start is not None:
-            self.loss_durations.append(t - self._loss_start)
-            self._loss_start = None
+        self._end_loss(t)
         self._last_valid, self._last_valid_row = None, k
         self._hold_from = None
         self._valid_prev = True
@@ -361,6 +359,12 @@ class TeleopReferenceSource:
             for task in tasks:
                 named[task] = ref
         return named
+
+    def _end_loss(self, t: float) -> None:
+        """A valid tick after lost ones: the loss's duration counted."""
+        if self._valid_prev is False and self._loss_start is not None:
+            self.loss_durations.append(t - self._loss_start)
+            self._loss_start = None
 
     @property
     def record_pose(self) -> dict[str, np.ndarray]:
@@ -460,9 +464,7 @@ class TeleopReferenceSource:
         else:
             targets, valid, clamped = (self._live_targets(t) if self.live else self._recorded_targets(t))
         if valid:
-            if self._valid_prev is False and self._loss_start is not None:
-                self.loss_durations.append(t - self._loss_start)
-                self._loss_start = None
+            self._end_loss(t)
             self._last_valid, self._last_valid_row = targets, None  # held (at rest) if the stream is lost
             self._hold_from = None
         else:
