@@ -16,8 +16,8 @@ import numpy as np
 from ..jit import njit
 from ..tasks.placements import _forward, _frames
 
-__all__ = ["ankle_admittance", "com_admittance", "feet_measurement", "filter_measurement", "model_cop", "reference_split",
-           "torso_roll"]
+__all__ = ["ankle_admittance", "com_admittance", "corrections", "feet_measurement", "filter_measurement", "model_cop",
+           "reference_split", "torso_roll"]
 
 
 @njit
@@ -270,3 +270,59 @@ def measure_feet(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_par
                               sole_center, min_normal_force, gravity, out, zmp)
     filter_measurement(out, zmp, zmp_ok, alpha, state, started)
     return zmp_ok
+
+
+@njit(exact=True)
+def corrections(state, loaded, measured_zmp, cop_R, cop_p, cop_w, cop_use, com_on, com_p, com_v, com_a, com_kd, com_kv,
+                com_ka, com_limit, dt, com_out, torso_on, w_left, w_right, torso_kd, torso_kv, torso_ka, torso_limit,
+                R0_torso, R_torso, w_torso, a_torso, ankle_on, R_nominal, kd_pitch, kd_roll, ankle_limit, R_tilt, log,
+                flags):
+    """The force-based stabilizer's corrections of a tick in one call, on its filtered measurement ``state`` (8,:
+    `filter_measurement`), the feet's ``loaded`` flags (2,: `feet_measurement`'s ``out[:, 3]``) and whether the
+    measurement gave a ZMP (``measured_zmp``):
+
+    * ``log[:] = NaN``, then the measured ZMP (x y), the model's CoP (`model_cop` of ``cop_*``) into ``log[0:4]``;
+    * Eq. 2 when ``com_on`` and both ZMPs exist: `com_admittance` of ``com_p``, ``com_v``, ``com_a`` into ``com_out``
+      (3, 3), the correction into ``log[4:6]``;
+    * Eq. 4-5 when ``torso_on``: `torso_roll` of the model's wrenches ``w_left``, ``w_right`` and the measured normal
+      forces (``state[6:8]``) from ``R0_torso`` into ``R_torso``, ``w_torso``, ``a_torso``, the roll into ``log[6]``;
+    * Eq. 3 for each foot i with ``ankle_on[i]``: `ankle_admittance` of ``R_nominal[i]`` into ``R_tilt[i]`` when the
+      foot is loaded (its CoP ``state[2 + 2 i: 4 + 2 i]``), the tilt into ``log[7 + i]``.
+
+    ``flags`` (int64, 5,) gets: the ZMP exists, Eq. 2 applied, Eq. 4-5 applied, then per foot 0 (not applied),
+    1 (its nominal pose: unloaded), 2 (tilted). The same operations, in the same order, as the stabilizer's Python
+    of those laws (its logs are compared bit for bit)."""
+    for k in range(log.shape[0]):
+        log[k] = np.nan
+    zmp0 = state[0] if measured_zmp else np.nan
+    zmp1 = state[1] if measured_zmp else np.nan
+    zmp_ok = math.isfinite(zmp0 + zmp1)
+    flags[0] = 1 if zmp_ok else 0
+    log[0] = zmp0
+    log[1] = zmp1
+    cop = np.empty(2)
+    cop_ok = model_cop(cop_R, cop_p, cop_w, cop_use, cop)
+    if cop_ok:
+        log[2] = cop[0]
+        log[3] = cop[1]
+    flags[1] = 0
+    if com_on and cop_ok and zmp_ok:
+        com_admittance(com_p, com_v, com_a, cop[0] - zmp0, cop[1] - zmp1, com_kd, com_kv, com_ka, com_limit, dt,
+                       com_out)
+        log[4] = com_out[0, 0] - com_p[0]
+        log[5] = com_out[0, 1] - com_p[1]
+        flags[1] = 1
+    flags[2] = 0
+    if torso_on:
+        log[6] = torso_roll(w_left, w_right, state[6], state[7], torso_kd, torso_kv, torso_ka, torso_limit, dt,
+                            R0_torso, R_torso, w_torso, a_torso)
+        flags[2] = 1
+    for i in range(2):
+        flags[3 + i] = 0
+        if ankle_on[i]:
+            if loaded[i] != 0.0:
+                log[7 + i] = ankle_admittance(R_nominal[i], state[2 + 2 * i], state[3 + 2 * i], kd_pitch, kd_roll,
+                                              ankle_limit, R_tilt[i])
+                flags[3 + i] = 2
+            else:
+                flags[3 + i] = 1

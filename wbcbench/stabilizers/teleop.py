@@ -74,6 +74,10 @@ __all__ = [
 
 GRAVITY = 9.81
 _ZERO3 = np.zeros(3)
+_ZERO6 = np.zeros(6)
+_EYE3 = np.eye(3)
+_NO_TORSO = (0.0, 0.0, 0.0, math.nan)   # `corrections`' torso gains when Eq. 4-5 is off
+_NO_ANKLE = (0.0, 0.0, math.nan)        # and its ankle gains when Eq. 3 is off
 
 
 # ---- specs ---------------------------------------------------------------------------------------------------
@@ -386,6 +390,7 @@ class TeleopStabilizer(Stabilizer):
         self._foot = {s: (float(f.mass), np.array(f.p_sensor_com, dtype=float)) for s, f in self.feet.items()}
         self._cop_buf = _CopBuffers()
         self._com_gains = None if spec.com_admittance is None else _gain_arrays(spec.com_admittance)
+        self._com_limit = math.nan if spec.com_admittance is None else _limit(spec.com_admittance.limit)
         g = spec.ankle_admittance
         self._ankle_gains = None if g is None else (float(g.kd[0]), float(g.kd[1]), _limit(g.limit))
         g = spec.foot_force_difference
@@ -410,9 +415,12 @@ class TeleopStabilizer(Stabilizer):
         # their rotations and translations as arrays (an SE3's attributes are copies made at each access)
         self._contact_nominal_arrays: dict[Side, tuple[np.ndarray, np.ndarray]] = {}
         self._torso_nominal_arrays: tuple[np.ndarray, np.ndarray] | None = None
-        self._tilt = {s: np.eye(3) for s in Side}
+        self._nominal_R = np.tile(np.eye(3), (2, 1, 1))  # the contacts' nominal rotations, rows left, right
+        self._tilt_R = np.zeros((2, 3, 3))                 # and this tick's tilted ones (Eq. 3)
+        self._ankle_on = np.zeros(2, dtype=np.bool_)
+        self._flags = np.zeros(5, dtype=np.int64)          # `_kernels.corrections`' account of the tick
         self._prev_error = {s: None for s in Side}
-        self.measured = _Measured()
+        self._zmp_measured = False
         self.log[:] = np.nan
 
     def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
@@ -421,17 +429,24 @@ class TeleopStabilizer(Stabilizer):
         for s, ref in feedback.contact_references.items():
             self._contact_nominal[s] = pin.SE3(ref)
             self._contact_nominal_arrays[s] = (ref.rotation.copy(), ref.translation.copy())
+            self._nominal_R[_SIDES.index(s)] = ref.rotation
         torso = feedback.task_references.get(self.spec.torso_task)
         if torso is not None:
             self._torso_nominal = pin.SE3(torso)
             self._torso_nominal_arrays = (torso.rotation.copy(), torso.translation.copy())
 
     # -------------------------------------------------------------- measurement
-    def _measure(self, meas: Measurement) -> _Measured:
+    @property
+    def measured(self) -> _Measured:
+        """The filtered measurement of the last tick (`_measure`)."""
+        return self._measured_from(self._filter_state, self._zmp_measured)
+
+    def _measure(self, meas: Measurement) -> bool:
         """Per-foot normal force and CoP (sole frame, from its centre) and the ZMP (world x y), low-passed,
         from the ankle F/T sensors on the measured configuration (the placements: `ForwardKinematics`, the
         arithmetic and the filters:
-        `_kernels.feet_measurement` (`measured_wrench`, `_moment_about`) and `filter_measurement`)."""
+        `_kernels.feet_measurement` (`measured_wrench`, `_moment_about`) and `filter_measurement`), into the
+        filters' state (`measured`); returns whether this tick's measurement gave a ZMP."""
         buf = self._buf
         state = self._filter_state
         if self._fk.supported:  # rows: the sensors', then the soles' frames (buf's views); one compiled call
@@ -442,7 +457,8 @@ class TeleopStabilizer(Stabilizer):
                                      ft_torque[_LEFT], ft_torque[_RIGHT], buf.f_sensor, buf.m_sensor, buf.foot_mass,
                                      buf.foot_com, self.sole_center, self.spec.min_normal_force, GRAVITY, buf.out,
                                      buf.zmp, self._filter_alpha, state, self._filter_started)
-            return self._measured_from(state, zmp_ok)
+            self._zmp_measured = zmp_ok
+            return zmp_ok
         m, d = self.model, self.data  # other joint types: pinocchio's placements
         pin.forwardKinematics(m, d, meas.q)
         for i, s in enumerate(Side):
@@ -461,7 +477,8 @@ class TeleopStabilizer(Stabilizer):
                                   buf.foot_com, buf.R_sole, buf.p_sole, self.sole_center, self.spec.min_normal_force,
                                   GRAVITY, buf.out, buf.zmp)
         filter_measurement(buf.out, buf.zmp, zmp_ok, self._filter_alpha, state, self._filter_started)
-        return self._measured_from(state, zmp_ok)
+        self._zmp_measured = zmp_ok
+        return zmp_ok
 
     def _measured_from(self, state: np.ndarray, zmp_ok: bool) -> _Measured:
         f = state.tolist()
@@ -476,6 +493,12 @@ class TeleopStabilizer(Stabilizer):
     def model_cop(self, feedback: ModelFeedback) -> np.ndarray | None:
         """ZMP (x, y) of the model's QP wrenches of the last tick, world frame; None when unloaded
         (`_kernels.model_cop`)."""
+        buf = self._model_side(feedback)
+        out = np.empty(2)
+        return out if _k.model_cop(buf.R, buf.p, buf.w, buf.use, out) else None
+
+    def _model_side(self, feedback: ModelFeedback) -> _CopBuffers:
+        """`model_cop`'s inputs from the feedback: the active contacts' placements and wrenches."""
         buf = self._cop_buf
         use = buf.use
         poses, wrenches, active = feedback.contact_poses, feedback.wrenches, feedback.active
@@ -487,84 +510,81 @@ class TeleopStabilizer(Stabilizer):
                 buf.R[i] = M.rotation
                 buf.p[i] = M.translation
                 buf.w[i] = w
-        out = np.empty(2)
-        return out if _k.model_cop(buf.R, buf.p, buf.w, use, out) else None
+        return buf
 
     # -------------------------------------------------------------- the corrections
     def correct(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> References:
         spec, dt = self.spec, self.dt
-        meas_ = self._measure(meas)
-        self.measured = meas_
-        zmp_ok = math.isfinite(meas_.zmp[0] + meas_.zmp[1])
-        log = self.log
-        log[:] = np.nan
-        log[0:2] = meas_.zmp
-        cop_model = self.model_cop(feedback)
-        if cop_model is not None:
-            log[2:4] = cop_model
+        measured_zmp = self._measure(meas)
+        state = self._filter_state
+        # the model's side (`model_cop`'s inputs) and which laws apply, then the laws in one call
+        # (`_kernels.corrections`)
+        buf = self._model_side(feedback)
+        wrenches, active = feedback.wrenches, feedback.active
+        both = _LEFT in active and _RIGHT in active
         targets = refs.targets
         com_ref = refs.com
-        # Eq. 2
-        g = spec.com_admittance
-        if g is not None and com_ref is not None and cop_model is not None and zmp_ok:
-            com = com_ref.position
-            out = np.empty((3, 3))
-            _k.com_admittance(com, com_ref.velocity, com_ref.acceleration, float(cop_model[0] - meas_.zmp[0]),
-                              float(cop_model[1] - meas_.zmp[1]), *self._com_gains, _limit(g.limit), dt, out)
-            log[4] = out[0, 0] - com[0]
-            log[5] = out[0, 1] - com[1]
-            com_ref = PointReference.unchecked(out[0], out[1], out[2])  # the kernel's finite (3,) rows
-        active = feedback.active
-        both = Side.LEFT in active and Side.RIGHT in active
-        # Eq. 4-5
-        g = spec.foot_force_difference
-        if g is not None and self._torso_nominal is not None and both:
+        com_on = self._com_gains is not None and com_ref is not None
+        com_out = np.empty((3, 3))
+        if com_on:
+            com_p, com_v, com_a = com_ref.position, com_ref.velocity, com_ref.acceleration
+            com_kd, com_kv, com_ka = self._com_gains
+        else:
+            com_p = com_v = com_a = com_kd = com_kv = com_ka = _ZERO3
+        torso_on = self._torso_gains is not None and self._torso_nominal is not None and both
+        R_torso, w_torso, a_torso = np.empty((3, 3)), np.empty(6), np.empty(6)
+        if torso_on:
             base = targets.get(spec.torso_task)
             R_nominal, p_nominal = self._torso_nominal_arrays
             if base is not None:
                 p0, R0 = base.position, (base.rotation if base.rotation is not None else R_nominal)
             else:
                 p0, R0 = p_nominal, R_nominal
-            # `foot_force_difference` on the model's and the measured normal forces, and Rx(roll) R0: one call
-            R, w, a = np.empty((3, 3)), np.empty(6), np.empty(6)
-            nf = meas_.normal_force
-            log[6] = _k.torso_roll(feedback.wrenches[_LEFT], feedback.wrenches[_RIGHT], nf[_LEFT], nf[_RIGHT],
-                                   *self._torso_gains, dt, R0, R, w, a)
+            torso_gains = self._torso_gains
+        else:
+            R0, torso_gains = _EYE3, _NO_TORSO
+        ankle = self._ankle_gains
+        ankle_on = self._ankle_on
+        nominal = self._contact_nominal
+        for i, s in enumerate(_SIDES):
+            ankle_on[i] = ankle is not None and s in nominal and s in active
+        kd_x, kd_y, ankle_limit = ankle if ankle is not None else _NO_ANKLE
+        flags, log = self._flags, self.log
+        _k.corrections(state, self._buf.out[:, 3], measured_zmp, buf.R, buf.p, buf.w, buf.use, com_on, com_p, com_v, com_a,
+                       com_kd, com_kv, com_ka, self._com_limit, dt, com_out, torso_on, wrenches.get(_LEFT, _ZERO6),
+                       wrenches.get(_RIGHT, _ZERO6), *torso_gains, R0, R_torso, w_torso, a_torso, ankle_on,
+                       self._nominal_R, kd_x, kd_y, ankle_limit, self._tilt_R, log, flags)
+        if flags[1]:  # Eq. 2
+            com_ref = PointReference.unchecked(com_out[0], com_out[1], com_out[2])  # the kernel's finite (3,) rows
+        if flags[2]:  # Eq. 4-5
             targets = dict(targets)
-            targets[spec.torso_task] = PoseReference.unchecked(np.array(p0, dtype=np.float64), R, w, a)
+            targets[spec.torso_task] = PoseReference.unchecked(np.array(p0, dtype=np.float64), R_torso, w_torso,
+                                                               a_torso)
         # Eq. 6-7
         wrench_targets = refs.wrench_targets
         z = spec.zmp_distributor
-        if z is not None and both and zmp_ok and com_ref is not None:
+        if z is not None and both and flags[0] and com_ref is not None:
             feet = {s: self._contact_nominal.get(s, feedback.contact_references.get(s)) for s in Side}
             centre = {s: feet[s].act(self.sole_center) for s in Side}
             p_ref = _cart_table_zmp(com_ref.position, com_ref.acceleration, centre)
             F, _ = zmp_distributor(p_ref, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
-            Fd, alpha = zmp_distributor(meas_.zmp, centre[Side.LEFT], centre[Side.RIGHT], self.mass)
+            Fd, alpha = zmp_distributor(state[0:2].copy(), centre[Side.LEFT], centre[Side.RIGHT], self.mass)
             star = {}
             for s in Side:
                 star[s] = wrench_admittance(F[s], Fd[s], z, dt, self._prev_error[s])
                 self._prev_error[s] = F[s] - Fd[s]
             wrench_targets = split_to_local(star, feet, centre)
             log[9] = alpha
-        # Eq. 3: tilt each loaded, active contact's reference from its nominal pose
+        # Eq. 3: each loaded, active contact's reference tilted from its nominal pose
         contact_poses = refs.contact_poses
-        g = spec.ankle_admittance
-        if g is not None:
+        if ankle is not None:
             contact_poses = dict(contact_poses)
-            kd_x, kd_y, limit = self._ankle_gains
             for i, s in enumerate(_SIDES):
-                nominal = self._contact_nominal.get(s)
-                if nominal is None or s not in active:
-                    continue
-                cop = meas_.cop_sole.get(s)
-                if cop is None:
-                    contact_poses[s] = nominal
-                    continue
-                R_nominal, p_nominal = self._contact_nominal_arrays[s]
-                R = np.empty((3, 3))
-                log[7 + i] = _k.ankle_admittance(R_nominal, cop[0], cop[1], kd_x, kd_y, limit, R)
-                contact_poses[s] = pin.SE3(R, p_nominal)
+                how = flags[3 + i]
+                if how == 1:
+                    contact_poses[s] = nominal[s]
+                elif how == 2:
+                    contact_poses[s] = pin.SE3(self._tilt_R[i], self._contact_nominal_arrays[s][1])
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs
