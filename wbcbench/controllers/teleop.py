@@ -30,7 +30,8 @@ import pinocchio as pin
 
 from ..jit import njit
 from ..robots import Robot, Side
-from ..stabilizers.teleop import reference_wrench_targets
+from ..stabilizers._kernels import reference_split
+from ..stabilizers.teleop import GRAVITY, reference_wrench_targets
 from ..tasks import SelfCollisionTask
 from ..types import ActuationMode, Command, Measurement, References
 from .base import register
@@ -38,6 +39,8 @@ from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
 __all__ = ["TSIDTeleop", "teleop_taskset"]
+
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 
 @njit(exact=True)
@@ -100,6 +103,8 @@ class TSIDTeleop(InverseDynamicsController):
         self.n_torque_rows_dropped = 0
         self._sole_center = np.array([*robot.profile.sole.center, 0.0])
         self._feet_nominal: dict = {}
+        self._feet_nominal_arrays = None
+        self._mass = float(robot.mass)
         self._targets_key = None
         self._targets_cache = None
         self._target_log = np.full(9, np.nan)
@@ -115,6 +120,10 @@ class TSIDTeleop(InverseDynamicsController):
                 self.wrench[s][2] = self.robot.mass * 9.81 / len(active)
         self._feet_nominal = {s: pin.SE3(cs.contact.reference) for s, cs in self.contacts.items()
                               if cs.contact.reference is not None}
+        # both feet's nominal rotations and translations as arrays, for the usual tick (both feet down)
+        self._feet_nominal_arrays = (tuple(a for s in Side for a in (self._feet_nominal[s].rotation,
+                                                                     self._feet_nominal[s].translation))
+                                     if len(self._feet_nominal) == 2 else None)
         self._targets_key = None
         self._targets_cache = None
 
@@ -142,9 +151,15 @@ class TSIDTeleop(InverseDynamicsController):
         com, acc = refs.com.position, refs.com.acceleration
         key = (active, com.tobytes(), acc.tobytes())
         if key != self._targets_key:
-            feet = {s: self._feet_nominal[s] if s in self._feet_nominal else self.contacts[s].contact.reference
-                    for s in active}
-            self._targets_cache = reference_wrench_targets(com, acc, feet, self._sole_center, self.robot.mass)
+            nominal = self._feet_nominal_arrays
+            if len(active) == 2 and nominal is not None:  # `reference_wrench_targets`' compiled case, directly
+                out = np.empty((2, 6))
+                reference_split(com, acc, *nominal, self._sole_center, self._mass, GRAVITY, out)
+                self._targets_cache = {_LEFT: out[0], _RIGHT: out[1]}
+            else:
+                feet = {s: self._feet_nominal[s] if s in self._feet_nominal else self.contacts[s].contact.reference
+                        for s in active}
+                self._targets_cache = reference_wrench_targets(com, acc, feet, self._sole_center, self.robot.mass)
             self._targets_key = key
         return self._targets_cache
 

@@ -583,9 +583,12 @@ class SelfCollisionTask(Task):
         """The cache of a configuration from the position kernel's outputs (``k`` active repulsors first in
         ``out.act``), the protected point ``x`` and the joints' origins."""
         idx = out.act[:k].copy()
-        self._cache = _Cache(key=key, C=out.C, distances=out.dist, J=out.J, active=idx.tolist(), rx=out.rx, x=x,
-                             act=idx, G=out.G, HC=out.HC, HK=out.HK, REL=out.REL, RW=out.RW, origins=origins)
-        return self._cache
+        c = self._cache  # refilled: it holds one configuration, its arrays the kernels' own
+        c.key, c.vkey, c.C, c.distances, c.J, c.active, c.rx, c.x, c.act = (key, None, out.C, out.dist, out.J,
+                                                                             idx.tolist(), out.rx, x, idx)
+        c.G, c.HC, c.HK, c.REL, c.RW, c.velocity, c.drift, c.origins = (out.G, out.HC, out.HK, out.REL, out.RW, None,
+                                                                         None, origins)
+        return c
 
     def _evaluate_velocity(self, model: pin.Model, data: pin.Data) -> _Cache:
         """``C_dot = J v``; drift ``r_dot^T H r_dot + g^T (a_x - a_p)`` for the active repulsors (``r_dot`` the
