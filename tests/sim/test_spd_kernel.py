@@ -45,3 +45,28 @@ def test_spd_torque_matches_the_numpy_law(talos, with_v, with_tau):
     # the clip is active somewhere: a large position error saturates at the effort limit
     sim.apply(Command(q=q0 + 2.0))
     assert np.any(np.isclose(np.abs(sim._spd_torque()), sim.effort))
+
+
+def test_tree_solve_matches_a_dense_solve_on_branching_trees():
+    """`_tree_solve` (the L^T D L factorisation along the kinematic tree) against LAPACK on random symmetric
+    positive-definite matrices with a tree's sparsity: chains, branches, several roots."""
+    from wbcbench.sim.spd_kernel import _tree_solve
+
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        n = int(rng.integers(1, 40))
+        parent = np.array([-1 if i == 0 or rng.random() < 0.1 else int(rng.integers(0, i)) for i in range(n)],
+                          dtype=np.int64)
+        # a joint-space inertia: sum over bodies of J_i^T m_i J_i, J_i non-zero on the body's ancestors only
+        A = np.zeros((n, n))
+        for i in range(n):
+            chain = [i]
+            while parent[chain[-1]] >= 0:
+                chain.append(int(parent[chain[-1]]))
+            g = np.zeros(n)
+            g[chain] = rng.normal(size=len(chain))
+            A += np.outer(g, g) + 0.1 * np.diag(np.isin(np.arange(n), [i]).astype(float))
+        b = rng.normal(size=n)
+        expected = np.linalg.solve(A, b)
+        got = _tree_solve(A.copy(), parent, b)
+        assert np.abs(got - expected).max() <= 1e-9 * (1.0 + np.abs(expected).max()), trial

@@ -90,6 +90,7 @@ class Simulator:
         self._command = Command(tau=np.zeros(robot.na))
         self._tick = 0
         self._spd_M = np.zeros((self.model.nv, self.model.nv))
+        self._dof_parent = np.asarray(self.model.dof_parentid, dtype=np.int64)
         self._kp64, self._kd64, self._effort64 = (np.ascontiguousarray(x, dtype=np.float64)
                                                   for x in (self.kp, self.kd, self.effort))
         self._sole_ids = np.array(list(self._sole_geoms.values()), dtype=np.int32)
@@ -253,9 +254,11 @@ class Simulator:
 
     def _make_views(self) -> tuple:
         """MuJoCo's fixed-size arrays of the data the per-tick calls use, viewed once per MjData (each attribute
-        access makes a new view): the data, qpos, qvel, sensordata, actuator_force, geom_xpos, ctrl."""
+        access makes a new view): the data, qpos, qvel, sensordata, actuator_force, geom_xpos, ctrl, and the SPD
+        law's qfrc_bias, qfrc_passive, qfrc_constraint, qfrc_applied."""
         d = self.data
-        self._views = (d, d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.ctrl)
+        self._views = (d, d.qpos, d.qvel, d.sensordata, d.actuator_force, d.geom_xpos, d.ctrl, d.qfrc_bias,
+                       d.qfrc_passive, d.qfrc_constraint, d.qfrc_applied)
         return self._views
 
     def _locate_contacts(self) -> ContactRecords:
@@ -284,12 +287,14 @@ class Simulator:
     def _spd_torque(self) -> np.ndarray:
         """Stable PD (Tan et al. 2011) with the next acceleration predicted from the full dynamics."""
         m, d, b = self.model, self.data, self.bridge
+        views = self._views
+        if views[0] is not d:
+            views = self._make_views()
         cmd = self._command
         mujoco.mj_fullM(m, d, self._spd_M)
         out = np.empty(self.robot.na)
-        spd_torque(self._spd_M, d.qpos, d.qvel, b.mj_q_idx, b.mj_v_idx, _f64(cmd.q), _f64(cmd.v), _f64(cmd.tau),
-                   self._kp64, self._kd64, self.dt, d.qfrc_bias, d.qfrc_passive, d.qfrc_constraint, d.qfrc_applied,
-                   self._effort64, out)
+        spd_torque(self._spd_M, self._dof_parent, views[1], views[2], b.mj_q_idx, b.mj_v_idx, _f64(cmd.q), _f64(cmd.v),
+                   _f64(cmd.tau), self._kp64, self._kd64, self.dt, *views[7:], self._effort64, out)
         return out
 
     def step(self, n: int = 1) -> None:
