@@ -273,8 +273,17 @@ def _joint_accelerations(JW, dJ, v, masks, origins, acc):
 @njit
 def _velocity_and_drift(JW, dJ, v, slot_masks, origins, acc, J, x, rx, act, slot_of, G, HC, HK, REL, RW, mask_x,
                         masks, velocity, drift):
-    """`_joint_accelerations` of every slot, then `_velocity_flat` (one call)."""
-    _joint_accelerations(JW, dJ, v, slot_masks, origins, acc)
+    """`_joint_accelerations` of the slots `_velocity_flat` reads (the protected point's and the active
+    repulsors'; the others' rows of ``acc`` are left as they are), then `_velocity_flat` (one call)."""
+    if act.shape[0]:
+        done = np.zeros(slot_masks.shape[0], dtype=np.bool_)
+        classical_acceleration(JW, dJ, v, slot_masks[0], origins[0], acc[0])
+        done[0] = True
+        for i in act:
+            s = slot_of[i]
+            if not done[s]:
+                classical_acceleration(JW, dJ, v, slot_masks[s], origins[s], acc[s])
+                done[s] = True
     _velocity_flat(JW, v, J, x, rx, act, slot_of, G, HC, HK, REL, RW, acc, mask_x, masks, velocity, drift)
 
 
