@@ -182,10 +182,10 @@ class References:
 
     @classmethod
     def planned(cls, t: float, contacts: frozenset, com: PointReference | None, zmp: np.ndarray | None,
-                feet: dict) -> "References":
-        """A tick of a plan from values already checked (no targets or stabilizer fields): as the constructor,
-        without its per-field machinery (a walk makes one every tick)."""
-        return _references(t, contacts, com, zmp, feet, {}, {}, {})
+                feet: dict, targets: dict | None = None) -> "References":
+        """A tick of a plan from values already checked (no stabilizer fields): as the constructor, without its
+        per-field machinery (a walk or a teleoperation source makes one every tick)."""
+        return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {})
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict) -> "References":

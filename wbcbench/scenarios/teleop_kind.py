@@ -258,8 +258,7 @@ class TeleopScenario(Scenario):
     def references(self, t: float) -> References:
         """Both feet down, the CoM held, the operator's hands and head as the named frame tasks' references
         (`TeleopReferenceSource`, wbcbench/teleop/source.py)."""
-        return References(t=t, contacts=_BOTH_FEET, com=self._com_ref,
-                          targets=self.reference_source.targets(t))
+        return References.planned(t, _BOTH_FEET, self._com_ref, None, {}, self.reference_source.targets(t))
 
     @property
     def target_names(self) -> tuple[str, ...]:
