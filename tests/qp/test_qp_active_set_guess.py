@@ -106,3 +106,37 @@ def test_nearly_dependent_guessed_rows_go_to_the_backend():
         reference = DaqpSolver().solve(problem)
         np.testing.assert_allclose(result.x, reference.x, atol=1e-8)
         assert np.all(C @ result.x <= problem.u + 1e-9)
+
+
+def test_the_backends_working_set_is_the_next_guess_where_touching_rows_are_dependent():
+    """Two copies of a row both touch their bound at the optimum: every row within tolerance of its bound makes
+    a singular Gram matrix, so that guess can never be certified; daqp's working set (one copy, the one with a
+    multiplier) is independent, and the same problem again is answered by the guess."""
+    C = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    problem = QPProblem(np.eye(2), np.array([-2.0, 0.0]), C=C, u=np.array([1.0, 1.0, 5.0]))
+    solver = ActiveSetGuessSolver(DaqpSolver())
+    first = solver.solve(problem)
+    np.testing.assert_allclose(first.x, [1.0, 0.0], atol=1e-12)
+    touching = solver._active_set(problem, first.x)
+    assert touching.c_up.tolist() == [0, 1]  # dependent: the old guess
+    c_up, c_lo, x_up, x_lo = first.working_set
+    assert len(c_up) == 1 and c_up[0] in (0, 1) and not (len(c_lo) or len(x_up) or len(x_lo))
+    again = solver.solve(problem)
+    assert again.raw_status == "guess" and solver.n_guessed == 1
+    np.testing.assert_allclose(again.x, first.x, atol=1e-12)
+
+
+def test_daqps_working_set_holds_its_rows_at_their_bounds():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        known = known_qp(rng, 12, 3, 20, True)
+        result = DaqpSolver().solve(known.problem)
+        p, x = known.problem, result.x
+        c_up, c_lo, x_up, x_lo = result.working_set
+        cx = p.C @ x
+        np.testing.assert_allclose(cx[c_up], p.u[c_up], atol=1e-9)
+        np.testing.assert_allclose(cx[c_lo], p.l[c_lo], atol=1e-9)
+        np.testing.assert_allclose(x[x_up], p.ub[x_up], atol=1e-9)
+        np.testing.assert_allclose(x[x_lo], p.lb[x_lo], atol=1e-9)
+        # independent with the equality rows: at most n - m_eq of them
+        assert len(c_up) + len(c_lo) + len(x_up) + len(x_lo) <= p.H.shape[0] - p.A_eq.shape[0]

@@ -118,3 +118,34 @@ def test_profile_errors_name_file_and_key(talos, tmp_path):
     # both sections are optional
     robot = load_robot(str(_profile_with(tmp_path, repulsors=None, collision_check=None)))
     assert robot.profile.repulsors == {} and robot.profile.collision_check == {}
+
+
+def test_a_torque_limited_qp_at_its_iteration_limit_keeps_the_joint_limited_optimum(talos):
+    """SPD mode: when the first QP's torques exceed a limit and the QP with the torque rows fails (here daqp at
+    an iteration limit: the controller bounds that solve's time, `TORQUE_QP_ITERATIONS`), the tick keeps the
+    first QP's optimum, counted in `qp_torque_rows_dropped_ticks`, with no relaxed QP and no fallback; the
+    reset's warm-up solve is not counted."""
+    from wbcbench.controllers.inverse_dynamics import QP_OK
+    from wbcbench.qp import ActiveSetGuessSolver, DaqpSolver
+    from wbcbench.sim.simulator import Simulator
+    from wbcbench.types import ActuationMode, PointReference, References
+
+    ctrl = TSIDTeleop(talos, ActuationMode.SPD, 1e-3)
+    assert ctrl.torque_solver.backend.settings["iter_limit"] == TSIDTeleop.TORQUE_QP_ITERATIONS
+    sim = Simulator(talos, mode=ctrl.mode)
+    meas = sim.measure()
+    m, d = talos.model, talos.model.createData()
+    update_kinematics(m, d, meas.q, np.zeros(m.nv))
+    com = d.com[0].copy()
+    refs = References(t=0.0, com=PointReference(com), zmp=np.array([com[0], com[1], 0.0]))
+    ctrl.reset(meas, refs)
+    assert ctrl.n_torque_rows_dropped == 0
+    F = ctrl.formulation
+    F.tau_max = F.tau_max * 0.2  # below what standing takes: the torque rows bind, several iterations away
+    ctrl.torque_solver = ActiveSetGuessSolver(DaqpSolver(iter_limit=1))
+    ctrl.step(meas, refs)
+    assert ctrl.n_torque_rows_dropped == 1 and ctrl.qp_status == QP_OK
+    assert ctrl.n_relaxed == 0 and ctrl.n_fallback == 0
+    # the kept optimum is the first QP's: its torques break the limits the torque rows could not impose
+    assert np.any(np.abs(ctrl.tau) > F.tau_max * (1 + 1e-6))
+    assert ctrl.status()["qp_torque_rows_dropped_ticks"] == 1

@@ -29,6 +29,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..jit import njit
+from ..qp.active_set_guess import ActiveSetGuessSolver
+from ..qp.registry import make_solver
 from ..robots import Robot, Side
 from ..stabilizers._kernels import reference_split
 from ..stabilizers.teleop import GRAVITY, reference_wrench_targets
@@ -89,6 +91,8 @@ class TSIDTeleop(InverseDynamicsController):
     default_mode = ActuationMode.SPD
     compiled_frames = True
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
+    #: daqp's iteration limit on the torque-limited QP in SPD and position modes (see `__init__`)
+    TORQUE_QP_ITERATIONS = 100
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
                  repulsors: bool = True, stabilizer: bool = True):
@@ -98,6 +102,11 @@ class TSIDTeleop(InverseDynamicsController):
         if not stabilizer:
             spec = replace(spec, stabilizer=None)
         super().__init__(robot, ActuationMode(mode), dt, spec)
+        if self.mode is not ActuationMode.TORQUE and spec.solver == "daqp":
+            # the torque-limited QP may fail here (`_solve_limited` keeps the joint-limited optimum), so it gets a
+            # bounded time: daqp needs at most 30 iterations on it in reach_forward (median 12), but cycled
+            # through its 10,000-iteration limit on one ill-conditioned tick of reach_forward (20 ms in the loop)
+            self.torque_solver = ActiveSetGuessSolver(make_solver("daqp", iter_limit=self.TORQUE_QP_ITERATIONS))
         self.repulsors = any(t.type == "self_collision" for t in spec.tasks)
         self.collision_tasks = [t for t in self.tasks if isinstance(t, SelfCollisionTask)]
         self.n_torque_rows_dropped = 0
@@ -133,6 +142,11 @@ class TSIDTeleop(InverseDynamicsController):
             if target is not None:
                 self._target_log[3 * i:3 * i + 3] = target.position
         return super().step(meas, refs)
+
+    def _warm_up(self, meas: Measurement) -> None:
+        dropped = self.n_torque_rows_dropped
+        super()._warm_up(meas)
+        self.n_torque_rows_dropped = dropped  # not a tick
 
     def _wrench_targets(self, refs: References) -> dict | None:
         """The stabilizer's F* (Eq. 7) when it gave them, else F (Eq. 6) of the reference ZMP."""

@@ -167,7 +167,16 @@ class DaqpSolver(QPSolver):
         if status is not QPStatus.OPTIMAL:
             return QPResult.failure(status, solver=self.name, raw_status=int(exitflag), iterations=iterations)
         # daqp.Model.solve returns a fresh copy of its iterate: the result may own it.
-        return QPResult(x, status, iterations, float(fval), self.name, int(exitflag))
+        return QPResult(x, status, iterations, float(fval), self.name, int(exitflag),
+                        _working_set(info["lam"], p.H.shape[0] if box else 0, m_eq))
+
+
+def _working_set(lam: npt.NDArray[np.float64], n_box: int, m_eq: int) -> tuple:
+    """`QPResult.working_set` from daqp's multipliers ``lam`` (its bound layout: ``n_box`` simple bounds, then the
+    ``m_eq`` equality rows, then the inequality rows; positive at an upper bound, negative at a lower one)."""
+    box, ineq = lam[:n_box], lam[n_box + m_eq:]
+    return (np.flatnonzero(ineq > 0.0), np.flatnonzero(ineq < 0.0), np.flatnonzero(box > 0.0),
+            np.flatnonzero(box < 0.0))
 
 
 def _writable(array: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:

@@ -62,6 +62,10 @@ class QPResult:
         objective: ``1/2 x^T H x + g^T x`` at ``x`` (cost units), ``nan`` when the solve failed.
         solver: registry name of the backend (``"daqp"``, ``"proxsuite"``).
         raw_status: the backend's own flag (daqp exit flag, proxsuite ``QPSolverOutput`` name), for logs.
+        working_set: the backend's final working set when it has one (an active-set method: daqp), else None:
+            index arrays ``(c_up, c_lo, x_up, x_lo)`` of the inequality rows at their upper / lower bound and the
+            variables at their upper / lower bound that carry a non-zero multiplier at the optimum (linearly
+            independent with the equality rows, unlike every row that merely touches its bound).
     """
 
     x: FloatArray | None
@@ -70,6 +74,7 @@ class QPResult:
     objective: float
     solver: str
     raw_status: int | str
+    working_set: tuple | None = None
 
     def __post_init__(self) -> None:
         if (self.x is None) == (self.status is QPStatus.OPTIMAL):
