@@ -45,11 +45,11 @@ class BaseFeedbackConfig:
     """Attributes:
         time_constant: first-order filter on the drift estimate [s] (> 0).
         liftoff_blend: duration [s] over which a lifted foot's reference passes from where the model's foot
-            stood to the plan mapped by the current drift (module docstring); 0: at once.
+            stood to the plan mapped by the current drift (module docstring); 0 (default): at once.
     """
 
     time_constant: float = 1.0
-    liftoff_blend: float = 0.3
+    liftoff_blend: float = 0.0
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.time_constant) or self.time_constant <= 0.0:
