@@ -6,7 +6,7 @@ import pytest
 
 from wbcbench.estimation.base_feedback import BaseFeedback, BaseFeedbackConfig
 from wbcbench.side import Side
-from wbcbench.types import Measurement, PointReference, References
+from wbcbench.types import Measurement, PointReference, PoseReference, References
 
 
 def _shifted(q, dx, dy, dyaw):
@@ -50,3 +50,37 @@ def test_no_drift_when_the_model_is_the_robot_and_held_in_single_support(talos):
     for contacts in (frozenset(), frozenset({Side.LEFT})):
         fb.update(_meas(_shifted(talos.q0, 0.1, 0, 0)), talos.q0, contacts)
         assert np.abs(fb.drift).max() < 1e-12
+
+
+def test_a_lifted_foot_starts_where_the_model_foot_stands_and_blends_to_the_mapped_plan(talos):
+    """The drift changes while a foot stands (double support); at its lift-off the swing reference must start at
+    the model's foot, not at the plan mapped by the new drift (a jump of the swing task), and reach the mapped plan
+    after the blend."""
+    q_model = talos.q0.copy()
+    q_real = _shifted(q_model, 0.02, -0.04, np.radians(-3.0))
+    fb = BaseFeedback(talos, 1e-3, BaseFeedbackConfig(time_constant=0.01, liftoff_blend=0.2))
+    d = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, d, q_model)
+    M_left = d.oMf[talos.sole_frame_id(Side.LEFT)].copy()
+    both = References(t=0.0, contacts=frozenset(Side), com=PointReference([0.0, 0.0, 0.87]), zmp=np.zeros(3))
+    for _ in range(200):                                   # double support: D converges to the offset
+        fb.correct(_meas(q_real), both, q_model)
+    R, p = fb.transform()
+    assert np.abs(fb.drift).max() > 0.01
+    swing_ref = PoseReference(M_left.translation.copy(), M_left.rotation.copy())   # the plan: the foot at rest
+    out = None
+    for k in range(301):                                   # single support on the right foot, the left swinging
+        refs = References(t=0.2 + k * 1e-3, contacts=frozenset({Side.RIGHT}), com=both.com, zmp=both.zmp,
+                          feet={Side.LEFT: swing_ref})
+        out = fb.correct(_meas(q_real), refs, q_model)
+        if k == 0:   # lift-off: the reference is the model's foot
+            assert out.feet[Side.LEFT].position == pytest.approx(M_left.translation, abs=1e-9)
+            assert out.feet[Side.LEFT].rotation == pytest.approx(M_left.rotation, abs=1e-9)
+        if k == 100:  # half way: between the two, moving towards the mapped plan
+            v = out.feet[Side.LEFT].velocity[:3]
+            target = R @ M_left.translation + p
+            assert np.dot(v, target - M_left.translation) > 0.0
+    # after the blend: the plan mapped by D
+    assert out.feet[Side.LEFT].position == pytest.approx(R @ M_left.translation + p, abs=1e-9)
+    assert out.feet[Side.LEFT].rotation == pytest.approx(R @ M_left.rotation, abs=1e-9)
+    assert np.abs(out.feet[Side.LEFT].velocity).max() < 1e-12

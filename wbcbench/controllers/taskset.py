@@ -185,7 +185,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
 
         bf = root.section("base_feedback")
         if bf.bool("enabled", True):
-            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True))
+            base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True),
+                                               liftoff_blend=bf.float("liftoff_blend", 0.0, min=0.0))
         bf.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),

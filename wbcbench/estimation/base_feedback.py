@@ -17,6 +17,13 @@ target are mapped through D, so the model walks the plan shifted by the drift an
 (Moving the integrated configuration to the real robot instead would be undone at once by the contact tasks,
 which hold the model's feet where they touched down.) The ZMP reference stays in the world: the stabilizer
 compares it with the ZMP measured there.
+
+A foot lands under the estimate of its touch-down and the contact task holds the model's foot there; the next
+double support updates D, so at lift-off the mapped plan no longer starts where the model's foot stands. The
+swing reference therefore starts at the model's foot and passes to the mapped plan with a quintic blend over
+`liftoff_blend` seconds (the offset's velocity and acceleration added to the reference's). Without it the swing
+task pulled the model's foot by the change of D in one tick and the ZMP peaked at each lift-off (IK on the
+platforms: 0.42 m against 0.21 m without base feedback).
 """
 
 from __future__ import annotations
@@ -37,13 +44,18 @@ __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
 class BaseFeedbackConfig:
     """Attributes:
         time_constant: first-order filter on the drift estimate [s] (> 0).
+        liftoff_blend: duration [s] over which a lifted foot's reference passes from where the model's foot
+            stood to the plan mapped by the current drift (module docstring); 0 (default): at once.
     """
 
     time_constant: float = 1.0
+    liftoff_blend: float = 0.0
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.time_constant) or self.time_constant <= 0.0:
             raise ValueError(f"BaseFeedbackConfig.time_constant must be > 0 s, got {self.time_constant!r}")
+        if not np.isfinite(self.liftoff_blend) or self.liftoff_blend < 0.0:
+            raise ValueError(f"BaseFeedbackConfig.liftoff_blend must be >= 0 s, got {self.liftoff_blend!r}")
 
 
 def _planar(T: pin.SE3) -> np.ndarray:
@@ -67,10 +79,13 @@ class BaseFeedback:
         self.data_model = robot.model.createData()
         self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
         self.alpha = 1.0 - np.exp(-dt / config.time_constant)
+        self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
+        self._liftoff: dict[Side, tuple[float, np.ndarray, np.ndarray | None]] = {}
 
     def reset(self) -> None:
         self.drift = np.zeros(3)
+        self._liftoff = {}
 
     def update(self, meas: Measurement, q_model: np.ndarray, contacts) -> np.ndarray:
         """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
@@ -119,4 +134,42 @@ class BaseFeedback:
         targets = refs.targets
         if "waist" in targets:
             targets = {**targets, "waist": pose(targets["waist"])}
-        return replace(refs, com=com, feet={s: pose(f) for s, f in refs.feet.items()}, targets=targets)
+        feet = {}
+        for s, f in refs.feet.items():
+            mapped = pose(f)
+            feet[s] = mapped if s in refs.contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        for s in list(self._liftoff):
+            if s in refs.contacts or s not in refs.feet:
+                del self._liftoff[s]
+        return replace(refs, com=com, feet=feet, targets=targets)
+
+    def _from_liftoff(self, side: Side, ref: PoseReference, t: float, q_model: np.ndarray) -> PoseReference:
+        """A swing foot's mapped reference `ref`, offset so that it starts where the model's foot stood at lift-off
+        (the foot touched down under the drift estimate of its landing, which double support has updated since:
+        without this the swing task would pull the model's foot by that difference in one tick), the offset
+        fading out with a quintic blend over `liftoff_blend` seconds."""
+        if side not in self._liftoff:
+            pin.forwardKinematics(self.model, self.data_model, q_model)
+            T = pin.updateFramePlacement(self.model, self.data_model, self.sole_ids[side])
+            dphi = None if ref.rotation is None else pin.log3(T.rotation @ ref.rotation.T)
+            self._liftoff[side] = (t, T.translation - ref.position, dphi)
+        t0, dp, dphi = self._liftoff[side]
+        if self.blend <= 0.0:
+            return ref
+        u = (t - t0) / self.blend
+        if u >= 1.0:
+            return ref
+        u = max(u, 0.0)
+        b = u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+        db = 30.0 * u * u * (1.0 - u) ** 2 / self.blend
+        ddb = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / self.blend ** 2
+        vel = ref.velocity.copy()
+        acc = ref.acceleration.copy()
+        vel[:3] -= db * dp
+        acc[:3] -= ddb * dp
+        rot = ref.rotation
+        if dphi is not None:
+            rot = pin.exp3((1.0 - b) * dphi) @ rot
+            vel[3:] -= db * dphi
+            acc[3:] -= ddb * dphi
+        return PoseReference(ref.position + (1.0 - b) * dp, rot, vel, acc)
