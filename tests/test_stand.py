@@ -117,20 +117,3 @@ def test_runs_are_deterministic(talos, tmp_path):
         if key == "controller_time_us":
             continue
         assert np.array_equal(a[key], b[key], equal_nan=True), key
-
-
-def test_the_start_posture_has_level_soles_and_both_edges_loaded(talos, tmp_path):
-    """TALOS' half_sitting turns both ankle rolls by -1.7 mrad: started as it is, each sole rested on one edge for
-    the first 4 ms, its centre of pressure 6 cm sideways (the ZMP y error's peak on every paper scene). The reference
-    configuration levels the soles with the ankle joints."""
-    d = talos.model.createData()
-    pin.framesForwardKinematics(talos.model, d, talos.q0)
-    for s in Side:
-        M = d.oMf[talos.sole_frame_id(s)]
-        assert M.rotation[2, 2] > 1.0 - 1e-12, s
-        assert abs(M.translation[2]) < 1e-9, s
-    res = run("stand", "tsid-torque", talos, duration=0.02, out=tmp_path)
-    log = res.log
-    for s in ("left", "right"):  # each sole's centre of pressure (sole origin below the ankle) near its middle
-        fz, mx = log[f"ft_{s}.fz"], log[f"ft_{s}.mx"]
-        assert np.all(np.abs(mx / fz) < 0.02), s

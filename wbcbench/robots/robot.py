@@ -165,7 +165,6 @@ class Robot:
         q[:3] = 0.0
         q[3:7] = [0, 0, 0, 1]
         q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
-        self._level_soles(q)
         # Put the base at the height where the lower sole touches z = 0, the feet centred about x = y = 0.
         pin.framesForwardKinematics(model, self.data, q)
         soles = np.array([self.data.oMf[self.sole_frame_id(s)].translation for s in Side])
@@ -173,31 +172,6 @@ class Robot:
         q[1] = -soles[:, 1].mean()
         q[2] = -soles[:, 2].min()
         return q
-
-    def _level_soles(self, q: np.ndarray) -> None:
-        """Turn the last two joints above each sole (the ankle) so that the sole is level (q changed in place).
-
-        A reference posture with tilted soles (TALOS' half_sitting: both ankle rolls at -1.7 mrad) starts the
-        robot on one edge of each sole: for the first milliseconds, until the soles roll flat, each foot's centre
-        of pressure sits at that edge (6 cm sideways). A sole whose ankle cannot level it is left as it is."""
-        model, data = self.model, self.data
-        for s in Side:
-            fid = self.sole_frame_id(s)
-            ankle = [j for j in model.supports[model.frames[fid].parentJoint] if model.nvs[j] == 1][-2:]
-            cols = [model.idx_vs[j] for j in ankle]
-            rows = [model.idx_qs[j] for j in ankle]
-            for _ in range(5):
-                pin.computeJointJacobians(model, data, q)
-                pin.framesForwardKinematics(model, data, q)
-                R = data.oMf[fid].rotation
-                tilt = np.cross(R[:, 2], [0.0, 0.0, 1.0])  # world rotation taking the sole normal to vertical
-                if np.linalg.norm(tilt) < 1e-12:
-                    break
-                J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[3:5][:, cols]
-                if abs(np.linalg.det(J)) < 1e-9:
-                    break
-                q[rows] += np.linalg.solve(J, tilt[:2])
-            q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
 
     # ------------------------------------------------------------------ accessors
     @property
