@@ -443,10 +443,12 @@ class TerrainWalkScenario(WalkScenario):
         start = {}
         for s in Side:
             # the planner starts from level feet: position and heading of the soles (TALOS' half-sitting has a
-            # 1.7 mrad ankle roll the contacts absorb)
+            # 1.7 mrad ankle roll the contacts absorb), at the height of the highest sole corner (the ground the
+            # tilted sole rests on; its origin is 0.11 mm lower)
             M = data.oMf[self.robot.sole_frame_id(s)]
             yaw = float(np.arctan2(M.rotation[1, 0], M.rotation[0, 0]))
-            start[s] = Footstep.from_xyz_yaw(s, *M.translation, yaw=yaw)
+            z = max(float(M.act(c)[2]) for c in self.robot.profile.sole.corners)
+            start[s] = Footstep.from_xyz_yaw(s, M.translation[0], M.translation[1], z, yaw=yaw)
         sole = self.robot.profile.sole
         rect = SoleRectangle(sole.length, sole.width, *sole.center)
         timing = StepTiming(self.single, self.double, self.initial_ds, self.final_ds)
