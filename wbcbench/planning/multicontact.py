@@ -1,4 +1,4 @@
-"""Walking on uneven terrain: contact plan -> centroidal QP -> swing feet clearing the terrain -> WalkTrajectory.
+"""Walking on uneven terrain: contact plan -> swing feet clearing the terrain -> centroidal QP -> WalkTrajectory.
 
 The multi-contact counterpart of `generate_walk` (paper 000, Section 5.2, where the loco-3d planner plays this
 role for the tilted platforms and the stairs): the result is the same `WalkTrajectory` container, so the

@@ -363,7 +363,7 @@ class TerrainWalkScenario(WalkScenario):
     distance the centroidal plan may ask for, as a fraction of the straight leg (default: the profile's
     `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off);
     max_swing_leg_extension: the same for a swinging leg, at the swing's planned pose (default 0: off, a swinging
-    leg unbounded; `stairs` uses 0.95: without it the CoM rose after each lift-off faster than the swinging foot,
+    leg unbounded; `stairs` uses 0.96: without it the CoM rose after each lift-off faster than the swinging foot,
     the swing knee straightened, then bent again, and at the last step ran into its limit);
     com_height [m]: the CoM height above the support the centroidal plan aims at (default, or null: the initial one; a
     lower one is reached during the initial double support).
