@@ -117,3 +117,19 @@ def test_runs_are_deterministic(talos, tmp_path):
         if key == "controller_time_us":
             continue
         assert np.array_equal(a[key], b[key], equal_nan=True), key
+
+
+def test_the_start_posture_rests_on_both_edges_of_each_sole(talos, tmp_path):
+    """TALOS' half_sitting turns both ankle rolls by -1.7 mrad: with the sole origins at z = 0 each sole started on
+    one edge (the other 0.22 mm up) and for the first 4 ms its centre of pressure sat at that edge (ankle F/T
+    mx / fz 0.039 m, the ZMP 6 cm to the side: the y peak of every paper scene). The base now puts the highest sole
+    corner at z = 0, so both edges touch from the start."""
+    d = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, d, talos.q0)
+    z = [float(d.oMf[talos.sole_frame_id(s)].act(c)[2]) for s in Side for c in talos.profile.sole.corners]
+    assert max(z) == pytest.approx(0.0, abs=1e-12)
+    assert min(z) < -1e-4            # the tilt is still there (the posture is the SRDF's)
+    res = run("stand", "tsid-torque", talos, duration=0.02, out=tmp_path)
+    log = res.log
+    for s in ("left", "right"):  # each sole's centre of pressure (below the ankle) near its middle from the start
+        assert np.all(np.abs(log[f"ft_{s}.mx"] / log[f"ft_{s}.fz"]) < 0.02), s

@@ -152,6 +152,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             raise ConfigError(f"mode '{mode}' differs from the controller's '{ctrl.mode.value}'", key="--mode")
         controller = ctrl.name
     else:
+        if taskset is None and spec.taskset_variant is not None:  # the scene's own gains, where the robot has them
+            from .controllers.taskset import taskset_variant_path
+            taskset = taskset_variant_path(robot, controller, spec.taskset_variant)
         ctrl = make_controller(controller, robot, mode, spec.control_dt, taskset)
     if isinstance(model_error, (str, Path)):
         from .config import Section, load_yaml

@@ -237,13 +237,14 @@ REACH = LegReach(hip_offset={Side.LEFT: [-0.017, 0.084, -0.128], Side.RIGHT: [-0
                  ankle_offset={Side.LEFT: [0.0, 0.0, 0.107], Side.RIGHT: [0.0, 0.0, 0.107]}, max_length=0.663)
 
 
-def _hip_ankle_on_ground(mc, reach):
-    """Largest hip-ankle distance [m] over the ticks where each foot is on the ground (pelvis upright)."""
+def _hip_ankle_on_ground(mc, reach, swinging=False):
+    """Largest hip-ankle distance [m] over the ticks where each foot is on the ground (pelvis upright), or with
+    `swinging` where it is in the air."""
     w = mc.walk
     worst = 0.0
     for s in Side:
         ft = w.feet[s]
-        on = w.contacts.in_contact[s]
+        on = w.contacts.in_contact[s] != swinging
         ankle = ft.p_world_sole[on] + np.einsum("nij,j->ni", ft.R_world_sole[on], reach.ankle_offset[s])
         yaw = np.arctan2(ft.R_world_sole[on, 1, 0], ft.R_world_sole[on, 0, 0])
         o = reach.hip_offset[s]
@@ -271,6 +272,25 @@ def test_leg_reach_bounds_the_com_height(name):
     np.testing.assert_allclose(MASS * w.a_world_com, forces + MASS * np.array([0.0, 0.0, -G]), atol=1e-3 * MASS * G)
 
 
+def test_leg_reach_bounds_the_swinging_legs():
+    """Without `swing_max_length` the CoM rises after lift-off faster than the swinging foot: the plan asks the
+    swinging leg for more than the stance bound (TALOS' stairs: 0.702 m of its 0.705 m straight leg at the last step,
+    the swing knee ran into its limit); with it every knot inside a swing keeps the swinging leg within reach at
+    the swing's planned pose (up to the linearisation and the cubic between knots)."""
+    boxes, goal = CASES["stairs_10cm"]
+    cfg = CentroidalConfig(mass=MASS, com_height=0.87, leg_reach=REACH)
+    free = _hip_ankle_on_ground(terrain_walk(boxes, START, goal, timing=TIMING, sole=SOLE, mass=MASS, centroidal=cfg),
+                                REACH, swinging=True)
+    limit = 0.67
+    reach = LegReach(REACH.hip_offset, REACH.ankle_offset, REACH.max_length, swing_max_length=limit)
+    bounded = terrain_walk(boxes, START, goal, timing=TIMING, sole=SOLE, mass=MASS,
+                           centroidal=CentroidalConfig(mass=MASS, com_height=0.87, leg_reach=reach))
+    got = _hip_ankle_on_ground(bounded, reach, swinging=True)
+    assert free > limit + 0.01, free
+    assert got <= limit + 0.003, got
+    assert _hip_ankle_on_ground(bounded, reach) <= REACH.max_length + 0.003
+
+
 def test_leg_reach_validation():
     with pytest.raises(ValueError, match="both sides"):
         LegReach(hip_offset={Side.LEFT: [0, 0, 0]}, ankle_offset=REACH.ankle_offset, max_length=0.6)
@@ -279,5 +299,7 @@ def test_leg_reach_validation():
                  max_length=0.6)
     with pytest.raises(ValueError, match="max_length"):
         LegReach(hip_offset=REACH.hip_offset, ankle_offset=REACH.ankle_offset, max_length=0.0)
+    with pytest.raises(ValueError, match="swing_max_length"):
+        LegReach(hip_offset=REACH.hip_offset, ankle_offset=REACH.ankle_offset, max_length=0.6, swing_max_length=-1.0)
     with pytest.raises(ValueError, match="leg_reach"):
         CentroidalConfig(mass=MASS, leg_reach=0.6)

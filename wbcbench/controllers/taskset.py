@@ -31,7 +31,8 @@ if TYPE_CHECKING:
     from ..estimation.base_feedback import BaseFeedbackConfig
     from ..stabilizers.base import StabilizerConfig
 
-__all__ = ["ContactSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame", "taskset_path"]
+__all__ = ["ContactSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame", "taskset_path",
+           "taskset_variant_path"]
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
 
@@ -78,6 +79,15 @@ class TaskSetSpec:
             if t.name == name:
                 return t
         raise KeyError(name)
+
+
+def taskset_variant_path(robot: Robot, controller: str, variant: str) -> Path | None:
+    """The task set `<controller>-<variant>.yaml` of the robot (or the default directory), None if there is none."""
+    for d in (TASKSET_DIR / robot.name, TASKSET_DIR / "default"):
+        p = d / f"{controller}-{variant}.yaml"
+        if p.exists():
+            return p
+    return None
 
 
 def taskset_path(robot: Robot, controller: str) -> Path:

@@ -64,7 +64,7 @@ plane is `ContactWrenchTrajectory.cop()`.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -74,7 +74,7 @@ import scipy.sparse as sp
 from ..errors import PlanningError
 from .footsteps import Footstep, FootstepPlan
 from .geometry import SoleRectangle, rotation_from_yaw, yaw_of
-from .swing import quintic_blend
+from .swing import SwingTrajectory, quintic_blend
 from ..side import Side
 
 __all__ = ["CentroidalPlanError", "CentroidalConfig", "LegReach", "CentroidalReport", "ContactWrenchTrajectory",
@@ -108,17 +108,24 @@ class LegReach:
         hip_offset: per side, hip joint centre minus CoM in the robot's heading frame [m] (3,).
         ankle_offset: per side, ankle joint centre in the sole frame [m] (3,).
         max_length: largest hip-ankle distance allowed [m] (a fraction of thigh + shank).
+        swing_max_length: largest hip-ankle distance of a swinging leg [m], at the swing's planned pose (the
+            `swings` given to `plan_centroidal`); None: swinging legs are not bounded.
 
-    Only the knots where a foot is on the ground are bounded (its lift-off and touch-down knots included). Bounding
-    the first and last quarter of each swing at the lift-off / touch-down pose too was tried on the platforms: the
-    planned CoM bobbed by 6 cm within each step (that pose is far more conservative than the rising foot) and IK
-    fell. So a swinging foot may exceed the bound shortly after lift-off or before touch-down: with TALOS'
-    0.663 m bound, up to 0.680 m on the platforms and 0.728 m on the stairs (straight leg 0.705 m).
+    `max_length` bounds the knots where a foot is on the ground (its lift-off and touch-down knots included).
+    Bounding the first and last quarter of each swing at the lift-off / touch-down pose too was tried on the
+    platforms: the planned CoM bobbed by 6 cm within each step (that pose is far more conservative than the rising
+    foot) and IK fell. So a swinging foot may exceed `max_length`: with TALOS' 0.663 m bound, up to 0.681 m on the
+    platforms and 0.691 m on the stairs (straight leg 0.705 m). Without `swing_max_length` the stairs' last step
+    (onto the top tread next to the other foot: the swing rises 15 cm where the others rise 25) asked for 0.702 m
+    0.24 s after lift-off, the CoM rising faster than the foot: the swing knee ran into its limit (0 rad) at
+    3.4 rad/s and its stop put a 0.096 m ZMP x error on the stance foot. `swing_max_length` bounds each knot inside a
+    swing at the swing's own planned pose, so the CoM rises with the foot.
     """
 
     hip_offset: Mapping[Side, np.ndarray]
     ankle_offset: Mapping[Side, np.ndarray]
     max_length: float
+    swing_max_length: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("hip_offset", "ankle_offset"):
@@ -133,16 +140,21 @@ class LegReach:
                 fixed[side] = arr
             object.__setattr__(self, name, MappingProxyType(fixed))
         _check_positive("leg_reach.max_length", self.max_length)
+        if self.swing_max_length is not None:
+            _check_positive("leg_reach.swing_max_length", self.swing_max_length)
 
-    def ceiling(self, side: Side, R_sole: np.ndarray, p_sole: np.ndarray, p_xy_com: np.ndarray) -> float:
-        """Highest CoM height [m] keeping that foot within reach, the CoM at p_xy_com horizontally."""
+    def ceiling(self, side: Side, R_sole: np.ndarray, p_sole: np.ndarray, p_xy_com: np.ndarray,
+                max_length: float | None = None) -> float:
+        """Highest CoM height [m] keeping that foot within reach (`max_length`, default the stance one), the CoM
+        at p_xy_com horizontally."""
+        length = self.max_length if max_length is None else max_length
         ankle = p_sole + R_sole @ self.ankle_offset[side]
         o = self.hip_offset[side]
         hip_xy = p_xy_com + (rotation_from_yaw(yaw_of(R_sole)) @ o)[:2]
         d2 = float(np.sum((hip_xy - ankle[:2]) ** 2))
         # beyond reach horizontally: no height helps; keep the bound finite (the hip at most at 30 % of the reach
         # above the ankle) so that the QP reports the plan as infeasible instead of silently ignoring it
-        dz = np.sqrt(max(self.max_length**2 - d2, (0.3 * self.max_length) ** 2))
+        dz = np.sqrt(max(length**2 - d2, (0.3 * length) ** 2))
         return float(ankle[2] + dz - o[2])
 
 
@@ -411,12 +423,16 @@ def _support_reference(plan: FootstepPlan, n: int, dt: float) -> np.ndarray:
 
 
 def _reach_caps(caps: list[list[float]], contacts: list["_Contact"], c_bar: np.ndarray,
-                reach: LegReach) -> list[list[float]]:
-    """`caps` plus the leg-reach ceilings of each knot (see `LegReach`), the CoM xy taken from `c_bar`."""
+                reach: LegReach, swing_knots: list[tuple[int, Side, np.ndarray, np.ndarray]] = ()
+                ) -> list[list[float]]:
+    """`caps` plus the leg-reach ceilings of each knot (see `LegReach`), the CoM xy taken from `c_bar`; the
+    knots inside a swing (knot, side, sole position, sole rotation) with `reach.swing_max_length`."""
     out = [list(c) for c in caps]
     for ct in contacts:
         for j in range(ct.first, ct.last + 1):
             out[j].append(reach.ceiling(ct.side, ct.R, ct.p_sole, c_bar[j, :2]))
+    for j, side, p, R in swing_knots:
+        out[j].append(reach.ceiling(side, R, p, c_bar[j, :2], reach.swing_max_length))
     return out
 
 
@@ -619,8 +635,8 @@ def _contacts_on_knots(spans: list[tuple[Side, int, int, Footstep]], knot_ticks:
     return out
 
 
-def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_init: np.ndarray | None = None
-                    ) -> CentroidalTrajectory:
+def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_init: np.ndarray | None = None,
+                    swings: Sequence[SwingTrajectory] | None = None) -> CentroidalTrajectory:
     """Plan the CoM and contact forces for a footstep plan (see the module docstring).
 
     Args:
@@ -628,6 +644,8 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
         config: the QP settings, with the robot mass.
         p_world_com_init: the CoM at t = 0 (3,) [m]; default: over the midpoint of the initial sole centres,
             com_height above them. The plan starts at rest there.
+        swings: the planned swing of each step (`SwingTrajectory`, in the order of plan.steps), for the
+            leg-reach bound of swinging legs (`LegReach.swing_max_length`); None: swinging legs unbounded.
 
     Returns:
         CentroidalTrajectory with n = round(plan.duration / dt) + 1 ticks.
@@ -675,13 +693,22 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
         c_bar[j, :2] = np.mean([ct.corners.mean(axis=0)[:2] for ct in (loaded or active)], axis=0)
     c_bar[:, 2] = z_ref
     c_bar[0] = c_init
+    swing_knots: list[tuple[int, Side, np.ndarray, np.ndarray]] = []
+    if swings is not None and cfg.leg_reach is not None and cfg.leg_reach.swing_max_length is not None:
+        if len(swings) != plan.n_steps:
+            raise PlanningError(f"swings: one per step ({plan.n_steps}), got {len(swings)}")
+        for i, (step, sw) in enumerate(zip(plan.steps, swings)):
+            lo, td = _tick(plan.lift_off_time(i), dt), _tick(plan.touch_down_time(i), dt)
+            for j in np.flatnonzero((knot_ticks > lo) & (knot_ticks < td)):
+                pose = sw.at(knot_ticks[j] * dt)
+                swing_knots.append((int(j), step.side, pose.p_world_sole, pose.R_world_sole))
     F_bar = np.tile([0.0, 0.0, 1.0], (N + 1, 1))  # static support (scaled)
 
     mu_lin = cfg.friction / np.sqrt(2.0)
     t0 = time.perf_counter()
     solves = 0
     for it in range(cfg.am_iterations + 1):
-        caps = sole_z if cfg.leg_reach is None else _reach_caps(sole_z, contacts, c_bar, cfg.leg_reach)
+        caps = sole_z if cfg.leg_reach is None else _reach_caps(sole_z, contacts, c_bar, cfg.leg_reach, swing_knots)
         H, g, A, b, C, l, u = _build(lay, h, c_init, c_final_xy, z_ref, c_bar, F_bar, caps, cfg, mu_lin)
         x, iters, solver = _solve(H, g, A, b, C, l, u, cfg)
         solves += 1

@@ -1,4 +1,4 @@
-"""Walking on uneven terrain: contact plan -> centroidal QP -> swing feet clearing the terrain -> WalkTrajectory.
+"""Walking on uneven terrain: contact plan -> swing feet clearing the terrain -> centroidal QP -> WalkTrajectory.
 
 The multi-contact counterpart of `generate_walk` (paper 000, Section 5.2, where the loco-3d planner plays this
 role for the tilted platforms and the stairs): the result is the same `WalkTrajectory` container, so the
@@ -246,7 +246,6 @@ def generate_multicontact_walk(contacts: ContactPlan | FootstepPlan, config: Cen
         thickness = sole_thickness if sole_thickness is not None else 0.02
     else:
         raise PlanningError(f"contacts must be a ContactPlan or a FootstepPlan, got {type(contacts).__name__}")
-    centroidal = plan_centroidal(plan, config, p_world_com_init)
     dt = config.dt
     swings = []
     feet = dict(plan.initial_feet)
@@ -260,6 +259,8 @@ def generate_multicontact_walk(contacts: ContactPlan | FootstepPlan, config: Cen
                                                    thickness).max()))
         swings.append(sw)
         feet[step.side] = step
+    # the swings first: the centroidal plan bounds the swinging legs' reach at their planned poses (LegReach)
+    centroidal = plan_centroidal(plan, config, p_world_com_init, swings)
     in_contact = {s: centroidal.wrenches[s].in_contact for s in Side}
     foot_traj, schedule = _feet(plan, swings, in_contact, dt)
     walk = WalkTrajectory(dt, config.com_height, config.gravity, config.omega, centroidal.p_world_com,

@@ -165,12 +165,16 @@ class Robot:
         q[:3] = 0.0
         q[3:7] = [0, 0, 0, 1]
         q[7:] = np.clip(q[7:], model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
-        # Put the base at the height where the lower sole touches z = 0, the feet centred about x = y = 0.
+        # Put the base at the height where the highest sole corner touches z = 0 (every corner at or below it), the
+        # feet centred about x = y = 0. A posture with tilted soles (TALOS' half_sitting turns both ankle rolls by
+        # -1.7 mrad, one sole edge 0.22 mm below the other) then starts with both edges of each sole on the ground:
+        # with the sole origins at z = 0 each sole rested on one edge for the first 4 ms, the ZMP 6 cm to the side.
         pin.framesForwardKinematics(model, self.data, q)
         soles = np.array([self.data.oMf[self.sole_frame_id(s)].translation for s in Side])
         q[0] = -soles[:, 0].mean()
         q[1] = -soles[:, 1].mean()
-        q[2] = -soles[:, 2].min()
+        q[2] = -max(float((self.data.oMf[self.sole_frame_id(s)].act(c))[2]) for s in Side
+                    for c in self.profile.sole.corners)
         return q
 
     # ------------------------------------------------------------------ accessors

@@ -3,6 +3,7 @@ that gives the per-tick references and the scenario's own metrics."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -40,6 +41,9 @@ class ScenarioSpec:
     model_error: Any = None
     #: scheduled faults (`faults:`, wbcbench/faults.py)
     faults: tuple = ()
+    #: `taskset_variant:` a controller run on this scene without an explicit task set takes
+    #: `tasksets/<robot>/<controller>-<variant>.yaml` when that file exists (e.g. the paper's stairs gains), else its own
+    taskset_variant: str | None = None
 
 
 class Scenario:
@@ -163,6 +167,15 @@ def _parse_faults(root: Section, robot: Robot) -> tuple:
     return parse_faults(root.list("faults"), root.file, joints=robot.joint_names)
 
 
+def _parse_taskset_variant(root: Section) -> str | None:
+    raw = root.raw("taskset_variant", None)
+    if raw is None:
+        return None
+    if not (isinstance(raw, str) and re.fullmatch(r"[a-z0-9][a-z0-9_-]*", raw)):
+        raise root.error("taskset_variant", f"must be a name of lower-case letters, digits, '-' or '_', got {raw!r}")
+    return raw
+
+
 def _parse_model_error(root: Section):
     if not root.has("model_error"):
         return None
@@ -230,6 +243,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         sensors=_parse_sensors(root),
         model_error=_parse_model_error(root),
         faults=_parse_faults(root, robot),
+        taskset_variant=_parse_taskset_variant(root),
     )
     if duration is not None:
         root.raw("duration", None)

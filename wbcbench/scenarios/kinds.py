@@ -362,6 +362,9 @@ class TerrainWalkScenario(WalkScenario):
     the planner, default 0.5); max_step_length / max_step_height [m]; max_leg_extension: largest hip-ankle
     distance the centroidal plan may ask for, as a fraction of the straight leg (default: the profile's
     `stepping.max_leg_extension`, else 0.94, about what TALOS' flat walks use; 0 switches the bound off);
+    max_swing_leg_extension: the same for a swinging leg, at the swing's planned pose (default 0: off, a swinging
+    leg unbounded; `stairs` uses 0.96: without it the CoM rose after each lift-off faster than the swinging foot,
+    the swing knee straightened, then bent again, and at the last step ran into its limit);
     com_height [m]: the CoM height above the support the centroidal plan aims at (default, or null: the initial one; a
     lower one is reached during the initial double support).
     """
@@ -389,6 +392,7 @@ class TerrainWalkScenario(WalkScenario):
         self.max_step_height = params.float("max_step_height", 0.15, positive=True)
         reach = self.robot.profile.stepping.max_leg_extension
         self.max_leg_extension = params.float("max_leg_extension", 0.94 if reach is None else reach, min=0.0, max=1.0)
+        self.max_swing_leg_extension = params.float("max_swing_leg_extension", 0.0, min=0.0, max=1.0)
         # null: the standing height (a robot profile's sizes may give it to undo a scenario file's height)
         self.com_height = (params.float("com_height", positive=True) if params.raw("com_height", None) is not None
                            else None)
@@ -421,7 +425,8 @@ class TerrainWalkScenario(WalkScenario):
         pin.forwardKinematics(m, d_straight, q_straight)
         length = min(float(np.linalg.norm(d_straight.oMi[h].translation - d_straight.oMi[a].translation))
                      for h, a in joints.values())
-        return LegReach(hip, ankle, self.max_leg_extension * length)
+        return LegReach(hip, ankle, self.max_leg_extension * length,
+                        self.max_swing_leg_extension * length if self.max_swing_leg_extension > 0.0 else None)
 
     def setup(self, q0, com0):
         import pinocchio as pin
@@ -438,10 +443,12 @@ class TerrainWalkScenario(WalkScenario):
         start = {}
         for s in Side:
             # the planner starts from level feet: position and heading of the soles (TALOS' half-sitting has a
-            # 1.7 mrad ankle roll the contacts absorb)
+            # 1.7 mrad ankle roll the contacts absorb), at the height of the highest sole corner (the ground the
+            # tilted sole rests on; its origin is 0.11 mm lower)
             M = data.oMf[self.robot.sole_frame_id(s)]
             yaw = float(np.arctan2(M.rotation[1, 0], M.rotation[0, 0]))
-            start[s] = Footstep.from_xyz_yaw(s, *M.translation, yaw=yaw)
+            z = max(float(M.act(c)[2]) for c in self.robot.profile.sole.corners)
+            start[s] = Footstep.from_xyz_yaw(s, M.translation[0], M.translation[1], z, yaw=yaw)
         sole = self.robot.profile.sole
         rect = SoleRectangle(sole.length, sole.width, *sole.center)
         timing = StepTiming(self.single, self.double, self.initial_ds, self.final_ds)

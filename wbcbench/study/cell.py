@@ -30,7 +30,7 @@ def prepare(params: dict, cell_dir: Path):
     and taskset.yaml into `cell_dir` when they are overridden. ConfigError on an unknown key path or a value the
     loaders reject."""
     from ..controllers.base import available_controllers
-    from ..controllers.taskset import load_taskset, taskset_path
+    from ..controllers.taskset import load_taskset, taskset_path, taskset_variant_path
     from ..robots import load_robot
     from ..scenarios import load_scenario
     from ..scenarios.base import scenario_path
@@ -70,7 +70,9 @@ def prepare(params: dict, cell_dir: Path):
     ts_file = params.get("taskset")
     controller: object = name
     if ts_over or ts_file:
-        src = Path(ts_file) if ts_file else taskset_path(robot, name)
+        variant = (taskset_variant_path(robot, name, scen.spec.taskset_variant)
+                   if scen.spec.taskset_variant is not None else None)   # the task set the scene runs with
+        src = Path(ts_file) if ts_file else (variant or taskset_path(robot, name))
         data = apply_overrides(load_yaml(src), ts_over, str(src))
         dst = cell_dir / "taskset.yaml"
         dst.write_text(yaml.safe_dump(data, sort_keys=False))
