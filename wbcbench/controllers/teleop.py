@@ -92,7 +92,7 @@ class TSIDTeleop(InverseDynamicsController):
     compiled_frames = True
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
     #: daqp's iteration limit on the torque-limited QP in SPD and position modes (see `__init__`)
-    TORQUE_QP_ITERATIONS = 100
+    TORQUE_QP_ITERATIONS = 60
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
                  repulsors: bool = True, stabilizer: bool = True):
@@ -104,8 +104,8 @@ class TSIDTeleop(InverseDynamicsController):
         super().__init__(robot, ActuationMode(mode), dt, spec)
         if self.mode is not ActuationMode.TORQUE and spec.solver == "daqp":
             # the torque-limited QP may fail here (`_solve_limited` keeps the joint-limited optimum), so it gets a
-            # bounded time: daqp needs at most 30 iterations on it in reach_forward (median 12), but cycled
-            # through its 10,000-iteration limit on one ill-conditioned tick of reach_forward (20 ms in the loop)
+            # bounded time: daqp needed at most 30 iterations on the 524 of a reach_forward replay (median 12), but
+            # cycled on a few ill-conditioned ones (10,000 iterations: 20-75 ms; 100: 0.7-1.9 ms)
             self.torque_solver = ActiveSetGuessSolver(make_solver("daqp", iter_limit=self.TORQUE_QP_ITERATIONS))
         self.repulsors = any(t.type == "self_collision" for t in spec.tasks)
         self.collision_tasks = [t for t in self.tasks if isinstance(t, SelfCollisionTask)]
