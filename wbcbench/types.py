@@ -188,10 +188,11 @@ class References:
         return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {})
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
-                  contact_poses: dict) -> "References":
-        """A copy with the fields a stabilizer corrects replaced (`dataclasses.replace` without its per-field
-        machinery: a stabilizer does this every tick)."""
-        return _references(self.t, self.contacts, com, self.zmp, self.feet, targets, wrench_targets, contact_poses)
+                  contact_poses: dict, feet: dict | None = None) -> "References":
+        """A copy with the fields a stabilizer corrects replaced, and the feet's when given (`dataclasses.replace`
+        without its per-field machinery: a stabilizer does this every tick)."""
+        return _references(self.t, self.contacts, com, self.zmp, self.feet if feet is None else feet, targets,
+                           wrench_targets, contact_poses)
 
     def missing(self, names) -> list[str]:
         """The fields among `names` this tick leaves unset (None or empty)."""

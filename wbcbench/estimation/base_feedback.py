@@ -28,7 +28,7 @@ platforms: 0.42 m against 0.21 m without base feedback).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -141,7 +141,7 @@ class BaseFeedback:
         for s in list(self._liftoff):
             if s in refs.contacts or s not in refs.feet:
                 del self._liftoff[s]
-        return replace(refs, com=com, feet=feet, targets=targets)
+        return refs.corrected(com, targets, refs.wrench_targets, refs.contact_poses, feet=feet)
 
     def _from_liftoff(self, side: Side, ref: PoseReference, t: float, q_model: np.ndarray) -> PoseReference:
         """A swing foot's mapped reference `ref`, offset so that it starts where the model's foot stood at lift-off
