@@ -84,3 +84,23 @@ def test_a_lifted_foot_starts_where_the_model_foot_stands_and_blends_to_the_mapp
     assert out.feet[Side.LEFT].position == pytest.approx(R @ M_left.translation + p, abs=1e-9)
     assert out.feet[Side.LEFT].rotation == pytest.approx(R @ M_left.rotation, abs=1e-9)
     assert np.abs(out.feet[Side.LEFT].velocity).max() < 1e-12
+
+
+def test_the_compiled_drift_step_is_pinocchios_to_rounding(talos):
+    """`update` in one compiled call (the compiled forward kinematics) against the same update through
+    pinocchio's frames, on random configurations of the model and the robot, step after step."""
+    rng = np.random.default_rng(2)
+    fast = BaseFeedback(talos, 1e-3, BaseFeedbackConfig(time_constant=0.05))
+    slow = BaseFeedback(talos, 1e-3, BaseFeedbackConfig(time_constant=0.05))
+    assert fast._fk.supported
+    slow._fk.supported = False
+    lo, hi = talos.position_limits
+    for k in range(50):
+        q_model, q_real = talos.q0.copy(), talos.q0.copy()
+        q_model[7:] = rng.uniform(lo, hi)
+        q_real[7:] = np.clip(q_model[7:] + 0.05 * rng.normal(size=talos.na), lo, hi)
+        q_real = _shifted(q_real, *rng.normal(scale=[0.05, 0.05, 0.2]))
+        a = fast.update(_meas(q_real), q_model, frozenset(Side))
+        b = slow.update(_meas(q_real), q_model, frozenset(Side))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    assert np.abs(fast.drift).max() > 1e-3  # the states moved it
