@@ -232,7 +232,10 @@ def _bisect_group(study: PushStudy, cells: list[PushCell], out_dir: Path) -> lis
 
     robot = load_robot(study.robot)
     scen = _trial_scenario(study, robot, first.push_time)
-    approach = out_dir / "runs" / f"{first.controller}-{first.phase}-s{first.seed}-approach"
+    # named by the piece's first cell: a group split over processes simulates its approach once per piece, and two
+    # pieces sharing a directory (and overwriting it) corrupted each other's log
+    name = f"{first.controller}-{first.phase}-{int(first.direction_deg):03d}deg-s{first.seed}-approach"
+    approach = out_dir / "runs" / name
     run(scen, first.controller, robot=robot, out=approach, sensors=study.sensors, seed=first.seed,
         predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan))
     shutil.rmtree(approach, ignore_errors=True)  # a partial run: the trials are the raw runs
