@@ -234,9 +234,7 @@ class Simulator:
         (left, right: force then torque) in consecutive columns starting at ``dst`` (int64: q, v, tau, wrenches,
         F/T)."""
         d = self.data
-        views = self._views
-        if views[0] is not d:
-            views = self._make_views()
+        views = self._data_views()
         n = d.ncon
         rec = self._contacts
         if n and (rec is None or rec.data is not d):
@@ -251,6 +249,11 @@ class Simulator:
         return state, self._fall(finite, height, cos_tilt)
 
     _views = (None,)
+
+    def _data_views(self) -> tuple:
+        """`_make_views`' tuple for the current MjData (made again if the simulator's data was replaced)."""
+        views = self._views
+        return views if views[0] is self.data else self._make_views()
 
     def _make_views(self) -> tuple:
         """MuJoCo's fixed-size arrays of the data the per-tick calls use, viewed once per MjData (each attribute
@@ -270,10 +273,7 @@ class Simulator:
     def apply(self, command: Command) -> None:
         """Set the command used by the following physics steps (held until the next call)."""
         self._command = command
-        views = self._views
-        if views[0] is not self.data:
-            views = self._make_views()
-        ctrl = views[6]
+        ctrl = self._data_views()[6]
         act = self._act
         if self.mode is _TORQUE:
             ctrl[act] = command.tau if command.tau is not None else 0.0
@@ -287,9 +287,7 @@ class Simulator:
     def _spd_torque(self) -> np.ndarray:
         """Stable PD (Tan et al. 2011) with the next acceleration predicted from the full dynamics."""
         m, d, b = self.model, self.data, self.bridge
-        views = self._views
-        if views[0] is not d:
-            views = self._make_views()
+        views = self._data_views()
         cmd = self._command
         mujoco.mj_fullM(m, d, self._spd_M)
         out = np.empty(self.robot.na)
