@@ -413,7 +413,7 @@ class TeleopStabilizer(Stabilizer):
         self._contact_nominal: dict[Side, pin.SE3] = {}
         self._torso_nominal: pin.SE3 | None = None
         # their rotations and translations as arrays (an SE3's attributes are copies made at each access)
-        self._contact_nominal_arrays: dict[Side, tuple[np.ndarray, np.ndarray]] = {}
+        self._contact_nominal_p: dict[Side, np.ndarray] = {}
         self._torso_nominal_arrays: tuple[np.ndarray, np.ndarray] | None = None
         self._nominal_R = np.tile(np.eye(3), (2, 1, 1))  # the contacts' nominal rotations, rows left, right
         self._tilt_R = np.zeros((2, 3, 3))                 # and this tick's tilted ones (Eq. 3)
@@ -428,7 +428,7 @@ class TeleopStabilizer(Stabilizer):
         self._clear()
         for s, ref in feedback.contact_references.items():
             self._contact_nominal[s] = pin.SE3(ref)
-            self._contact_nominal_arrays[s] = (ref.rotation.copy(), ref.translation.copy())
+            self._contact_nominal_p[s] = ref.translation.copy()
             self._nominal_R[_SIDES.index(s)] = ref.rotation
         torso = feedback.task_references.get(self.spec.torso_task)
         if torso is not None:
@@ -584,7 +584,7 @@ class TeleopStabilizer(Stabilizer):
                 if how == 1:
                     contact_poses[s] = nominal[s]
                 elif how == 2:
-                    contact_poses[s] = pin.SE3(self._tilt_R[i], self._contact_nominal_arrays[s][1])
+                    contact_poses[s] = pin.SE3(self._tilt_R[i], self._contact_nominal_p[s])
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs
