@@ -65,12 +65,20 @@ def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_join
                 t_frames, R, t, drift, alpha):
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
     model's and the measured configuration (`placements._forward`, `_frames`; rows model left, right, measured
-    left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), the planar drift of each sole, their mean, and the filter
-    (gain ``alpha``) on ``drift`` (3,: x, y, yaw), in place."""
+    left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
     _forward(q_model, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
     _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R[:2], t[:2])
     _forward(q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
     _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R[2:], t[2:])
+    _drift_from_soles(R, t, drift, alpha)
+
+
+@njit
+def _drift_from_soles(R, t, drift, alpha):
+    """From the soles' placements ``R`` (4, 3, 3), ``t`` (4, 3) (rows model left, right, measured left, right):
+    the planar drift of each sole, their mean, and the filter (gain ``alpha``) on ``drift`` (3,: x, y, yaw), in
+    place. Planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
+    roll/pitch difference into a translation of D."""
     raw0 = raw1 = raw2 = 0.0
     for i in range(2):
         a2 = np.arctan2(R[i, 1, 0], R[i, 0, 0])
@@ -84,12 +92,6 @@ def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_join
     drift[0] = drift[0] + alpha * (raw0 - drift[0])
     drift[1] = drift[1] + alpha * (raw1 - drift[1])
     drift[2] = drift[2] + alpha * (raw2 - drift[2])
-
-
-def _planar(T: pin.SE3) -> np.ndarray:
-    """(x, y, heading of the x axis) of a pose."""
-    R = T.rotation
-    return np.array([T.translation[0], T.translation[1], np.arctan2(R[1, 0], R[0, 0])])
 
 
 class BaseFeedback:
@@ -109,12 +111,11 @@ class BaseFeedback:
         # the drift step in one compiled call (`_drift_step`) where the compiled forward kinematics applies (its
         # placements are pinocchio's to rounding): pinocchio's two passes and four frame updates and the numpy
         # around them took 45 us of a 480 us IK step
-        self._fk = ForwardKinematics(robot.model)
-        if self._fk.supported:
-            fk = self._fk
+        self._fk = fk = ForwardKinematics(robot.model)
+        self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
+        if fk.supported:
             self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t,
-                               *fk.frame_arrays([self.sole_ids[s] for s in Side]), np.zeros((4, 3, 3)),
-                               np.zeros((4, 3)))
+                               *fk.frame_arrays([self.sole_ids[s] for s in Side]), *self._soles)
         self.alpha = 1.0 - np.exp(-dt / config.time_constant)
         self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
@@ -128,28 +129,22 @@ class BaseFeedback:
         """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
         feet are in contact (in single support the robot rocks on its stance sole, and updating there made TSID
         position fall on the platforms)."""
-        feet = [s for s in Side if s in contacts]
-        if len(feet) < 2:
+        if any(s not in contacts for s in Side):
             return self.drift
+        drift = self.drift.copy()  # a new array each update (callers may keep the last one)
         if self._fk.supported:
-            drift = self.drift.copy()  # a new array each update (callers may keep the last one)
             _drift_step(q_model, meas.q, *self._step_args, drift, self.alpha)
-            self.drift = drift
-            return drift
-        m = self.model
-        pin.forwardKinematics(m, self.data_meas, meas.q)
-        pin.forwardKinematics(m, self.data_model, q_model)
-        raw = np.zeros(3)
-        for s in feet:
-            a = _planar(pin.updateFramePlacement(m, self.data_model, self.sole_ids[s]))
-            b = _planar(pin.updateFramePlacement(m, self.data_meas, self.sole_ids[s]))
-            # planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
-            # roll/pitch difference into a translation of D
-            dyaw = self.drift[2] + np.arctan2(np.sin(a[2] - b[2] - self.drift[2]), np.cos(a[2] - b[2] - self.drift[2]))
-            c, si = np.cos(dyaw), np.sin(dyaw)
-            raw += np.array([a[0] - (c * b[0] - si * b[1]), a[1] - (si * b[0] + c * b[1]), dyaw]) / len(feet)
-        self.drift = self.drift + self.alpha * (raw - self.drift)
-        return self.drift
+        else:  # other joint types: pinocchio's placements
+            m = self.model
+            R, t = self._soles
+            for k, (d, q) in enumerate(((self.data_model, q_model), (self.data_meas, meas.q))):
+                pin.forwardKinematics(m, d, q)
+                for i, s in enumerate(Side):
+                    M = pin.updateFramePlacement(m, d, self.sole_ids[s])
+                    R[2 * k + i], t[2 * k + i] = M.rotation, M.translation
+            _drift_from_soles(R, t, drift, self.alpha)
+        self.drift = drift
+        return drift
 
     def transform(self) -> tuple[np.ndarray, np.ndarray]:
         """D as (R (3, 3), p (3,)): a world point x maps to R x + p in the model's world."""
