@@ -81,22 +81,26 @@ class TaskSetSpec:
         raise KeyError(name)
 
 
-def taskset_variant_path(robot: Robot, controller: str, variant: str) -> Path | None:
-    """The task set `<controller>-<variant>.yaml` of the robot (or the default directory), None if there is none."""
+def _shipped(robot: Robot, file_name: str) -> Path | None:
+    """The shipped task set `file_name` of the robot, else of the default directory; None if neither has it."""
     for d in (TASKSET_DIR / robot.name, TASKSET_DIR / "default"):
-        p = d / f"{controller}-{variant}.yaml"
+        p = d / file_name
         if p.exists():
             return p
     return None
 
 
+def taskset_variant_path(robot: Robot, controller: str, variant: str) -> Path | None:
+    """The task set `<controller>-<variant>.yaml` of the robot (or the default directory), None if there is none."""
+    return _shipped(robot, f"{controller}-{variant}.yaml")
+
+
 def taskset_path(robot: Robot, controller: str) -> Path:
-    for d in (TASKSET_DIR / robot.name, TASKSET_DIR / "default"):
-        p = d / f"{controller}.yaml"
-        if p.exists():
-            return p
-    raise ConfigError(f"no task set for controller '{controller}' (looked in {TASKSET_DIR / robot.name} and "
-                      f"{TASKSET_DIR / 'default'})")
+    p = _shipped(robot, f"{controller}.yaml")
+    if p is None:
+        raise ConfigError(f"no task set for controller '{controller}' (looked in {TASKSET_DIR / robot.name} and "
+                          f"{TASKSET_DIR / 'default'})")
+    return p
 
 
 def _gain_vector(sec: Section, key: str, n: int, robot: Robot | None, posture: bool, default=...):
