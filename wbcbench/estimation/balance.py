@@ -14,10 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from ..jit import njit
 from ..robots import Robot
 from ..side import Side
+from ..tasks.placements import CenterOfMass, _forward, _frames, _subtree_sums
 from ..types import Measurement
-from .wrench import FootMass, contact_wrench_from_ft
+from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
 
@@ -47,10 +49,27 @@ class BalanceEstimator:
             m, c = robot.foot_below_sensor(s)
             self.feet[s] = FootMass(m, c)
         self.alpha = 1.0 if velocity_cutoff_hz is None else 1 - np.exp(-2 * np.pi * velocity_cutoff_hz * dt)
+        # the whole update in one compiled call (`_balance_step`) where the compiled kinematics applies (its
+        # placements and CoM are pinocchio's to rounding): the numpy and pinocchio calls of `update` took about
+        # half of an IK step
+        com = CenterOfMass(robot.model)
+        self._step_args = None
+        if com.supported:
+            fk = com.fk
+            frames = [self.sensor_ids[Side.LEFT], self.sensor_ids[Side.RIGHT], self.sole_ids[Side.LEFT],
+                      self.sole_ids[Side.RIGHT]]
+            feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
+            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, *fk.frame_arrays(frames),
+                               com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
+                               np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD.copy(),
+                               float(min_normal_force), float(self.alpha), float(dt), np.zeros((6, 3, 3)),
+                               np.zeros((6, 3)))
+        self._state = np.zeros(7)  # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3)
         self.reset()
 
     def reset(self) -> None:
         self._com_prev = None
+        self._state[:] = 0.0
         self.com_vel = np.zeros(3)
         self.com = np.zeros(3)
         self.zmp = np.full(3, np.nan)
@@ -60,6 +79,9 @@ class BalanceEstimator:
     def update(self, meas: Measurement, q_model: np.ndarray | None = None) -> None:
         """Update ZMP (world) and CoM from one measurement; `q_model` is the controller's model
         configuration whose support foot anchors the CoM (default: the measurement itself)."""
+        if self._step_args is not None:
+            self._update_compiled(meas, q_model)
+            return
         m, d = self.model, self.data
         pin.forwardKinematics(m, d, meas.q)
         wrenches = []
@@ -104,3 +126,104 @@ class BalanceEstimator:
             T_model = pin.updateFramePlacement(m, md, fid)
             out += (f / total) * (T_model * T_meas.inverse()).act(com_world)
         return out
+
+    def _update_compiled(self, meas: Measurement, q_model: np.ndarray | None) -> None:
+        """`update` by `_balance_step`: its outputs are views of one new array per tick (the last tick's arrays,
+        which callers may keep, are not overwritten)."""
+        out = np.empty(11)
+        left, right = Side.LEFT, Side.RIGHT
+        anchor = q_model is not None
+        support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, meas.ft_force[left],
+                                meas.ft_torque[left], meas.ft_force[right], meas.ft_torque[right], *self._step_args,
+                                self._state, out)
+        self.normal_force = {left: float(out[0]), right: float(out[1])}
+        self.support = right if support else left
+        self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
+        self._com_prev = self.com
+
+
+@njit
+def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, R, t,
+                  frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity,
+                  min_normal_force, alpha, dt, Rf, tf, state, out):
+    """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
+    sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
+    `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
+    sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchored`, when
+    ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
+    ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
+    the support foot (0 left, 1 right: the larger normal force, left on a tie)."""
+    _forward(q_meas, kinds, parents, idx_q, R0, t0, R, t)
+    _frames(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
+    _subtree_sums(R, t, parents, mass, lever, msub, csub)
+    # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
+    F = np.empty((2, 3))
+    M = np.empty((2, 3))
+    for k in range(2):
+        fs, ms = (f_left, m_left) if k == 0 else (f_right, m_right)
+        w0, w1, w2 = foot_mass[k] * gravity[0], foot_mass[k] * gravity[1], foot_mass[k] * gravity[2]
+        c = np.empty(3)
+        for a in range(3):
+            F[k, a] = -(Rf[k, a, 0] * fs[0] + Rf[k, a, 1] * fs[1] + Rf[k, a, 2] * fs[2]) - foot_mass[k] * gravity[a]
+            c[a] = Rf[k, a, 0] * foot_com[k, 0] + Rf[k, a, 1] * foot_com[k, 1] + Rf[k, a, 2] * foot_com[k, 2]
+        M[k, 0] = -(Rf[k, 0, 0] * ms[0] + Rf[k, 0, 1] * ms[1] + Rf[k, 0, 2] * ms[2]) - (c[1] * w2 - c[2] * w1)
+        M[k, 1] = -(Rf[k, 1, 0] * ms[0] + Rf[k, 1, 1] * ms[1] + Rf[k, 1, 2] * ms[2]) - (c[2] * w0 - c[0] * w2)
+        M[k, 2] = -(Rf[k, 2, 0] * ms[0] + Rf[k, 2, 1] * ms[1] + Rf[k, 2, 2] * ms[2]) - (c[0] * w1 - c[1] * w0)
+        out[k] = F[k, 2]
+    support = 1 if out[1] > out[0] else 0
+    ground = tf[2 + support, 2]
+    # ZMP: moments of the loaded feet about (0, 0, ground), p = o + n x M_o / (n . F) with n = +z
+    fn = mx = my = 0.0
+    loaded = False
+    for k in range(2):
+        if F[k, 2] >= min_normal_force:
+            rx, ry, rz = tf[k, 0], tf[k, 1], tf[k, 2] - ground
+            fn += F[k, 2]
+            mx += M[k, 0] + (ry * F[k, 2] - rz * F[k, 1])
+            my += M[k, 1] + (rz * F[k, 0] - rx * F[k, 2])
+            loaded = True
+    if loaded and fn > 0.0:
+        out[2], out[3], out[4] = -my / fn, mx / fn, ground
+    else:
+        out[2] = out[3] = out[4] = np.nan
+    total = msub[0]
+    cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
+    if anchor:
+        # each loaded foot moved to where the model has it, weighted by its normal force
+        _forward(q_model, kinds, parents, idx_q, R0, t0, R, t)
+        _frames(R, t, frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
+        w = np.zeros(2)
+        for k in range(2):
+            if out[k] > min_normal_force:
+                w[k] = out[k]
+        wsum = w[0] + w[1]
+        if wsum <= 0.0:
+            w[:] = 0.0
+            w[support] = 1.0
+            wsum = 1.0
+        ax = ay = az = 0.0
+        for k in range(2):
+            if w[k] <= 0.0:
+                continue
+            # R_model R_meas^T (c - t_meas) + t_model
+            d0, d1, d2 = cx - tf[2 + k, 0], cy - tf[2 + k, 1], cz - tf[2 + k, 2]
+            l0 = Rf[2 + k, 0, 0] * d0 + Rf[2 + k, 1, 0] * d1 + Rf[2 + k, 2, 0] * d2
+            l1 = Rf[2 + k, 0, 1] * d0 + Rf[2 + k, 1, 1] * d1 + Rf[2 + k, 2, 1] * d2
+            l2 = Rf[2 + k, 0, 2] * d0 + Rf[2 + k, 1, 2] * d1 + Rf[2 + k, 2, 2] * d2
+            s = w[k] / wsum
+            ax += s * (Rf[4 + k, 0, 0] * l0 + Rf[4 + k, 0, 1] * l1 + Rf[4 + k, 0, 2] * l2 + tf[4 + k, 0])
+            ay += s * (Rf[4 + k, 1, 0] * l0 + Rf[4 + k, 1, 1] * l1 + Rf[4 + k, 1, 2] * l2 + tf[4 + k, 1])
+            az += s * (Rf[4 + k, 2, 0] * l0 + Rf[4 + k, 2, 1] * l1 + Rf[4 + k, 2, 2] * l2 + tf[4 + k, 2])
+        cx, cy, cz = ax, ay, az
+    out[5], out[6], out[7] = cx, cy, cz
+    if state[0] == 0.0:
+        state[4] = state[5] = state[6] = 0.0
+    else:
+        for a in range(3):
+            raw = (out[5 + a] - state[1 + a]) / dt
+            state[4 + a] = state[4 + a] + alpha * (raw - state[4 + a])
+    state[0] = 1.0
+    for a in range(3):
+        state[1 + a] = out[5 + a]
+        out[8 + a] = state[4 + a]
+    return support

@@ -4,8 +4,6 @@ DCM PI + CoM admittance (`DcmStabilizer`), which corrects the CoM reference the 
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pinocchio as pin
 
@@ -75,4 +73,6 @@ class BalanceStabilizer(Stabilizer):
         self.log[:2] = out.p_world_zmp_measured
         self.log[2:4] = out.p_world_zmp_desired
         self.log[4:6] = out.p_world_dcm
-        return replace(refs, com=PointReference(out.p_world_com, out.v_world_com, out.a_world_com))
+        # the stabilizer's outputs are new float64 (3,) arrays, finite (its inputs were checked): no copies
+        return refs.corrected(PointReference.unchecked(out.p_world_com, out.v_world_com, out.a_world_com),
+                              refs.targets, refs.wrench_targets, refs.contact_poses)

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..jit import njit
+
 __all__ = [
     "natural_frequency",
     "dcm_from_com",
@@ -213,6 +215,14 @@ class DcmStabilizer:
         self.dt = float(dt)
         self.omega = natural_frequency(com_height, gravity)
         self._filter = FirstOrderLowPass(gains.zmp_cutoff_hz, dt) if gains.zmp_cutoff_hz is not None else None
+        # `_step`'s constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
+        g = gains
+        self._constants = np.array([
+            g.kp_adm, g.kp_dcm, g.ki_dcm, g.kz_dcm, g.integral_leak,
+            g.integral_limit is not None, g.integral_limit or 0.0,
+            g.com_offset_limit is not None, g.com_offset_limit or 0.0,
+            self._filter is not None, self._filter.alpha if self._filter is not None else 0.0,
+            self.omega, self.dt])
         self.reset()
 
     def reset(self) -> None:
@@ -220,6 +230,7 @@ class DcmStabilizer:
         self._integral = np.zeros(2)
         self._offset_p = np.zeros(2)
         self._offset_v = np.zeros(2)
+        self._filtered = None  # the ZMP filter's output (2,), None until its first sample
         if self._filter is not None:
             self._filter.reset()
 
@@ -249,6 +260,32 @@ class DcmStabilizer:
         Raises:
             ValueError: wrong shapes or non-finite inputs.
         """
+        args = (p_com_ref, v_com_ref, a_com_ref, p_zmp_ref, p_com, v_com, p_zmp)
+        if all(type(x) is np.ndarray and x.dtype == np.float64 and x.ndim == 1 for x in args) and \
+                p_com_ref.size == v_com_ref.size == a_com_ref.size == 3 and \
+                all(x.size in (2, 3) for x in args[3:]):
+            return self._step_compiled(*args)
+        return self._step_numpy(*args)
+
+    def _step_compiled(self, c_ref, v_ref, a_ref, z_ref, c, v, z) -> DcmStabilizerOutput:
+        """`step` by `_dcm_step` (the same operations in the same order: the same numbers), for float64 vectors
+        of the right sizes; its outputs are views of one new array."""
+        out = np.empty(20)
+        filtered = self._filtered
+        fresh = filtered is None
+        if fresh:
+            filtered = np.zeros(2)
+        state = np.concatenate((self._integral, self._offset_p, self._offset_v, filtered))
+        if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, fresh, state, out):
+            return self._step_numpy(c_ref, v_ref, a_ref, z_ref, c, v, z)  # raises, naming the bad input
+        self._integral, self._offset_p, self._offset_v = state[0:2], state[2:4], state[4:6]
+        if self._filter is not None:
+            self._filtered = state[6:8]
+        return DcmStabilizerOutput(out[0:3], out[3:6], out[6:9], out[9:11], out[11:13], out[13:15], out[15:17],
+                                   self._integral.copy(), out[17:19] != 0.0)
+
+    def _step_numpy(self, p_com_ref, v_com_ref, a_com_ref, p_zmp_ref, p_com, v_com, p_zmp) -> DcmStabilizerOutput:
+        """`step` for any array-likes (validated)."""
         g = self.gains
         c_ref = _vec("p_com_ref", p_com_ref, (3,))
         v_ref = _vec("v_com_ref", v_com_ref, (3,))
@@ -262,7 +299,9 @@ class DcmStabilizer:
             bad = [n for n, x in zip(names, (c_ref, v_ref, a_ref, z_ref, c, v, z)) if not np.all(np.isfinite(x))]
             raise ValueError(f"DcmStabilizer.step: non-finite input(s): {', '.join(bad)}")
         if self._filter is not None:
+            self._filter._y = None if self._filtered is None else self._filtered.copy()  # as the compiled path left it
             z = self._filter(z)
+            self._filtered = z.copy()
         omega, dt = self.omega, self.dt
         xi_ref = dcm_from_com(c_ref[:2], v_ref[:2], omega)
         xi = dcm_from_com(c, v, omega)
@@ -295,3 +334,75 @@ class DcmStabilizer:
         v_out[:2] += self._offset_v
         a_out[:2] = a_star
         return DcmStabilizerOutput(p_out, v_out, a_out, z_star, z, xi, xi_ref, self._integral.copy(), saturated)
+
+
+@njit(exact=True)
+def _finite(x, n):
+    """Whether the first ``n`` entries of ``x`` are finite."""
+    for i in range(n):
+        if not np.isfinite(x[i]):
+            return False
+    return True
+
+
+@njit(exact=True)
+def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
+    """`DcmStabilizer.step`'s arithmetic, element by element in the numpy code's order. ``k``: the
+    stabilizer's `_constants`; ``state`` (8,): integral, CoM offset position, velocity, the ZMP filter's last
+    output (``fresh``: none yet), updated in place; ``out`` (20,): CoM position, velocity, acceleration (3 each),
+    z*, filtered measured ZMP, measured DCM, planned DCM (2 each), integral saturated (2, 0 / 1). Returns False
+    (nothing changed) when an input is not finite."""
+    if not (_finite(c_ref, 3) and _finite(v_ref, 3) and _finite(a_ref, 3) and _finite(z_ref, 2) and _finite(c, 2)
+            and _finite(v, 2) and _finite(z, 2)):
+        return False
+    kp_adm, kp_dcm, ki_dcm, kz_dcm, leak = k[0], k[1], k[2], k[3], k[4]
+    omega, dt = k[11], k[12]
+    for i in range(2):
+        zi = z[i]
+        if k[9] != 0.0:  # the ZMP's low-pass: y += alpha (u - y), the first sample as it is
+            zi = zi if fresh else state[6 + i] + k[10] * (zi - state[6 + i])
+            state[6 + i] = zi
+        xi_ref = c_ref[i] + v_ref[i] / omega
+        xi = c[i] + v[i] / omega
+        err = xi_ref - xi
+        z_star = (z_ref[i] - (1.0 + kp_dcm / omega) * err + (kz_dcm / omega) * (z_ref[i] - zi)
+                  - (ki_dcm / omega) * state[i])
+        a_star = a_ref[i] + kp_adm * (zi - z_star)
+        da = a_star - a_ref[i]
+        p = state[2 + i] + (state[4 + i] + (0.5 * dt) * da) * dt
+        vel = state[4 + i] + da * dt
+        out[6 + i] = a_star
+        out[9 + i] = z_star
+        out[11 + i] = zi
+        out[13 + i] = xi
+        out[15 + i] = xi_ref
+        state[2 + i] = p
+        state[4 + i] = vel
+        if leak != 0.0:
+            err = err - leak * state[i]
+        state[i] = state[i] + err * dt
+    if k[7] != 0.0:  # the CoM offset's clamp; a clamped axis moving outwards stops
+        lim = k[8]
+        if abs(state[2]) > lim or abs(state[3]) > lim:
+            for i in range(2):
+                clipped = abs(state[2 + i]) > lim
+                state[2 + i] = min(max(state[2 + i], -lim), lim)
+                if clipped and state[4 + i] * state[2 + i] > 0.0:
+                    state[4 + i] = 0.0
+    out[17] = out[18] = 0.0
+    if k[5] != 0.0:  # anti-windup
+        lim = k[6]
+        for i in range(2):
+            if abs(state[i]) >= lim:
+                out[17 + i] = 1.0
+        if out[17] != 0.0 or out[18] != 0.0:
+            for i in range(2):
+                state[i] = min(max(state[i], -lim), lim)
+    for i in range(3):
+        out[i] = c_ref[i]
+        out[3 + i] = v_ref[i]
+        out[6 + i] = out[6 + i] if i < 2 else a_ref[i]
+    for i in range(2):
+        out[i] += state[2 + i]
+        out[3 + i] += state[4 + i]
+    return True

@@ -124,17 +124,7 @@ def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, 
     their parents in pinocchio's order), then the CoM and its velocity."""
     n = kinds.shape[0]
     _forward(x[iq:], kinds, parents, idx_q, R0, t0, R, t)
-    for j in range(n):
-        m = mass[j]
-        msub[j] = m
-        for a in range(3):
-            csub[j, a] = m * (R[j, a, 0] * lever[j, 0] + R[j, a, 1] * lever[j, 1] + R[j, a, 2] * lever[j, 2]
-                              + t[j, a])
-    for j in range(n - 1, 0, -1):
-        p = parents[j]
-        msub[p] += msub[j]
-        for a in range(3):
-            csub[p, a] += csub[j, a]
+    _subtree_sums(R, t, parents, mass, lever, msub, csub)
     total = msub[0]
     vx = vy = vz = 0.0
     for j in range(1, n):
@@ -166,6 +156,24 @@ def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, 
     x[out + 3] = vx / total
     x[out + 4] = vy / total
     x[out + 5] = vz / total
+
+
+@njit
+def _subtree_sums(R, t, parents, mass, lever, msub, csub):
+    """From the joint placements ``R``, ``t``: each subtree's mass ``msub`` and first moment ``csub`` (sum of m_i
+    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``."""
+    n = parents.shape[0]
+    for j in range(n):
+        m = mass[j]
+        msub[j] = m
+        for a in range(3):
+            csub[j, a] = m * (R[j, a, 0] * lever[j, 0] + R[j, a, 1] * lever[j, 1] + R[j, a, 2] * lever[j, 2]
+                              + t[j, a])
+    for j in range(n - 1, 0, -1):
+        p = parents[j]
+        msub[p] += msub[j]
+        for a in range(3):
+            csub[p, a] += csub[j, a]
 
 
 @njit
