@@ -148,26 +148,38 @@ class BaseFeedback:
 
     def transform(self) -> tuple[np.ndarray, np.ndarray]:
         """D as (R (3, 3), p (3,)): a world point x maps to R x + p in the model's world."""
-        x, y, yaw = self.drift
-        c, s = np.cos(yaw), np.sin(yaw)
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
+        R, p = self._transform()
+        return R.copy(), p.copy()
+
+    _cached = (None, None, None)
+
+    def _transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """`transform`'s arrays, made again only when the drift estimate changed (not to be modified)."""
+        drift, R, p = self._cached
+        if drift is not self.drift:
+            x, y, yaw = self.drift
+            c, s = np.cos(yaw), np.sin(yaw)
+            R, p = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
+            self._cached = (self.drift, R, p)
+        return R, p
 
     def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
         """`refs` mapped into the integrated model's world (module docstring), after one `update` with the feet
         the references put in contact."""
         self.update(meas, q_model, refs.contacts)
-        R, p = self.transform()
+        R, p = self._transform()
 
         def twist(v):  # a (6,) world-axes twist (linear, angular) rotated by R
             return np.concatenate((R @ v[:3], R @ v[3:]))
 
+        # the mapped arrays are new float64 ones of the checked references' shapes: the fast constructors
         def pose(ref: PoseReference) -> PoseReference:
-            return PoseReference(R @ ref.position + p, None if ref.rotation is None else R @ ref.rotation,
-                                 twist(ref.velocity), twist(ref.acceleration))
+            return PoseReference.unchecked(R @ ref.position + p, None if ref.rotation is None else R @ ref.rotation,
+                                           twist(ref.velocity), twist(ref.acceleration))
 
         com = refs.com
         if com is not None:
-            com = PointReference(R @ com.position + p, R @ com.velocity, R @ com.acceleration)
+            com = PointReference.unchecked(R @ com.position + p, R @ com.velocity, R @ com.acceleration)
         targets = refs.targets
         if "waist" in targets:
             targets = {**targets, "waist": pose(targets["waist"])}
@@ -209,4 +221,4 @@ class BaseFeedback:
             rot = pin.exp3((1.0 - b) * dphi) @ rot
             vel[3:] -= db * dphi
             acc[3:] -= ddb * dphi
-        return PoseReference(ref.position + (1.0 - b) * dp, rot, vel, acc)
+        return PoseReference.unchecked(ref.position + (1.0 - b) * dp, rot, vel, acc)
