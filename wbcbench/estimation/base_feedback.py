@@ -159,7 +159,7 @@ class BaseFeedback:
         if drift is not self.drift:
             x, y, yaw = self.drift
             c, s = np.cos(yaw), np.sin(yaw)
-            R, p = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
+            R, p = np.array((c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)).reshape(3, 3), np.array((x, y, 0.0))
             self._cached = (self.drift, R, p)
         return R, p
 
