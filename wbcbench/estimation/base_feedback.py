@@ -94,6 +94,43 @@ def _drift_from_soles(R, t, drift, alpha):
     drift[2] = drift[2] + alpha * (raw2 - drift[2])
 
 
+@njit
+def _rotate(R, x, out, k):
+    """``out[k:k+3] = R x`` (x (3,))."""
+    for a in range(3):
+        out[k + a] = R[a, 0] * x[0] + R[a, 1] * x[1] + R[a, 2] * x[2]
+
+
+@njit
+def _map_point(R, p, position, velocity, acceleration, out):
+    """A point's reference through D = (R, p): ``out`` (9,) = R position + p, R velocity, R acceleration."""
+    _rotate(R, position, out, 0)
+    for a in range(3):
+        out[a] += p[a]
+    _rotate(R, velocity, out, 3)
+    _rotate(R, acceleration, out, 6)
+
+
+@njit
+def _map_pose(R, p, position, rotation, velocity, acceleration, out):
+    """A frame's reference through D = (R, p): ``out`` (24,) = R position + p, R rotation (row-major; skipped for
+    an empty ``rotation``), then both twists with each of their linear and angular parts rotated."""
+    _rotate(R, position, out, 0)
+    for a in range(3):
+        out[a] += p[a]
+    if rotation.shape[0] == 3:
+        for a in range(3):
+            for b in range(3):
+                out[3 + 3 * a + b] = R[a, 0] * rotation[0, b] + R[a, 1] * rotation[1, b] + R[a, 2] * rotation[2, b]
+    _rotate(R, velocity[:3], out, 12)
+    _rotate(R, velocity[3:], out, 15)
+    _rotate(R, acceleration[:3], out, 18)
+    _rotate(R, acceleration[3:], out, 21)
+
+
+_NO_ROTATION = np.zeros((0, 3))
+
+
 class BaseFeedback:
     """Drift of the integrated model from the real robot, and the references mapped into the model's world.
 
@@ -169,17 +206,20 @@ class BaseFeedback:
         self.update(meas, q_model, refs.contacts)
         R, p = self._transform()
 
-        def twist(v):  # a (6,) world-axes twist (linear, angular) rotated by R
-            return np.concatenate((R @ v[:3], R @ v[3:]))
-
-        # the mapped arrays are new float64 ones of the checked references' shapes: the fast constructors
+        # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
+        # constructors; each reference mapped in one compiled call
         def pose(ref: PoseReference) -> PoseReference:
-            return PoseReference.unchecked(R @ ref.position + p, None if ref.rotation is None else R @ ref.rotation,
-                                           twist(ref.velocity), twist(ref.acceleration))
+            out = np.empty(24)
+            rot = ref.rotation
+            _map_pose(R, p, ref.position, _NO_ROTATION if rot is None else rot, ref.velocity, ref.acceleration, out)
+            return PoseReference.unchecked(out[:3], None if rot is None else out[3:12].reshape(3, 3), out[12:18],
+                                           out[18:24])
 
         com = refs.com
         if com is not None:
-            com = PointReference.unchecked(R @ com.position + p, R @ com.velocity, R @ com.acceleration)
+            out = np.empty(9)
+            _map_point(R, p, com.position, com.velocity, com.acceleration, out)
+            com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
         targets = refs.targets
         if "waist" in targets:
             targets = {**targets, "waist": pose(targets["waist"])}
