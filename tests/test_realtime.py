@@ -40,3 +40,40 @@ def test_a_stall_is_counted_and_not_caught_up_in_a_rush(talos, tmp_path):
     assert late[99:102].max() >= 25.0 and not s["realtime"]["kept_up"]
     assert s["wall_time_s"] >= 0.3 + 0.025
     assert np.argmax(late) in (99, 100, 101)
+
+
+def test_a_paced_loop_runs_above_its_log_writer_and_returns_to_normal(talos, tmp_path):
+    """Where the system allows the real-time class, a paced loop runs in it with the log's writer thread below
+    it (a writer at the loop's own priority ran whole row groups, 30-60 ms, before the loop got the core back),
+    and the thread is back in its normal class after the run; where it does not, the summary says so."""
+    import os
+    import threading
+
+    import pytest
+
+    if not hasattr(os, "sched_getscheduler"):
+        pytest.skip("no POSIX scheduling here")
+    seen = {}
+
+    class Probe:  # reads the loop's and the writer's scheduling during the run
+        def attach(self, sim):
+            return {}
+
+        def values(self):
+            if not seen:
+                seen["loop"] = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+                writer = next(t for t in threading.enumerate() if t.name == "wbcbench-log-writer")
+                seen["writer"] = os.sched_getscheduler(writer.native_id), os.sched_getparam(writer.native_id).sched_priority
+            return []
+
+        def metrics(self, log):
+            return {}
+
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    res = run("stand", "joint-pd", duration=0.05, out=tmp_path / "r", realtime=True, probes=[Probe()])
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    if res.summary["realtime"]["scheduling"].startswith("normal"):
+        assert seen["loop"] == before
+        return
+    (loop_policy, loop_prio), (writer_policy, writer_prio) = seen["loop"], seen["writer"]
+    assert loop_policy == os.SCHED_FIFO and writer_policy == os.SCHED_FIFO and 0 < writer_prio < loop_prio

@@ -136,13 +136,34 @@ class Recorder:
         self._worker_pid = os.getpid()
         self._worker.start()
 
-    def _work(self, jobs: queue.Queue) -> None:
-        # below the run's thread: on a core it shares with the loop (a pinned run) the write takes the time the
-        # loop leaves (a paced run sleeps between ticks) instead of delaying ticks by a group's write
+    #: the writer thread's scheduling: None for the normal class at the lowest priority (nice 19), or a real-time
+    #: (SCHED_FIFO) priority, below the run's thread, for a run whose loop is in the real-time class (`set_writer_priority`)
+    writer_priority: int | None = None
+
+    def set_writer_priority(self, priority: int | None) -> None:
+        """The writer thread's scheduling (`writer_priority`), now if it runs, else when it starts."""
+        self.writer_priority = priority
+        if self._worker is not None and self._worker.is_alive():
+            self._apply_priority(self._worker.native_id)
+
+    def _apply_priority(self, tid: int) -> None:
+        # always below the run's thread: on a core it shares with the loop (a pinned run) the write takes the time
+        # the loop leaves (a paced run sleeps between ticks) instead of delaying ticks by a group's write. A
+        # writer that inherited the loop's real-time priority would run a whole group (30-60 ms) before the loop
+        # could take the core back; one in the normal class under a real-time loop waits behind the machine's
+        # other threads while it holds the interpreter's lock the loop needs
         try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
-        except (AttributeError, OSError):  # no per-thread priority here: the write runs as it is
+            if self.writer_priority is not None:
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(self.writer_priority))
+                return
+            if os.sched_getscheduler(tid) != os.SCHED_OTHER:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            os.setpriority(os.PRIO_PROCESS, tid, 19)
+        except (AttributeError, OSError):  # no per-thread scheduling here: the write runs as it is
             pass
+
+    def _work(self, jobs: queue.Queue) -> None:
+        self._apply_priority(threading.get_native_id())
         while True:
             job = jobs.get()
             try:

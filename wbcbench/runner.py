@@ -293,6 +293,12 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     switch_interval = sys.getswitchinterval()
     if realtime:
         sys.setswitchinterval(min(switch_interval, 2e-4))
+    # a paced loop asks for the real-time scheduling class, as a robot's control thread does, where it may: the
+    # kernel's and other programs' threads no longer preempt it for milliseconds (it sleeps every tick, so they
+    # run then; threads started before, e.g. the log's writer, keep the normal class)
+    priority = _raise_priority() if realtime else None
+    if priority is not None and priority[1]:
+        rec.set_writer_priority(_REALTIME_PRIORITY - 5)
     wall0 = time.perf_counter()
     tick = 0
     observe = getattr(scen, "observe", None)
@@ -429,6 +435,8 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
             gc.enable()
             gc.unfreeze()
         sys.setswitchinterval(switch_interval)
+        if priority is not None:
+            _restore_priority(priority)
     wall = time.perf_counter() - wall0
     sim_time = (tick + (0 if n_branches else 1)) * spec.control_dt if n_ticks else 0.0
     summary = {
@@ -441,8 +449,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         "controller_status": ctrl.status(),
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
         "faults": injector.summary() if injector.enabled else None,
-        "realtime": None if lateness is None else _lateness_summary(lateness[: tick + 1], spec.control_dt,
-                                                                     sim_time, wall),
+        "realtime": None if lateness is None else {
+            **_lateness_summary(lateness[: tick + 1], spec.control_dt, sim_time, wall),
+            "scheduling": "real-time (SCHED_FIFO)" if priority and priority[1] else "normal (real-time class not permitted)"},
         "fall_prediction": None if predictor is None else {
             "first_prediction_t": predictor.first_prediction_t, "safe_stop": safe_stop,
             "time_to_fall_s": (sim_time - predictor.first_prediction_t
@@ -475,6 +484,33 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
 #: [s] a paced run that falls further behind than this resumes from the wall clock (the stall is counted)
 #: instead of running the simulation faster than real time to catch up
 _MAX_CATCH_UP = 0.005
+
+
+#: the paced loop's real-time priority (SCHED_FIFO, 1-99): low, above every normal thread and below the kernel's own
+#: real-time threads; the log's writer thread runs 5 below it
+_REALTIME_PRIORITY = 10
+
+
+def _raise_priority() -> tuple | None:
+    """Put the calling thread in the real-time class (SCHED_FIFO at `_REALTIME_PRIORITY`) when the system allows;
+    (the previous policy and parameters, whether it was raised), or None where the call does not exist."""
+    if not hasattr(os, "sched_setscheduler"):
+        return None
+    before = (os.sched_getscheduler(0), os.sched_getparam(0))
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(_REALTIME_PRIORITY))
+    except OSError:  # no CAP_SYS_NICE / RLIMIT_RTPRIO: the normal class
+        return before, False
+    return before, True
+
+
+def _restore_priority(priority: tuple) -> None:
+    (policy, param), raised = priority
+    if raised:
+        try:
+            os.sched_setscheduler(0, policy, param)
+        except OSError:
+            pass
 
 
 def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float) -> dict:
