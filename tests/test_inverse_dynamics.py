@@ -257,3 +257,49 @@ def test_named_frame_targets_drive_their_task(talos):
         meas = sim.measure()
     pin.framesForwardKinematics(talos.model, d, meas.q)
     assert np.linalg.norm(d.oMf[fid].translation - target.translation) < 0.2 * e0
+
+
+def test_a_leaving_contact_is_unloaded_by_its_planned_lift_off(talos):
+    """With `unload_before_lift_off`, a contact whose planned lift-off (`References.lift_off`) is within the
+    transition time ramps its maximum normal force to zero at that time, stays (unloaded) while still wanted, is
+    removed once not wanted, and ramps back in if the lift-off moves further ahead. Off, the lift-off is ignored."""
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    assert spec.contacts.transition_time == pytest.approx(0.05)
+    on = replace(spec, contacts=replace(spec.contacts, unload_before_lift_off=True))
+    off = replace(spec, contacts=replace(spec.contacts, unload_before_lift_off=False))
+    both, left = frozenset(Side), frozenset({Side.LEFT})
+    R = Side.RIGHT
+
+    sim, ctrl, meas = _controller(talos, taskset=off)
+    ctrl.step(meas, References(t=0.0, contacts=both, lift_off={R: 0.03}))
+    assert ctrl.contacts[R].contact.max_normal_force == pytest.approx(spec.contacts.max_normal_force)
+
+    sim, ctrl, meas = _controller(talos, taskset=on)
+    ctrl.step(meas, References(t=0.0, contacts=both))  # no lift-off ahead: both loaded
+    f0 = ctrl.wrench[R][2]
+    assert f0 > 300.0
+    fz = []
+    for k in range(1, 6):  # lift-off planned at 0.04 s: the ramp starts at 0.01 s from the current load
+        t = k * 0.01
+        wanted = both if t < 0.04 else left
+        ctrl.step(replace(meas, t=t), References(t=t, contacts=wanted, lift_off={R: 0.04} if t < 0.04 else {}))
+        _check_tick(ctrl, meas.q, meas.v)
+        fz.append(ctrl.wrench[R][2])
+        if t < 0.04:
+            assert ctrl.contacts[R].active
+            assert ctrl.contacts[R].contact.max_normal_force == pytest.approx(f0 * (0.04 - t) / 0.03, rel=1e-6)
+            assert fz[-1] <= f0 * (0.04 - t) / 0.03 + 1e-6
+    assert not ctrl.contacts[R].active and fz[-2:] == [0.0, 0.0]
+    assert fz[0] == pytest.approx(f0, rel=0.05)  # ramp start: from the load, not a jump
+
+    # the lift-off moves ahead (a re-plan) while unloading: the contact ramps back in
+    sim, ctrl, meas = _controller(talos, taskset=on)
+    ctrl.step(meas, References(t=0.0, contacts=both))
+    for t in (0.01, 0.02):
+        ctrl.step(replace(meas, t=t), References(t=t, contacts=both, lift_off={R: 0.03}))
+    assert ctrl.contacts[R].contact.max_normal_force == pytest.approx(f0 / 2, rel=0.05)
+    ctrl.step(replace(meas, t=0.03), References(t=0.03, contacts=both, lift_off={R: 1.0}))
+    assert ctrl.contacts[R].contact.max_normal_force == pytest.approx(f0 / 2, rel=0.05)  # from where it was
+    ctrl.step(replace(meas, t=0.08), References(t=0.08, contacts=both, lift_off={R: 1.0}))
+    assert ctrl.contacts[R].active
+    assert ctrl.contacts[R].contact.max_normal_force == pytest.approx(spec.contacts.max_normal_force)

@@ -108,3 +108,62 @@ def test_tsid_torque_walks_at_0_8_m_s(talos, tmp_path):
     # the lowered CoM: reached and tracked (standing height 0.877 m: the CoM started above the plan's 0.76 m)
     assert log["com_ref.z"][0] - log["com_ref.z"][a] > 0.1
     assert np.abs(log["com.z"] - log["com_ref.z"]).max() < 0.03
+
+
+def test_walk_references_carry_the_planned_lift_offs(talos):
+    """Each tick's references give, per foot in contact, the time of its next planned lift-off: the first tick
+    of the plan with that foot out of contact (one dict shared by a stance phase's ticks)."""
+    import pinocchio as pin
+
+    from wbcbench.scenarios import load_scenario
+    from wbcbench.side import Side
+
+    scen = load_scenario("walk-20cm-quick", talos)
+    q0 = talos.q0
+    scen.setup(q0, pin.centerOfMass(talos.model, talos.model.createData(), q0))
+    w = scen.walk
+    for s in Side:
+        c = np.asarray(w.feet[s].in_contact[:w.n_ticks], dtype=bool)
+        first_off = int(np.flatnonzero(~c)[0])
+        for k in (0, first_off // 2, first_off - 1):
+            refs = scen.references(k * w.dt)
+            assert refs.lift_off[s] == pytest.approx(first_off * w.dt)
+        assert s not in scen.references(first_off * w.dt).lift_off  # in the air: none
+    last = scen.references((w.n_ticks - 1) * w.dt)
+    assert last.lift_off == {}  # standing at the end: no lift-off ahead
+
+
+def test_tsid_torque_unloads_the_leaving_foot_by_its_lift_off(talos, tmp_path):
+    """The leaving foot's force ramp ends at its planned lift-off (`contacts.unload_before_lift_off`): when the
+    foot leaves, the ground pushes on it with a few newtons, and its ankle pitch holds only the foot. Ramping from
+    the lift-off instead (the option off) leaves it loaded with about 100 N there, the ankle pitch with 6 N m."""
+    from dataclasses import replace
+
+    from wbcbench.controllers.inverse_dynamics import TSIDTorque
+    from wbcbench.controllers.taskset import load_taskset, taskset_path
+    from wbcbench.sim.model import ActuationMode
+
+    spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
+    assert spec.contacts.unload_before_lift_off
+    late = replace(spec, contacts=replace(spec.contacts, unload_before_lift_off=False))
+    weight = talos.mass * 9.81
+    out = {}
+    for name, ts in (("shipped", spec), ("late", late)):
+        res = run("walk-20cm-quick", TSIDTorque(talos, ActuationMode.TORQUE, 1e-3, ts), talos, out=tmp_path / name)
+        assert not res.summary["fell"], res.summary["fall_reason"]
+        log = res.log
+        fz, fz_qp, pitch = [], [], []
+        for side in ("left", "right"):
+            c = np.asarray(log[f"in_contact_ref_{side}"]) > 0.5
+            for k in np.flatnonzero(c[:-1] & ~c[1:]) + 1:  # the first tick of each planned swing
+                fz.append(log[f"contact_{side}.fz"][k - 1])  # the simulated contact, last tick on the ground
+                fz_qp.append(log[f"wrench_qp_{side}.fz"][k - 1])
+                pitch.append(abs(log[f"tau.leg_{side}_5_joint"][k]))
+        assert len(fz) >= 3
+        out[name] = np.array(fz), np.array(fz_qp), np.array(pitch)
+    fz, fz_qp, pitch = out["shipped"]
+    assert np.all(fz_qp < 0.02 * weight)
+    assert np.all(np.abs(fz) < 0.02 * weight)
+    assert np.all(pitch < 2.0)
+    fz_late, _, pitch_late = out["late"]
+    assert np.all(fz_late > 0.05 * weight) and np.median(pitch_late) > 3.0

@@ -169,6 +169,9 @@ class References:
         Eq. 6-7 split); empty: no target.
     contact_poses: per active contact, the reference pose of the contact (`pinocchio.SE3`, world) replacing the
         one it took at touch-down (e.g. the ankle admittance's tilt, Eq. 3); empty: keep it.
+    lift_off: per foot in contact, the time [s] (the clock of `t`) of its next planned lift-off: the plan's
+        contact schedule ahead, so that a controller can unload a leaving foot before it leaves; empty: none
+        planned (or the scenario has no plan).
     """
 
     t: float
@@ -179,20 +182,22 @@ class References:
     targets: dict = field(default_factory=dict)
     wrench_targets: dict = field(default_factory=dict)
     contact_poses: dict = field(default_factory=dict)
+    lift_off: dict = field(default_factory=dict)
 
     @classmethod
     def planned(cls, t: float, contacts: frozenset, com: PointReference | None, zmp: np.ndarray | None,
-                feet: dict, targets: dict | None = None) -> "References":
+                feet: dict, targets: dict | None = None, lift_off: dict | None = None) -> "References":
         """A tick of a plan from values already checked (no stabilizer fields): as the constructor, without its
         per-field machinery (a walk or a teleoperation source makes one every tick)."""
-        return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {})
+        return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {},
+                           _NO_LIFT_OFF if lift_off is None else lift_off)
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict, feet: dict | None = None) -> "References":
         """A copy with the fields a stabilizer corrects replaced, and the feet's when given (`dataclasses.replace`
         without its per-field machinery: a stabilizer does this every tick)."""
         return _references(self.t, self.contacts, com, self.zmp, self.feet if feet is None else feet, targets,
-                           wrench_targets, contact_poses)
+                           wrench_targets, contact_poses, self.lift_off)
 
     def missing(self, names) -> list[str]:
         """The fields among `names` this tick leaves unset (None or empty)."""
@@ -210,13 +215,14 @@ _new = object.__new__
 _POINT_SET = tuple(PointReference.__dict__[n].__set__ for n in ("position", "velocity", "acceleration"))
 _POSE_SET = tuple(PoseReference.__dict__[n].__set__ for n in ("position", "rotation", "velocity", "acceleration"))
 _REFERENCE_SET = tuple(References.__dict__[n].__set__ for n in ("t", "contacts", "com", "zmp", "feet", "targets",
-                                                                "wrench_targets", "contact_poses"))
+                                                                "wrench_targets", "contact_poses", "lift_off"))
+_NO_LIFT_OFF: dict = {}  # shared by the references without a schedule ahead (never written)
 
 
-def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses) -> References:
+def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses, lift_off) -> References:
     """A `References` of these fields (`References.planned`, `References.corrected`), set slot by slot."""
     new = _new(References)
-    t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_ = _REFERENCE_SET
+    t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_, lift_off_ = _REFERENCE_SET
     t_(new, t)
     contacts_(new, contacts)
     com_(new, com)
@@ -225,6 +231,7 @@ def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_po
     targets_(new, targets)
     wrench_targets_(new, wrench_targets)
     contact_poses_(new, contact_poses)
+    lift_off_(new, lift_off)
     return new
 
 

@@ -20,10 +20,13 @@ normal force from one foot to the other rather than by ankle torques. `w_c*` are
 
 The formulation owns the tasks, the contacts with their force ramps (a leaving contact's maximum normal force goes
 to zero over `transition_time` before it is removed; an arriving one ramps in), the free-motion task of each
-contact's link while it is not in contact (a swing foot), the regularisation and the limits. Per tick::
+contact's link while it is not in contact (a swing foot), the regularisation and the limits. A leaving contact's
+ramp starts when the contact is no longer wanted, or, with `unload_before_lift_off` and the planned lift-off times
+given to `set_contacts`, `transition_time` before its planned lift-off, so that its load is zero when the foot
+leaves (TSID's removeRigidContact unloads the contact before removing it). Per tick::
 
     F.update(q, v)                    # kinematics and dynamics of the state the QP is written at
-    F.set_contacts(t, wanted)         # the contact schedule (ramps)
+    F.set_contacts(t, wanted, lift_off)   # the contact schedule (ramps), with the planned lift-offs ahead
     P = F.problem()                   # the QP, assembled in place (torque limits not included)
     tau, ok = F.torques(x)            # the torques of a solution, and whether they are within the limits
     P = F.problem_with_torque_limits()   /   F.problem_relaxed()   (no joint or torque limits)
@@ -150,6 +153,8 @@ class InverseDynamicsFormulation:
         wrench_target_weight: w_f of ||w_c - w_c*||^2 [1/N^2], applied on ticks with wrench targets.
         joint_limit_horizon: [s] horizon turning joint position limits into acceleration bounds.
         transition_time: [s] of a contact's force ramp.
+        unload_before_lift_off: end a leaving contact's ramp at its planned lift-off (`set_contacts`' lift_off)
+            rather than start it there.
         dt: the control period [s] (velocity limits as acceleration bounds).
         compiled_frames: evaluate the frame tasks in one compiled call (`TaskStack`'s option of that name: the
             same rows to rounding, not the same bits).
@@ -161,7 +166,7 @@ class InverseDynamicsFormulation:
                  velocity_limit: np.ndarray, effort_limit: np.ndarray, regularization_dv: float = 1e-6,
                  regularization_wrench: float = 1e-5, wrench_axis_weights: Sequence[float] | None = None,
                  wrench_target_weight: float = 0.0, joint_limit_horizon: float = 0.01, transition_time: float = 0.05,
-                 dt: float = 1e-3, compiled_frames: bool = False):
+                 dt: float = 1e-3, compiled_frames: bool = False, unload_before_lift_off: bool = False):
         self.model = model
         self.compiled_frames = compiled_frames
         self.data = model.createData()
@@ -184,6 +189,7 @@ class InverseDynamicsFormulation:
         self.wrench_target_weight = wrench_target_weight
         self.joint_limit_horizon = joint_limit_horizon
         self.transition_time = transition_time
+        self.unload_before_lift_off = unload_before_lift_off
         self.dt = dt
         self.wrenches = {name: np.zeros(6) for name in self.names}
         self.active: tuple = self.names
@@ -216,24 +222,32 @@ class InverseDynamicsFormulation:
             t.set_reference_to_current(m, d)
         self.active = tuple(n for n in self.names if self.contacts[n].active)
 
-    def set_contacts(self, t: float, wanted: Collection) -> tuple:
+    def set_contacts(self, t: float, wanted: Collection, lift_off: Mapping | None = None) -> tuple:
         """The contact schedule at time t [s]: a contact no longer wanted ramps its maximum force from its
         current load to zero and is removed at the end of the ramp (its free task then starts where the frame
-        is); a wanted one is made (reference: where the frame is now) and ramped in. Returns the active ones."""
+        is); a wanted one is made (reference: where the frame is now) and ramped in. Returns the active ones.
+
+        lift_off: per wanted contact, the time [s] of its next planned lift-off (`References.lift_off`). With
+        `unload_before_lift_off`, a contact whose lift-off is at most `transition_time` ahead is leaving: its
+        ramp to zero starts now and ends at the lift-off, and it stays (unloaded) until it is no longer wanted.
+        A leaving contact whose lift-off moves further ahead (a re-plan) ramps back in."""
         m, d = self.model, self.data
         T = self.transition_time
+        ahead = lift_off if self.unload_before_lift_off and lift_off else None
         for name, cs in self.contacts.items():
             want = name in wanted
-            if cs.active and not want and cs.ramp_to != 0.0:
+            t_off = ahead.get(name) if ahead is not None and want else None
+            leaving = t_off is not None and t_off - t <= T
+            if cs.active and (not want or leaving) and cs.ramp_to != 0.0:
                 f_now = max(self.wrenches[name][2], 0.0)
-                cs.start_ramp(t, min(f_now, cs.contact.nominal_max_normal_force), 0.0, T)
-            elif want and (not cs.active or cs.ramp_to == 0.0):
+                cs.start_ramp(t, min(f_now, cs.contact.nominal_max_normal_force), 0.0, t_off - t if leaving else T)
+            elif want and not leaving and (not cs.active or cs.ramp_to == 0.0):
                 if not cs.active:
                     cs.contact.set_reference_to_current(m, d)
                 cs.active = True
                 cs.start_ramp(t, cs.contact.max_normal_force if cs.ramp_to == 0.0 else 0.0,
                               cs.contact.nominal_max_normal_force, T)
-            if cs.active and cs.update(t):
+            if cs.active and cs.update(t) and not want:
                 cs.active = False
                 self.free_tasks[name].set_reference_to_current(m, d)
         self.active = tuple(n for n in self.names if self.contacts[n].active)

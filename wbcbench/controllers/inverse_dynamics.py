@@ -87,7 +87,8 @@ class InverseDynamicsController(Controller):
             regularization_dv=spec.regularization_dv, regularization_wrench=spec.regularization_wrench,
             wrench_axis_weights=spec.regularization_wrench_axes,
             wrench_target_weight=spec.regularization_wrench_target, joint_limit_horizon=spec.joint_limit_horizon,
-            transition_time=c.transition_time, dt=dt, compiled_frames=self.compiled_frames)
+            transition_time=c.transition_time, dt=dt, compiled_frames=self.compiled_frames,
+            unload_before_lift_off=c.unload_before_lift_off)
         self.data = F.data
         self.tasks = tasks
         self.task_by_name = F.task_by_name
@@ -183,7 +184,7 @@ class InverseDynamicsController(Controller):
         F.update(q, v)
         self._t_pin = perf_counter() - t0
         self._set_references(refs)
-        F.set_contacts(meas.t, refs.contacts)
+        F.set_contacts(meas.t, refs.contacts, refs.lift_off)
         solved = self._solve()
         if solved is None:
             return self._fallback(meas, list(F.active))

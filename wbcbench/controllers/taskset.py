@@ -41,7 +41,9 @@ TASKSET_DIR = Path(__file__).parent / "tasksets"
 class ContactSpec:
     """Gains and limits shared by the sole contacts: motion gains (LOCAL x y z roll pitch yaw), friction
     coefficient, normal force bounds [N], and the time [s] over which a leaving/arriving contact's maximum
-    normal force is ramped. `model_sole` (length, width) [m] replaces the profile's sole rectangle in the
+    normal force is ramped, and whether that ramp ends at a leaving contact's planned lift-off
+    (`unload_before_lift_off`, from the references' contact schedule ahead) rather than starts there.
+    `model_sole` (length, width) [m] replaces the profile's sole rectangle in the
     controller's model: position controllers relax it so a stabilizer moving the CoM does not saturate the
     model's CoP limits (SIM-NOTES); None keeps the real sole."""
 
@@ -51,6 +53,7 @@ class ContactSpec:
     min_normal_force: float = 0.0
     max_normal_force: float = 2000.0
     transition_time: float = 0.05
+    unload_before_lift_off: bool = False
     model_sole: tuple[float, float] | None = None
 
 
@@ -177,6 +180,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                            min_normal_force=c.float("min_normal_force", 0.0, min=0.0),
                            max_normal_force=c.float("max_normal_force", 2000.0, positive=True),
                            transition_time=c.float("transition_time", 0.05, min=0.0),
+                           unload_before_lift_off=c.bool("unload_before_lift_off", False),
                            model_sole=tuple(c.vector("model_sole", length=2)) if c.has("model_sole") else None)
     if contacts.model_sole is not None and min(contacts.model_sole) <= 0:
         raise c.error("model_sole", "length and width must be > 0")

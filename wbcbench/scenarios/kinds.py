@@ -84,6 +84,7 @@ class OneFootScenario(Scenario):
         com, com_vel, com_acc = self.com0 + s * d, d * ds / self.shift_time, d * dds / self.shift_time ** 2
         contacts = frozenset(Side)
         feet = {}
+        lift_off = {self.swing: self.shift_time} if t < self.shift_time else {}
         if t >= self.shift_time:
             contacts = frozenset({self.support})
             u, du, ddu = _min_jerk((t - self.shift_time) / self.lift_time)
@@ -93,7 +94,8 @@ class OneFootScenario(Scenario):
                                                          up * ddu / self.lift_time ** 2)
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
         zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / 9.81 * com_acc[:2]), self.ground_height()])
-        return References(t=t, contacts=contacts, com=PointReference(com, com_vel, com_acc), feet=feet, zmp=zmp)
+        return References(t=t, contacts=contacts, com=PointReference(com, com_vel, com_acc), feet=feet, zmp=zmp,
+                          lift_off=lift_off)
 
     def metrics(self, log):
         com = channel(log, "com")
@@ -269,8 +271,9 @@ class WalkScenario(Scenario):
 
 class _WalkTable:
     """A walk's references, tick by tick, from arrays arranged once per walk (a re-plan makes a new walk): the
-    contact set of every tick, the swing feet's 6-D velocities and accelerations (linear, zero angular), and
-    the rows that `references` hands out as they are (the plan's arrays, checked here once)."""
+    contact set of every tick, the swing feet's 6-D velocities and accelerations (linear, zero angular), the
+    planned lift-offs ahead (`References.lift_off`: one dict per stance phase, shared by its ticks), and the rows
+    that `references` hands out as they are (the plan's arrays, checked here once)."""
 
     def __init__(self, walk):
         self.walk = walk
@@ -288,6 +291,7 @@ class _WalkTable:
                        _checked_rows(np.hstack([f.v_world_sole[:n], zeros]), (6,), "foot velocity"),
                        _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
         self.code = code.tolist()
+        self.lift_off = _lift_off_by_tick([walk.feet[s].in_contact[:n] for s in Side], walk.dt)
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
         self.swinging = [[(s, feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
@@ -317,7 +321,29 @@ class _WalkTable:
             feet[s] = PoseReference.unchecked(p[k], R[k], v[k], a[k])
         p, v, a = self.com
         return References.planned(t, self.contacts[code], PointReference.unchecked(p[k], v[k], a[k]), self.zmp[k],
-                                  feet)
+                                  feet, None, self.lift_off[k])
+
+
+def _lift_off_by_tick(in_contact: list, dt: float) -> list[dict]:
+    """Per tick, {side: time [s] of the side's next planned lift-off} for the sides in contact then with one
+    ahead (a lift-off: the first tick out of contact after a tick in contact); the ticks of one stance phase
+    share one dict."""
+    n = len(in_contact[0])
+    nxt = []
+    for c in in_contact:
+        c = np.asarray(c, dtype=bool)
+        lift = np.flatnonzero(c[:-1] & ~c[1:]) + 1  # the ticks whose foot has just left the ground
+        j = np.searchsorted(lift, np.arange(n), side="right")  # the first lift-off after each tick
+        k = np.where(j < len(lift), lift[np.minimum(j, len(lift) - 1)] if len(lift) else -1, -1)
+        nxt.append(np.where(c, k, -1).tolist())
+    shared: dict = {}
+    out = []
+    for key in zip(*nxt):
+        d = shared.get(key)
+        if d is None:
+            d = shared[key] = {s: k * dt for s, k in zip(Side, key) if k >= 0}
+        out.append(d)
+    return out
 
 
 def _checked_rows(a, shape: tuple, what: str) -> np.ndarray:
