@@ -156,12 +156,13 @@ def _gripper_rushing_at_the_thigh(ctrl, talos, speed=3.0):
     thigh's repulsion point at `speed` [m/s] (1.45 a away), the left-hand reference 0.3 m further on (inside the
     thigh): a hand that lagged behind a fast operator and is pulled back across the body. Returns the formulation,
     the self-collision task, the thigh's row and v."""
+    import pinocchio as pin_
+
     m, q = talos.model, talos.q0.copy()
     d = m.createData()
     task = ctrl.formulation.task_by_name["self_collision-left"]
     i = task.axis_names.index("thigh_left")
     spec = talos.profile.repulsors[Side.LEFT]
-    pin_ = __import__("pinocchio")
     pin_.computeJointJacobians(m, d, q)
     pin_.framesForwardKinematics(m, d, q)
     g = m.getFrameId(spec.frame)
