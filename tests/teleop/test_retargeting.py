@@ -247,3 +247,31 @@ def test_arms_down_targets_fall_in_the_proposed_talos_repulsors(talos, arms_down
             peak[name] = max(peak[name], attractor(centre - points[name], 3.0, s)[0])
     assert peak["hip_left"] > 0.9 and peak["thigh_left"] > 0.6
     assert peak["other_gripper"] < 1e-6 and peak["chest"] < 1e-3
+
+
+def test_a_squatting_operator_leans_the_head_target_instead_of_sinking_it(talos, workspaces, tmp_path):
+    """An operator who squats and bends forward (a fixture of our own, written as BVH) puts his head below TALOS'
+    torso after scaling; the radial clamp alone kept it there (and the head task crouched TALOS below its fall
+    height on a public recording). The head's shell is also a cone: the target is turned onto it, above the
+    torso joint, at the same distance."""
+    from wbcbench.teleop import load_recording, write_bvh
+    from wbcbench.teleop.synthetic import SyntheticMotion, _both, _keyframes, motion_configurations
+
+    squat = _both({"right_hip_Z": 100.0, "right_knee_Z": 130.0, "right_ankle_Z": 40.0, "middle_lumbar_Z": 50.0,
+                   "right_shoulder_Z": 40.0})
+    motion = SyntheticMotion("deep_squat", "squat and bend forward", "A", 3.0, 50.0,
+                             lambda t: _keyframes(t, [(0.5, {}), (2.5, squat)]))
+    human, _, qs = motion_configurations(motion)
+    path = write_bvh(tmp_path / "deep_squat.bvh", human.bvh_skeleton(0.01), human.bvh_motion(qs, 0.01), 1 / 50.0)
+    rec = load_recording(path)
+    head = workspaces["head"]
+    assert np.degrees(head.max_tilt) < 90.0 and workspaces["left_hand"].max_tilt == pytest.approx(np.pi)
+    radial = dict(workspaces, head=type(head)(head.center, head.r_min, head.r_max, head.root_joint))
+    sunk = Retargeter(talos, rec, workspaces=radial).sample(3.0)
+    assert sunk.references["head"].translation[2] < head.center[2]  # below the torso joint: the crouch
+    sample = Retargeter(talos, rec, workspaces=workspaces).sample(3.0)
+    p = sample.references["head"].translation
+    assert sample.clamped["head"] and head.contains(p, tol=1e-9)
+    delta = p - head.center
+    assert np.arccos(delta[2] / np.linalg.norm(delta)) == pytest.approx(head.max_tilt)
+    assert p[2] > head.center[2] + head.r_min * np.cos(head.max_tilt) - 1e-9

@@ -149,3 +149,75 @@ def test_a_torque_limited_qp_at_its_iteration_limit_keeps_the_joint_limited_opti
     # the kept optimum is the first QP's: its torques break the limits the torque rows could not impose
     assert np.any(np.abs(ctrl.tau) > F.tau_max * (1 + 1e-6))
     assert ctrl.status()["qp_torque_rows_dropped_ticks"] == 1
+
+
+def _gripper_rushing_at_the_thigh(ctrl, talos, speed=3.0):
+    """The QP of `ctrl` written at half-sitting with the left arm moving its gripper centre straight at the left
+    thigh's repulsion point at `speed` [m/s] (1.45 a away), the left-hand reference 0.3 m further on (inside the
+    thigh): a hand that lagged behind a fast operator and is pulled back across the body. Returns the formulation,
+    the self-collision task, the thigh's row and v."""
+    import pinocchio as pin_
+
+    m, q = talos.model, talos.q0.copy()
+    d = m.createData()
+    task = ctrl.formulation.task_by_name["self_collision-left"]
+    i = task.axis_names.index("thigh_left")
+    spec = talos.profile.repulsors[Side.LEFT]
+    pin_.computeJointJacobians(m, d, q)
+    pin_.framesForwardKinematics(m, d, q)
+    g = m.getFrameId(spec.frame)
+    x = d.oMf[g].act(np.array(spec.offset))
+    p = next(pt for pt in spec.points if pt.name == "thigh_left")
+    target = d.oMf[m.getFrameId(p.frame)].act(np.array(p.offset))
+    u = (target - x) / np.linalg.norm(target - x)
+    J = pin_.getFrameJacobian(m, d, g, pin_.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+    J = J + pin_.skew(d.oMf[g].rotation @ np.array(spec.offset)).T @ \
+        pin_.getFrameJacobian(m, d, g, pin_.ReferenceFrame.LOCAL_WORLD_ALIGNED)[3:]
+    arm = [m.joints[m.getJointId(f"arm_left_{k}_joint")].idx_v for k in range(1, 5)]
+    v = np.zeros(m.nv)
+    v[arm] = np.linalg.pinv(J[:, arm]) @ (speed * u)
+    F = ctrl.formulation
+    F.update(q, v)
+    F.reset_references(q, F.names)  # every task held at half-sitting
+    hand = F.task_by_name["left_hand"]
+    pin_.framesForwardKinematics(m, d, q)
+    M = d.oMf[m.getFrameId(talos.profile.hands[Side.LEFT])]
+    hand.set_reference(pin_.SE3(M.rotation, M.translation + 0.3 * u + (target - x)))
+    return F, task, i, v
+
+
+def test_the_repulsor_barrier_brakes_a_gripper_rushing_at_the_body(talos):
+    """Table I's weighted repulsor rows act through grad C, tiny until the gripper is within about a of the
+    repulsor: a hand task (kp 8000) pulling the gripper across the thigh at 3 m/s keeps accelerating it towards
+    the thigh (the gripper-thigh contacts of public motion-capture recordings). The barrier rows (hard
+    inequalities, C_ddot <= -kd_b C_dot + kp_b (C_max - C)) hold in the QP's solution and brake it; without them
+    the same QP's solution breaks that bound."""
+    from dataclasses import replace
+
+    from wbcbench.qp import DaqpSolver
+    from wbcbench.types import ActuationMode
+
+    with_barrier = TSIDTeleop(talos, ActuationMode.TORQUE, 1e-3, stabilizer=False)
+    spec = teleop_taskset(talos)
+    soft = replace(spec, tasks=tuple(replace(t, options={**t.options, "barrier": None})
+                                     if t.type == "self_collision" else t for t in spec.tasks))
+    without = TSIDTeleop(talos, ActuationMode.TORQUE, 1e-3, taskset=soft, stabilizer=False)
+    assert with_barrier.formulation.task_by_name["self_collision-left"].barrier is not None
+    assert without.formulation.task_by_name["self_collision-left"].barrier is None
+    accels = {}
+    for name, ctrl in (("barrier", with_barrier), ("soft", without)):
+        F, task, i, v = _gripper_rushing_at_the_thigh(ctrl, talos)
+        m, d = talos.model, F.data
+        res = DaqpSolver().solve(F.problem())
+        assert res.ok, name
+        dv = res.x[:m.nv]
+        C, Cdot, drift = task.values(m, d)[i], task.velocity(m, d)[i], task.drift(m, d)[i]
+        assert 0.01 < C < 0.1 and Cdot > 0.5  # 1.45 a away, closing fast
+        clearance, kp_b, kd_b = with_barrier.formulation.task_by_name["self_collision-left"].barrier
+        c_max = np.exp(-clearance**3)
+        bound = -kd_b * Cdot + kp_b * (c_max - C)
+        accels[name] = (task.jacobian(m, d)[i] @ dv + drift, bound)
+    c_ddot, bound = accels["barrier"]
+    assert c_ddot <= bound + 1e-6
+    c_ddot, bound = accels["soft"]
+    assert c_ddot > bound + 1.0  # the weighted rows alone let the approach go on

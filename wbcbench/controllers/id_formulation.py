@@ -9,6 +9,7 @@ at its origin, exerted by the ground on the robot)::
           J_c dv = -J_c_dot v + Kp e_c - Kd J_c v     rigid contacts (6 per active contact)
           A_j dv = b_j                                hard tasks (equality constraints)
           C w <= u                                    friction pyramid, CoP in the sole, f_min <= f_z <= f_max
+          A_r dv <= u_r                               barrier rows of the soft tasks that have them (self-collision)
           a_min <= dv_joints <= a_max                 joint position and velocity limits as acceleration bounds
           -tau_max <= M_a dv + h_a - J_c,a^T w <= tau_max   torque limits (a separate problem, see below)
 
@@ -93,10 +94,10 @@ class _Layout:
     layout, made once, so that a tick only computes. The QPProblem objects are built once too: their arrays are
     refilled in place."""
 
-    __slots__ = ("slices", "k", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv", "H_diag_w", "g_w", "A_hard",
-                 "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks", "u_blocks", "C", "l",
-                 "u", "lb_joints", "ub_joints", "problem", "problem_torque", "problem_relaxed", "targets_set",
-                 "rows", "buffers")
+    __slots__ = ("slices", "k", "kb", "barriers", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv", "H_diag_w", "g_w",
+                 "A_hard", "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks",
+                 "u_blocks", "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque",
+                 "problem_relaxed", "targets_set", "rows", "buffers")
 
     def __init__(self, F: InverseDynamicsFormulation, nc: int, stack: TaskStack, n_hard: int, A: np.ndarray,
                  b: np.ndarray):
@@ -104,14 +105,20 @@ class _Layout:
         self.slices = stack.slices
         me = self.slices[n_hard - 1].stop if n_hard else 0
         n, n_eq = nv + 6 * nc, 6 + me
+        # barrier rows (a soft task's rows, also as upper-bounded inequalities): (task, its rows in A, its rows in C)
+        self.barriers, nb = [], 0
+        for task, rows in zip(stack.tasks, stack.slices):
+            if getattr(task, "barrier", None) is not None and any(task is t for t in F.tasks):
+                self.barriers.append((task, rows, slice(18 * nc + nb, 18 * nc + nb + (rows.stop - rows.start))))
+                nb += rows.stop - rows.start
         H = np.zeros((n, n))
         diag = H.reshape(-1)[::n + 1]
         diag[nv:] = np.tile(F.wrench_regularization_diagonal, nc)
         g = np.zeros(n)
         A_eq, b_eq = np.zeros((n_eq, n)), np.zeros(n_eq)
-        C = np.zeros((18 * nc + na, n))
-        lo = np.concatenate([np.full(18 * nc, -np.inf), np.zeros(na)])
-        hi = np.zeros(18 * nc + na)
+        C = np.zeros((18 * nc + nb + na, n))
+        lo = np.concatenate([np.full(18 * nc + nb, -np.inf), np.zeros(na)])
+        hi = np.zeros(18 * nc + nb + na)
         lb, ub = np.full(n, -np.inf), np.full(n, np.inf)
         self.H_dv, self.g_dv = H[:nv, :nv], g[:nv]
         self.H_diag_w, self.g_w = diag[nv:], g[nv:]
@@ -124,10 +131,11 @@ class _Layout:
         self.cones = [(None, None)] * nc
         self.C_blocks = [C[18 * i:18 * i + 18, nv + 6 * i:nv + 6 * i + 6] for i in range(nc)]
         self.u_blocks = [hi[18 * i:18 * i + 18] for i in range(nc)]
-        self.k = k = 18 * nc
+        self.k = 18 * nc
+        self.kb = kb = 18 * nc + nb  # the cones, then the barrier rows; the torque rows after them
         self.C, self.l, self.u = C, lo, hi
         self.lb_joints, self.ub_joints = lb[6:nv], ub[6:nv]
-        cones = (C[:k], lo[:k], hi[:k]) if nc else (None, None, None)
+        cones = (C[:kb], lo[:kb], hi[:kb]) if kb else (None, None, None)
         self.problem = QPProblem._trusted(H, g, A_eq, b_eq, *cones, lb, ub)
         self.problem_torque = QPProblem._trusted(H, g, A_eq, b_eq, C, lo, hi, lb, ub)
         self.problem_relaxed = QPProblem._trusted(H, g, A_eq, b_eq, *cones)
@@ -318,6 +326,10 @@ class InverseDynamicsFormulation:
             cones[i] = (Cr, ur)
         self._fill_wrench_targets(L, active)
         _kernels.assemble(L.rows, self.regularization_dv, self._q[7:], self._v[6:], self._limit_rows(), L.buffers)
+        nv = self.nv
+        for task, rows, crows in L.barriers:
+            L.C[crows, :nv] = A[rows]
+            task.barrier_bounds(self.model, self.data, A[rows], b[rows], self._v, L.u[crows])
         return L.problem
 
     def _fill_wrench_targets(self, L: _Layout, active: tuple) -> None:
@@ -342,7 +354,7 @@ class InverseDynamicsFormulation:
     def problem_with_torque_limits(self) -> QPProblem:
         """The last assembled QP with the torque-limit rows ``-tau_max <= M_a dv + h_a - J_c,a^T w <= tau_max``."""
         L = self._layout
-        nv, k, C = self.nv, L.k, L.C
+        nv, k, C = self.nv, L.kb, L.C
         C[k:] = 0.0
         C[k:, :nv] = L.M_joints
         np.negative(L.Jc[:, 6:].T, out=C[k:, nv:])

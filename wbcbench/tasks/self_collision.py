@@ -31,6 +31,19 @@ needs no special row computation. At velocity level the rows are ``C_dot = -Kp C
 One row per repulsor (rather than the sum of all ``C_i`` in one row as inria_wbc does) keeps two repulsors on
 either side of the gripper from cancelling each other. Table I of paper 004 uses one task per gripper with weight
 700 and kp 500.
+
+Barrier (optional, not in the paper): the same rows as hard inequalities of the QP, a second-order control
+barrier on ``h_i = C_max,i - C_i`` (``h_ddot + kd_b h_dot + kp_b h >= 0``)::
+
+    J_i dv <= -kd_b C_dot_i + kp_b (C_max,i - C_i) - J_dot_i v
+
+with ``C_max,i`` the value of ``C_i`` at the distance ``clearance * a_i`` (``clearance`` 1: the protected sphere
+touching the repulsion sphere). It is inactive while the point is far or slow (the bound is then large) and
+brakes an approach in time wherever the weighted rows cannot: the soft rows act through ``grad C``, which is tiny
+until the point is within about ``a`` of the repulsor, so a hand task pulling hard towards a reference across the
+body (a hand that lagged behind a fast operator, or came back from out of reach) brings the gripper there at 2-3
+m/s, too fast to stop (measured on public motion-capture recordings). :meth:`SelfCollisionTask.barrier_bounds`
+gives the bounds from the task's stacked rows; the inverse-dynamics formulation adds them.
 """
 
 from __future__ import annotations
@@ -390,11 +403,13 @@ class SelfCollisionTask(Task):
         weight: QP weight (Table I: 700).
         mask: one entry per repulsor.
         name: task name, default ``"self_collision-<frame>"``.
+        barrier: ``None`` (default: soft rows only) or ``(clearance, kp_b, kd_b)``: the rows are also hard
+            inequalities keeping every repulsor's ``C`` below its value at ``clearance * a_i`` (module docstring).
 
     Raises:
         UnknownNameError: unknown frame (the message lists close names).
         TaskConfigError: no repulsor, negative radius, ``r_rep + r_frame = 0``, ``p < 2``, duplicate axis name,
-            invalid gain, mask or weight.
+            invalid gain, mask, weight or barrier.
     """
 
     yaml_type = "self_collision"
@@ -402,7 +417,8 @@ class SelfCollisionTask(Task):
     @classmethod
     def parse_options(cls, sec: Any, robot: Any) -> dict:
         """`side: left|right` picks the robot profile's `repulsors` set of that side (protected point, its frame,
-        exponent, the repulsion points and their radii); one axis per repulsion point."""
+        exponent, the repulsion points and their radii); one axis per repulsion point. `barrier: {clearance, kp,
+        kd}` (optional; clearance default 1, kd default 2 sqrt(kp)) adds the hard barrier rows."""
         from wbcbench.side import Side
 
         side = Side(sec.str("side", choices=[s.value for s in Side]))
@@ -410,7 +426,12 @@ class SelfCollisionTask(Task):
         if repulsors is None:
             raise sec.error("side", f"the robot profile {robot.profile.file} has no `repulsors.{side.value}` "
                                     "section (the repulsion points of a self_collision task come from the profile)")
-        return {"side": side, "repulsors": repulsors}
+        barrier = None
+        if sec.has("barrier"):
+            b = sec.section("barrier")
+            kp_b = b.float("kp", positive=True)
+            barrier = (b.float("clearance", 1.0, positive=True), kp_b, b.float("kd", 2.0 * math.sqrt(kp_b), min=0.0))
+        return {"side": side, "repulsors": repulsors, "barrier": barrier}
 
     @classmethod
     def axes(cls, robot: Any, options: dict) -> int:
@@ -422,7 +443,7 @@ class SelfCollisionTask(Task):
         points = [RepulsionPoint(p.frame, p.radius, p.offset, p.name) for p in rep.points]
         return cls(robot.model, rep.frame, points, radius=rep.radius, offset=rep.offset, exponent=rep.exponent,
                    normalized=rep.normalized, kp=spec.kp, kd=spec.kd, weight=spec.weight, mask=spec.mask,
-                   name=spec.name)
+                   name=spec.name, barrier=spec.options.get("barrier"))
 
     def __init__(
         self,
@@ -440,6 +461,7 @@ class SelfCollisionTask(Task):
         weight: float = 1.0,
         mask: Sequence[bool | int] | None = None,
         name: str | None = None,
+        barrier: tuple[float, float, float] | None = None,
     ) -> None:
         task_name = f"self_collision-{frame}" if name is None else name
         owner = f"{type(self).__name__} {task_name!r}"
@@ -516,6 +538,14 @@ class SelfCollisionTask(Task):
         self._placements = (np.empty((len(self._joints_needed), 3, 3)), np.empty((len(self._joints_needed), 3)))
         self._geometry = RepulsorGeometry(self._slot_of, self._rep_offsets_joint, self._offset_x, self._scales,
                                           float(self._exponent), float(self._negligible), self._masks, self._mask_x)
+        self.barrier = None
+        if barrier is not None:
+            if len(barrier) != 3 or not all(np.isfinite(x) for x in barrier) or barrier[0] <= 0 or barrier[1] <= 0 \
+                    or barrier[2] < 0:
+                raise TaskConfigError(owner, "barrier", f"expected (clearance > 0, kp > 0, kd >= 0), got {barrier!r}")
+            self.barrier = tuple(float(x) for x in barrier)
+            # C at the distance clearance * a_i, per repulsor
+            self._barrier_cmax = val.frozen(np.exp(-((self.barrier[0] * a) ** self._exponent) / self._scales))
 
     # ------------------------------------------------------------------------------------------ description
     @property
@@ -683,6 +713,23 @@ class SelfCollisionTask(Task):
     def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
         a = self._evaluate_velocity(model, data).drift
         out[...] = a if self._all_selected else a[self._selection]
+
+    def barrier_bounds(self, model: pin.Model, data: pin.Data, A: FloatArray, b: FloatArray,
+                       v: FloatArray, out: FloatArray) -> None:
+        """Upper bounds ``u`` of the barrier rows ``A dv <= u`` (module docstring) from the task's own stacked
+        acceleration rows ``A`` (dim, nv), ``b`` (dim,) (``b = -Kd C_dot - Kp C - J_dot v``, the reference
+        being fixed at 0) at velocity ``v``: ``u = b + (Kd - kd_b) C_dot + Kp C + kp_b (C_max - C)``, into
+        ``out`` (dim,). Only for a task built with a ``barrier``."""
+        _, kp_b, kd_b = self.barrier
+        C = self._evaluate(model, data).C
+        cmax = self._barrier_cmax
+        if not self._all_selected:
+            C, cmax = C[self._selection], cmax[self._selection]
+        cdot = A @ v
+        np.multiply(self.kd - kd_b, cdot, out=out)
+        out += b
+        out += self.kp * C
+        out += kp_b * (cmax - C)
 
     # --------------------------------------------------------------------------------------------- contract
     def values(self, model: pin.Model, data: pin.Data, copy: bool = True) -> FloatArray:

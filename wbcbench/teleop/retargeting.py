@@ -144,7 +144,8 @@ def _effector_frames(robot: Any) -> dict[str, str]:
 
 
 def robot_workspaces(
-    robot: Any, *, samples: int = 2048, seed: int = 0, hand_margin: float = 0.0, head_margin: float = 0.10
+    robot: Any, *, samples: int = 2048, seed: int = 0, hand_margin: float = 0.0, head_margin: float = 0.10,
+    head_tilt_margin: float = 0.10,
 ) -> dict[str, ReachShell]:
     """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.workspace`)."""
     model = robot.model
@@ -152,13 +153,15 @@ def robot_workspaces(
     frames = _effector_frames(robot)
     out = {}
     for name, frame in frames.items():
+        tilt = None
         if name == "head":
             joints = chain_joints(model, frame, 1)
-            margin = head_margin
+            margin, tilt = head_margin, head_tilt_margin
         else:
             joints = chain_joints(model, frame, torso_joint)
             margin = hand_margin
-        out[name] = reach_shell(model, robot.q0, frame, joints, samples=samples, seed=seed, margin=margin)
+        out[name] = reach_shell(model, robot.q0, frame, joints, samples=samples, seed=seed, margin=margin,
+                                tilt_margin=tilt)
     return out
 
 
