@@ -328,8 +328,7 @@ class InverseDynamicsFormulation:
         _kernels.assemble(L.rows, self.regularization_dv, self._q[7:], self._v[6:], self._limit_rows(), L.buffers)
         nv = self.nv
         for task, rows, crows in L.barriers:
-            L.C[crows, :nv] = A[rows]
-            task.barrier_bounds(self.model, self.data, A[rows], b[rows], self._v, L.u[crows])
+            task.barrier_rows(self.model, self.data, A[rows], b[rows], self._v, L.C[crows, :nv], L.u[crows])
         return L.problem
 
     def _fill_wrench_targets(self, L: _Layout, active: tuple) -> None:

@@ -318,6 +318,19 @@ def _rows_flat(q, kinds, parents, idx_q, R0, t0, R_fk, t_fk, joints, R_all, t_al
     return nact
 
 
+@njit(exact=True)
+def _barrier_rows(A, b, cdot, C, cmax, kp, kd, kd_b, kp_b, rows_out, copy_rows, out):
+    """`SelfCollisionTask.barrier_rows`: ``out = (Kd - kd_b) C_dot + b + Kp C + kp_b (C_max - C)`` per row (``cdot``
+    = A v, the task's gains ``kp``, ``kd`` per row; numpy's operations, in its order), and ``rows_out = A`` when
+    ``copy_rows``."""
+    for i in range(A.shape[0]):
+        if copy_rows:
+            for j in range(A.shape[1]):
+                rows_out[i, j] = A[i, j]
+        out[i] = (kd[i] - kd_b) * cdot[i] + b[i] + kp[i] * C[i] + kp_b * (cmax[i] - C[i])
+
+
+_NO_ROWS = np.zeros((0, 0))
 _PLACEMENTS: dict = {"key": None, "joints": {}}
 _NO_VECTOR = np.zeros(0)
 
@@ -720,16 +733,20 @@ class SelfCollisionTask(Task):
         acceleration rows ``A`` (dim, nv), ``b`` (dim,) (``b = -Kd C_dot - Kp C - J_dot v``, the reference
         being fixed at 0) at velocity ``v``: ``u = b + (Kd - kd_b) C_dot + Kp C + kp_b (C_max - C)``, into
         ``out`` (dim,). Only for a task built with a ``barrier``."""
+        self.barrier_rows(model, data, A, b, v, None, out)
+
+    def barrier_rows(self, model: pin.Model, data: pin.Data, A: FloatArray, b: FloatArray, v: FloatArray,
+                     rows_out: FloatArray | None, out: FloatArray) -> None:
+        """`barrier_bounds` into ``out``, and the rows ``A`` copied into ``rows_out`` (dim, nv) when given, in one
+        compiled call (the inverse-dynamics formulation's per-tick use)."""
         _, kp_b, kd_b = self.barrier
         C = self._evaluate(model, data).C
-        cmax = self._barrier_cmax
+        cmax, kp, kd = self._barrier_cmax, self._kp, self._kd
         if not self._all_selected:
-            C, cmax = C[self._selection], cmax[self._selection]
-        cdot = A @ v
-        np.multiply(self.kd - kd_b, cdot, out=out)
-        out += b
-        out += self.kp * C
-        out += kp_b * (cmax - C)
+            sel = self._selection
+            C, cmax, kp, kd = C[sel], cmax[sel], kp[sel], kd[sel]
+        _barrier_rows(A, b, A @ v, C, cmax, kp, kd, float(kd_b), float(kp_b),
+                      _NO_ROWS if rows_out is None else rows_out, rows_out is not None, out)
 
     # --------------------------------------------------------------------------------------------- contract
     def values(self, model: pin.Model, data: pin.Data, copy: bool = True) -> FloatArray:
