@@ -2,14 +2,14 @@
 F/T sensor reads no load keeps descending as a swing foot until it is loaded.
 
 A position-controlled robot holds a contact where the integrated model's foot touched down. When the real foot
-arrives above the terrain (TALOS' TSID position on the downhill platforms: the sole 2-5 mm above the slope, the
-real foot ahead of its plan and pitched against the slope), nothing presses it down: the double support passes
-with the leading foot unloaded, the stabilizer moves the CoM away from the unloaded foot to bring the measured ZMP
-to the planned one (which lifts that foot further), and the whole weight lands on it when the trailing foot
-lifts off. The search delays the model's contact instead: from the planned touch-down the foot's last swing
-reference moves down along the sole's normal at `speed` until the ankle F/T sensor reads `min_force` (a real
-robot's sensor), the search has gone `max_depth`, or the other foot is about to leave the ground (its contact
-no longer planned); the contact is then made where the model's foot is.
+arrives above the terrain (TALOS' TSID position on the downhill platforms: the sole 2-5 mm above the slope, the real
+foot 6-12 mm ahead of its plan and pitched 12 mrad less than the slope), nothing presses it down: the double support
+passes with the leading foot unloaded, the stabilizer moves the CoM away from the unloaded foot to bring the
+measured ZMP to the planned one (which lifts that foot further), and the whole weight lands on it when the trailing
+foot lifts off. The search delays the model's contact instead: from the planned touch-down the foot's last swing
+reference moves down along the sole's normal at `speed` until the ankle F/T sensor reads `min_force` (a real robot's
+sensor), the search has gone `max_depth`, or the other foot is about to leave the ground (its contact no longer
+planned); the contact is then made where the model's foot is.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ class TouchdownSearchConfig:
 
 def _load(meas: Measurement, side: Side) -> float:
     """The normal load on a foot from its ankle F/T sensor [N]: the force the leg exerts on the foot along the
-    sensor's z axis, sign flipped (a hanging foot reads about -16 N, its weight)."""
+    sensor's z axis, sign flipped (a hanging foot reads about -15 N, the weight below the sensor)."""
     f = meas.ft_force.get(side)
     return -float(f[2]) if f is not None else np.inf
 
