@@ -33,6 +33,7 @@ from .ik_formulation import KinematicHierarchy
 from .inverse_dynamics import build_task
 from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path
+from .touchdown import TouchdownSearch
 
 MAX_LEVELS = 8
 
@@ -78,6 +79,8 @@ class IKController(Controller):
         self.stabilizer = stabilizer
         # the plan mapped into the integrated model's world (estimation/base_feedback.py), when the task set asks
         self.base_feedback = BaseFeedback(robot, dt, spec.base_feedback) if spec.base_feedback is not None else None
+        # a foot unloaded at its planned touch-down keeps descending until loaded (controllers/touchdown.py)
+        self.touchdown = TouchdownSearch(spec.touchdown_search) if spec.touchdown_search is not None else None
         self.n_unmet = 0
         self.n_failed = 0
         self.unmet_levels = -1
@@ -92,6 +95,8 @@ class IKController(Controller):
         K.reset_references(self.robot.q0, refs.contacts)
         if self.base_feedback is not None:
             self.base_feedback.reset()
+        if self.touchdown is not None:
+            self.touchdown.reset()
         if self.stabilizer is not None:
             self.stabilizer.check(refs)
             self.stabilizer.reset(meas, refs, ModelFeedback(self.q_int, frozenset(refs.contacts)))
@@ -105,6 +110,8 @@ class IKController(Controller):
 
     def step(self, meas: Measurement, refs: References) -> Command:
         K = self.formulation
+        if self.touchdown is not None:
+            refs = self.touchdown.apply(meas, refs)
         if self.base_feedback is not None:
             refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:
@@ -148,4 +155,7 @@ class IKController(Controller):
         return vals
 
     def status(self) -> dict:
-        return {"unmet_level_ticks": self.n_unmet, "solver_failed_ticks": self.n_failed}
+        out = {"unmet_level_ticks": self.n_unmet, "solver_failed_ticks": self.n_failed}
+        if self.touchdown is not None:
+            out["touchdown_searches"] = self.touchdown.n_searches
+        return out

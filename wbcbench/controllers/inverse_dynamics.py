@@ -35,6 +35,7 @@ from .base import Controller, register
 from .id_formulation import InverseDynamicsFormulation
 from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path
+from .touchdown import TouchdownSearch
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log values every tick)
 
@@ -114,6 +115,10 @@ class InverseDynamicsController(Controller):
         # the plan mapped into the integrated model's world (position mode only: torque mode feeds back the state)
         self.base_feedback = (BaseFeedback(robot, dt, spec.base_feedback)
                               if spec.base_feedback is not None and mode is not ActuationMode.TORQUE else None)
+        # a foot unloaded at its planned touch-down keeps descending until its F/T sensor reads a load (position
+        # mode only: in torque mode the contact forces press the foot down)
+        self.touchdown = (TouchdownSearch(spec.touchdown_search)
+                          if spec.touchdown_search is not None and mode is not ActuationMode.TORQUE else None)
 
     # ------------------------------------------------------------------ limits (the formulation's, replaceable)
     @property
@@ -137,6 +142,8 @@ class InverseDynamicsController(Controller):
         self.fallback_pd = JointPD(self.robot, ActuationMode.TORQUE, self.dt)
         if self.base_feedback is not None:
             self.base_feedback.reset()
+        if self.touchdown is not None:
+            self.touchdown.reset()
         self._warm_up(meas)
         if self.stabilizer is not None:
             self.stabilizer.check(refs)
@@ -176,6 +183,8 @@ class InverseDynamicsController(Controller):
     def step(self, meas: Measurement, refs: References) -> Command:
         F = self.formulation
         q, v = self._state(meas)
+        if self.touchdown is not None:
+            refs = self.touchdown.apply(meas, refs)
         if self.base_feedback is not None:
             refs = self.base_feedback.correct(meas, refs, self.q_int)
         if self.stabilizer is not None:  # on the model of the last solve (its wrenches and contact placements)
@@ -275,7 +284,10 @@ class InverseDynamicsController(Controller):
         return [self.qp_status, self.tau, self.stabilizer.log, wrenches[_LEFT], wrenches[_RIGHT], active]
 
     def status(self) -> dict:
-        return {"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback}
+        out = {"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback}
+        if self.touchdown is not None:
+            out["touchdown_searches"] = self.touchdown.n_searches
+        return out
 
 
 @register

@@ -62,7 +62,8 @@ class TaskSetSpec:
     """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||a * w||^2,
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
-    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one."""
+    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one;
+    `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes)."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -75,6 +76,7 @@ class TaskSetSpec:
     solver: str = "daqp"
     stabilizer: "StabilizerConfig | None" = None
     base_feedback: "BaseFeedbackConfig | None" = None
+    touchdown_search: "TouchdownSearchConfig | None" = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -206,6 +208,15 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
             base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True),
                                                liftoff_blend=bf.float("liftoff_blend", 0.0, min=0.0))
         bf.finish()
+    touchdown = None
+    if root.has("touchdown_search"):
+        from .touchdown import TouchdownSearchConfig
+
+        ts = root.section("touchdown_search")
+        touchdown = TouchdownSearchConfig(speed=ts.float("speed", 0.1, positive=True),
+                                          max_depth=ts.float("max_depth", 0.02, positive=True),
+                                          min_force=ts.float("min_force", 100.0, positive=True))
+        ts.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
@@ -214,7 +225,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       base_feedback=base_feedback, file=file)
+                       base_feedback=base_feedback, touchdown_search=touchdown, file=file)
     reg.finish()
     root.finish()
     return spec
