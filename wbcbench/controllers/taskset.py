@@ -59,7 +59,9 @@ class TaskSetSpec:
     """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||a * w||^2,
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
-    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one."""
+    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one;
+    `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
+    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -72,6 +74,7 @@ class TaskSetSpec:
     solver: str = "daqp"
     stabilizer: "StabilizerConfig | None" = None
     base_feedback: "BaseFeedbackConfig | None" = None
+    step_adjustment: tuple[tuple[str, object], ...] | None = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -202,6 +205,19 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
             base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True),
                                                liftoff_blend=bf.float("liftoff_blend", 0.0, min=0.0))
         bf.finish()
+    step_adjustment = None
+    if root.has("step_adjustment"):  # the controller's own settings of a walk's step adjustment (when it is on)
+        from ..errors import PlanningError
+        from ..planning.step_adjustment import StepAdjustmentConfig, parse_settings
+
+        sa = root.section("step_adjustment")
+        settings = parse_settings(sa)
+        sa.finish()
+        try:
+            StepAdjustmentConfig(**settings)
+        except PlanningError as exc:
+            raise sa.error(None, str(exc)) from None
+        step_adjustment = tuple(sorted(settings.items()))
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
@@ -210,7 +226,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       base_feedback=base_feedback, file=file)
+                       base_feedback=base_feedback, step_adjustment=step_adjustment, file=file)
     reg.finish()
     root.finish()
     return spec
