@@ -1,6 +1,6 @@
 """Step adjustment in physics: a backward push in the middle of a single support of the 20 cm walk that TSID torque
 does not survive on its plan, survived when the next foothold and step time are re-planned from the measured DCM;
-off by default (the walk's references do not change)."""
+the same for TSID position with its task set's own settings; off by default (the walk's references do not change)."""
 
 from __future__ import annotations
 
@@ -21,13 +21,13 @@ from wbcbench.sim.push import Push
 IMPULSE, DIRECTION = 45.0, 180.0
 
 
-def _pushed(talos, adjust: bool):
+def _pushed(talos, adjust: bool, impulse: float = IMPULSE, after: float = 1.5):
     scen = load_scenario("walk-20cm-quick", talos)
     t = phase_times("walk-20cm-quick")["ss-mid"]
     a = math.radians(DIRECTION)
-    f = IMPULSE / 0.1
+    f = impulse / 0.1
     push = Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t, duration=0.1)
-    scen.spec = replace(scen.spec, pushes=(push,), duration=t + 1.5)
+    scen.spec = replace(scen.spec, pushes=(push,), duration=t + after)
     if adjust:
         scen.enable_step_adjustment()
     return scen, t
@@ -59,6 +59,49 @@ def test_a_push_survived_only_with_step_adjustment(talos, tmp_path):
     off = run(scen_off, "tsid-torque", talos, out=tmp_path / "off")
     assert off.summary["fell"]
     assert "step_adjustment.active" not in off.log
+
+
+# TSID position, the same push, `--quick --directions 4 --phases ss-mid`: without adjustment it survives 30 N s
+# backwards, is off its plan at 37.5 and falls at 45 (1.6 s after the push); with it (the task set's threshold 5 cm,
+# deadband 4 cm, re-plan from the DCM) it survives 45 N s and falls at 52.5.
+POSITION_IMPULSE = 45.0
+
+
+def test_a_position_scheme_survives_a_push_only_with_step_adjustment(talos, tmp_path):
+    scen, _ = _pushed(talos, adjust=True, impulse=POSITION_IMPULSE, after=2.0)
+    res = run(scen, "tsid-position", talos, out=tmp_path / "on")
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    cfg = scen.step_adjustment    # the task set's settings, taken over by the scenario
+    assert (cfg.threshold, cfg.deadband, cfg.replan_from) == (0.05, 0.04, "dcm")
+    assert scen.adjuster.count >= 1
+    active = res.log["step_adjustment.active"] > 0
+    assert (res.log["step_adjustment.dcm_error"][active] > cfg.threshold).all()   # never inside the region
+
+    scen_off, _ = _pushed(talos, adjust=False, impulse=POSITION_IMPULSE, after=2.0)
+    off = run(scen_off, "tsid-position", talos, out=tmp_path / "off")
+    assert off.summary["fell"]
+
+
+def test_a_task_set_sets_what_the_scenario_leaves(talos, tmp_path):
+    from wbcbench.errors import ConfigError
+    from wbcbench.controllers.taskset import load_taskset, taskset_path
+    from wbcbench.scenarios import make_scenario
+
+    spec = load_taskset(taskset_path(talos, "tsid-position"), talos)
+    assert dict(spec.step_adjustment) == {"threshold": 0.05, "deadband": 0.04, "replan_from": "dcm"}
+    assert load_taskset(taskset_path(talos, "tsid-torque"), talos).step_adjustment is None
+    params = {"steps": 1, "step_length": 0.2, "single_support": 0.9, "double_support": 0.1,
+              "step_adjustment": {"threshold": 0.07}}
+    scen = make_scenario("walk", talos, params=params)
+    scen.adopt_step_adjustment(dict(spec.step_adjustment))
+    assert (scen.step_adjustment.threshold, scen.step_adjustment.deadband) == (0.07, 0.04)   # the scenario's wins
+    off = make_scenario("walk", talos, params={k: v for k, v in params.items() if k != "step_adjustment"})
+    off.adopt_step_adjustment(dict(spec.step_adjustment))
+    assert off.step_adjustment is None                                                     # off stays off
+    bad = tmp_path / "ts.yaml"
+    bad.write_text(taskset_path(talos, "tsid-position").read_text().replace("deadband: 0.04", "deadband: 0.06"))
+    with pytest.raises(ConfigError, match="deadband"):
+        load_taskset(bad, talos)
 
 
 def test_off_by_default_and_the_switch_is_validated(talos):

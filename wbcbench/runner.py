@@ -258,6 +258,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     else:
         com_kernel = None
     q_true = sim.true_q()
+    ts = getattr(ctrl, "spec", None)  # the controller's task set may carry its own step-adjustment settings
+    if getattr(ts, "step_adjustment", None) and hasattr(scen, "adopt_step_adjustment"):
+        scen.adopt_step_adjustment(dict(ts.step_adjustment), ts.file)
     scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
     duration = spec.duration if spec.duration > 0 else scen.planned_duration
     n_ticks = int(round(duration / spec.control_dt))

@@ -180,3 +180,47 @@ def test_replan_from_the_plan_keeps_the_com_reference_continuous():
     assert adj.history[0][2].p_world_foothold[0] > walk.plan.steps[1].p_world_sole[0] + 0.05
     with pytest.raises(PlanningError, match="replan_from"):
         StepAdjustmentConfig(replan_from="guess")
+
+
+def test_replan_from_the_dcm_keeps_the_com_position_and_takes_the_measured_dcm():
+    walk, cfg = _walk()
+    adj = StepAdjuster(walk, StepAdjustmentConfig(replan_from="dcm"), cfg, SEP)
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))
+    dcm = walk.p_world_dcm[k, :2] + [0.06, 0.02]
+    new = adj.update(k, dcm, np.zeros((3, 2)))        # the measured CoM state is not used
+    assert new is not None
+    for a in ("p_world_com", "a_world_com"):
+        np.testing.assert_allclose(getattr(new, a)[k], getattr(walk, a)[k], atol=1e-12)
+    np.testing.assert_allclose(new.p_world_dcm[k, :2], dcm, atol=1e-9)
+
+
+def test_the_deadband_leaves_part_of_the_error_to_the_controller():
+    walk, cfg = _walk()
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))
+    err = np.array([0.06, 0.0])
+    dcm = walk.p_world_dcm[k, :2] + err
+    full = StepAdjuster(walk, StepAdjustmentConfig(threshold=0.05, replan_from="dcm"), cfg, SEP)
+    part = StepAdjuster(walk, StepAdjustmentConfig(threshold=0.05, deadband=0.03, replan_from="dcm"), cfg, SEP)
+    a, b = full.update(k, dcm, np.zeros((3, 2))), part.update(k, dcm, np.zeros((3, 2)))
+    # the re-planned DCM: the measured one moved back towards the plan by the deadband
+    np.testing.assert_allclose(b.p_world_dcm[k, :2], walk.p_world_dcm[k, :2] + err / 2, atol=1e-9)
+    nominal = walk.plan.steps[1].p_world_sole[0]
+    assert nominal < part.history[0][2].p_world_foothold[0] < full.history[0][2].p_world_foothold[0]
+    assert part.update(k + 10, walk.p_world_dcm[k + 10, :2] + [0.045, 0.0], np.zeros((3, 2))) is None  # inside
+    with pytest.raises(PlanningError, match="deadband"):
+        StepAdjustmentConfig(threshold=0.05, deadband=0.05)
+
+
+def test_a_swing_foot_that_landed_is_not_moved_again():
+    walk, cfg = _walk()
+    adj = StepAdjuster(walk, StepAdjustmentConfig(), cfg, SEP)
+    side = walk.plan.steps[1].side
+    lo = int(round(walk.plan.lift_off_time(1) / walk.dt))
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.6) / walk.dt / 10))
+    state = np.zeros((3, 2))
+    # still loaded just after lift-off (the foot leaving the ground late): that is no landing
+    assert adj.update(lo + 1, walk.p_world_dcm[lo + 1, :2], state, frozenset(Side)) is None
+    assert adj.update(lo + 2, walk.p_world_dcm[lo + 2, :2], state, frozenset({side.other})) is None  # in the air
+    # loaded again before its touch-down: it landed early, its step is done
+    assert adj.update(k, walk.p_world_dcm[k, :2] + [0.06, 0.0], state, frozenset(Side)) is None
+    assert adj.count == 0 and adj.landed == {1}

@@ -63,7 +63,9 @@ class TaskSetSpec:
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one;
-    `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes)."""
+    `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
+    `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
+    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -77,6 +79,7 @@ class TaskSetSpec:
     stabilizer: "StabilizerConfig | None" = None
     base_feedback: "BaseFeedbackConfig | None" = None
     touchdown_search: "TouchdownSearchConfig | None" = None
+    step_adjustment: tuple[tuple[str, object], ...] | None = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -217,6 +220,19 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                                           max_depth=ts.float("max_depth", 0.02, positive=True),
                                           min_force=ts.float("min_force", 100.0, positive=True))
         ts.finish()
+    step_adjustment = None
+    if root.has("step_adjustment"):  # the controller's own settings of a walk's step adjustment (when it is on)
+        from ..errors import PlanningError
+        from ..planning.step_adjustment import StepAdjustmentConfig, parse_settings
+
+        sa = root.section("step_adjustment")
+        settings = parse_settings(sa)
+        sa.finish()
+        try:
+            StepAdjustmentConfig(**settings)
+        except PlanningError as exc:
+            raise sa.error(None, str(exc)) from None
+        step_adjustment = tuple(sorted(settings.items()))
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
@@ -225,7 +241,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       base_feedback=base_feedback, touchdown_search=touchdown, file=file)
+                       base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
+                       file=file)
     reg.finish()
     root.finish()
     return spec

@@ -22,6 +22,11 @@ u_nom, b_nom, tau_nom come from the nominal plan (the foothold, the plan's DCM a
 the planned remaining time). Solved with daqp (`wbcbench.qp`); with the timing fixed tau is a constant and the
 QP keeps u and b only. The solution is unique (H positive definite).
 
+Once the swing foot's ankle F/T sensor finds it loaded again after it left the ground (it landed, possibly
+before its reference: a position-controlled robot leaning towards it puts it lower than its model does), its step
+is not adjusted again. A controller's task set may carry its own settings (`step_adjustment:`, for the keys the
+scenario leaves; TALOS' IK and TSID position: a threshold of 5 cm, a deadband, re-plans from the DCM).
+
 `replan_walk` then re-plans the references from the current tick: the adjusted step and every later footstep
 translated by the foothold's change (the rest of the gait keeps its shape), the remaining single support
 stretched or shortened, the ZMP reference rebuilt from the new footholds, the CoM x-y from ZMP preview control
@@ -43,10 +48,10 @@ from .pattern_generator import _feet as _plan_feet
 from .preview_control import simulate_preview
 from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTrajectory, WalkTrajectory
 
-__all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk", "StepAdjuster"]
+__all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk", "StepAdjuster", "parse_settings"]
 
 
-REPLAN_FROM = ("measured", "planned")
+REPLAN_FROM = ("measured", "planned", "dcm")
 
 
 @dataclass(frozen=True)
@@ -66,9 +71,19 @@ class StepAdjustmentConfig:
         w_step, w_time, w_offset: QP weights on the foothold [1/m^2], tau [-] and DCM offset [1/m^2] changes.
         min_change: a solution moving the foothold by less than this [m] and the touch-down by less than one
             check period is not applied (no re-plan for nothing).
+        contact_force: a swing foot whose ankle F/T sensor, after reading less, reads a larger normal force [N] has
+            touched down (early: a position-controlled robot's foot may land before its reference does); its step
+            is then no longer adjusted (a new foothold would drag the loaded foot along the ground, a later
+            touch-down lift it again).
+        deadband: the part of the DCM error [m] (< threshold) left to the controller's own balance feedback: the
+            QP and a "dcm" re-plan take the measured DCM moved back towards the plan's by this much (a
+            position-controlled scheme's stabilizer takes small errors itself; both reacting to the whole error
+            over-stepped).
         replan_from: the CoM state the re-planned CoM starts from: "measured" (the push's momentum becomes
-            part of the plan) or "planned" (the reference stays continuous; only the footholds and timing
-            change, the controller's own feedback handles the error).
+            part of the plan), "planned" (the reference stays continuous; only the footholds and timing
+            change, the controller's own feedback handles the error) or "dcm" (the plan's CoM position and
+            acceleration, the velocity that puts the plan's DCM on the measured one, less the deadband: the
+            position reference does not jump to a measured CoM that lags it).
     """
 
     threshold: float = 0.02
@@ -85,6 +100,8 @@ class StepAdjustmentConfig:
     w_time: float = 0.1
     w_offset: float = 100.0
     min_change: float = 0.005
+    contact_force: float = 50.0
+    deadband: float = 0.0
     replan_from: str = "measured"
 
     def __post_init__(self) -> None:
@@ -96,7 +113,10 @@ class StepAdjustmentConfig:
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or v <= 0.0:
                 raise PlanningError(f"StepAdjustmentConfig.{name} must be > 0, got {v!r}")
-        for name in ("min_clearance", "min_change"):
+        if not 0.0 <= self.deadband < self.threshold:
+            raise PlanningError(f"StepAdjustmentConfig.deadband must be >= 0 and below threshold ({self.threshold} m), "
+                                f"got {self.deadband!r}")
+        for name in ("min_clearance", "min_change", "contact_force"):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or v < 0.0:
                 raise PlanningError(f"StepAdjustmentConfig.{name} must be >= 0, got {v!r}")
@@ -110,6 +130,27 @@ class StepAdjustmentConfig:
         base = dict(max_forward=spec.max_forward, max_backward=spec.max_backward, max_lateral=spec.max_lateral,
                     min_clearance=spec.min_clearance)
         return cls(**{**base, **overrides})
+
+
+_POSITIVE = ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
+             "max_single_support", "min_remaining", "w_step", "w_time", "w_offset")
+_NONNEGATIVE = ("min_clearance", "min_change", "contact_force", "deadband")
+
+
+def parse_settings(sec, defaults: StepAdjustmentConfig | None = None) -> dict:
+    """The settings of a `step_adjustment:` section (a `wbcbench.config.Section`; errors name its file and key) as
+    keyword arguments of `StepAdjustmentConfig`: every field, the missing ones from `defaults`; without
+    `defaults`, only the keys the section gives."""
+    kw = {}
+    for names, check in ((_POSITIVE, {"positive": True}), (_NONNEGATIVE, {"min": 0.0})):
+        for name in names:
+            if defaults is not None or sec.has(name):
+                kw[name] = sec.float(name, getattr(defaults, name, None), **check)
+    if defaults is not None or sec.has("adapt_timing"):
+        kw["adapt_timing"] = sec.bool("adapt_timing", getattr(defaults, "adapt_timing", None))
+    if defaults is not None or sec.has("replan_from"):
+        kw["replan_from"] = sec.str("replan_from", getattr(defaults, "replan_from", None), choices=list(REPLAN_FROM))
+    return kw
 
 
 @dataclass(frozen=True)
@@ -358,6 +399,8 @@ class StepAdjuster:
         self.delta = np.zeros(2)                 # cumulative foothold translation of the plan [m]
         self.step_delta: dict[int, np.ndarray] = {}   # the translation each step's own adjustments added [m]
         self.count = 0
+        self.airborne: set[int] = set()   # steps whose swing foot the F/T sensors found unloaded
+        self.landed: set[int] = set()     # steps whose swing foot was loaded again after that (touched down)
         self.log = np.zeros(len(self.LOG_LABELS))
         self.history: list[tuple[float, int, StepAdjustment]] = []
 
@@ -370,23 +413,34 @@ class StepAdjuster:
             before += self.shift[i]
         return None
 
-    def update(self, tick: int, p_world_dcm: np.ndarray, com_state: np.ndarray) -> WalkTrajectory | None:
-        """One control tick: measured DCM x, y [m] and CoM (position, velocity, acceleration) x-y, shape (3, 2)."""
+    def update(self, tick: int, p_world_dcm: np.ndarray, com_state: np.ndarray,
+               loaded: frozenset = frozenset()) -> WalkTrajectory | None:
+        """One control tick: measured DCM x, y [m] and CoM (position, velocity, acceleration) x-y, shape (3, 2);
+        `loaded`: the feet the F/T sensors find loaded (normal force above `contact_force`)."""
         self.log[0] = 0.0
+        i = self._step_at(tick)
+        if i is not None:  # a swing foot loaded again after it left the ground has landed: its step is done
+            side = self.plan.steps[i].side
+            if side not in loaded:
+                self.airborne.add(i)
+            elif i in self.airborne:
+                self.landed.add(i)
         if tick % self.every:
             return None
         k = min(tick, self.walk.n_ticks - 1)
         err = float(np.linalg.norm(np.asarray(p_world_dcm, float)[:2] - self.walk.p_world_dcm[k, :2]))
         self.log[1] = err
-        i = self._step_at(tick)
         if i is None or err <= self.config.threshold:
             return None
         cfg, dt, plan = self.config, self.dt, self.plan
         before = sum(self.shift[:i])
         lo, td = self.lift_off[i] + before, self.touch_down[i] + before + self.shift[i]
         remaining = (td - tick) * dt
-        if remaining < cfg.min_remaining:
+        if remaining < cfg.min_remaining or i in self.landed:
             return None
+        if cfg.deadband > 0.0:  # the part of the error the controller's own balance feedback is left to absorb
+            xi_plan = self.walk.p_world_dcm[k, :2]
+            p_world_dcm = xi_plan + (np.asarray(p_world_dcm, float)[:2] - xi_plan) * (1.0 - cfg.deadband / err)
         stance = plan.stance_foot(i)
         p_stance = _sole_center(stance, plan)[:2]
         # nominal values in the current (translated) plan: the foothold the gait had, moved with earlier steps
@@ -403,18 +457,30 @@ class StepAdjuster:
             td_new = td
         if np.linalg.norm(sol.p_world_foothold - u_now) < cfg.min_change and abs(td_new - td) < self.every:
             return None
-        move = sol.p_world_foothold - u_now
+        self._replan(tick, i, before, td_new, sol.p_world_foothold - u_now, p_world_dcm, com_state, err)
+        self.history.append((tick * dt, i, sol))
+        return self.walk
+
+    def _replan(self, tick: int, i: int, before: int, td_new: int, move: np.ndarray, p_world_dcm: np.ndarray,
+                com_state: np.ndarray, err: float) -> None:
+        """Step i's foothold (and every later one) moved by `move` [m], its touch-down at tick `td_new`, the
+        references re-planned from `tick` (the CoM from the state `replan_from` says)."""
+        cfg, plan = self.config, self.plan
+        k = min(tick, self.walk.n_ticks - 1)
+        own = self.step_delta.get(i, np.zeros(2))
         new_plan = _translated_plan(plan, i, move)
         if cfg.replan_from == "planned":
             w = self.walk
             com_state = np.vstack([w.p_world_com[k, :2], w.v_world_com[k, :2], w.a_world_com[k, :2]])
+        elif cfg.replan_from == "dcm":  # the plan's CoM position, the velocity that puts its DCM on the measured one
+            w = self.walk
+            v = w.v_world_com[k, :2] + w.omega * (np.asarray(p_world_dcm, float)[:2] - w.p_world_dcm[k, :2])
+            com_state = np.vstack([w.p_world_com[k, :2], v, w.a_world_com[k, :2]])
         self.walk = replan_walk(self.walk, new_plan, self.pg_config, tick, i, before, td_new, com_state)
         self.plan = new_plan
         self.step_delta[i] = own + move
         self.delta = self.delta + move
         self.shift[i] = td_new - (self.touch_down[i] + before)
         self.count += 1
-        self.history.append((tick * dt, i, sol))
-        d = sol.p_world_foothold - self.foothold_nom[i] - d_prev
-        self.log[:] = (1.0, err, d[0], d[1], self.shift[i] * dt, self.count)
-        return self.walk
+        d = _sole_center(new_plan.steps[i], new_plan)[:2] - self.foothold_nom[i] - (self.delta - self.step_delta[i])
+        self.log[:] = (1.0, err, d[0], d[1], self.shift[i] * self.dt, self.count)

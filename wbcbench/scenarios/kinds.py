@@ -126,8 +126,10 @@ class WalkScenario(Scenario):
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
-    `stepping`), w_step, w_time, w_offset, min_change [m], replan_from (measured|planned). Each tick the
-    scenario gets the Measurement (`observe`), and the re-planned references replace the walk's.
+    `stepping`), w_step, w_time, w_offset, min_change [m], contact_force [N], deadband [m], replan_from
+    (measured|planned|dcm). Keys the file leaves come from the controller's task set (`step_adjustment:`, see
+    `adopt_step_adjustment`), else the defaults. Each tick the scenario gets the Measurement (`observe`), and the
+    re-planned references replace the walk's.
     The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
     walk; metrics then compare with where the plan is at that time).
     """
@@ -136,6 +138,7 @@ class WalkScenario(Scenario):
     #: the online step adjuster (None: off)
     adjuster = None
     step_adjustment = None
+    _step_adjustment_given: frozenset = frozenset()  # the keys the scenario's own section sets
     supports_step_adjustment = True
 
     def parse(self, params):
@@ -152,7 +155,8 @@ class WalkScenario(Scenario):
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment"):
-            self.step_adjustment = _parse_step_adjustment(params.section("step_adjustment"), self.robot)
+            self.step_adjustment, self._step_adjustment_given = _parse_step_adjustment(
+                params.section("step_adjustment"), self.robot)
 
     def enable_step_adjustment(self, config=None) -> None:
         """Switch the step adjustment on (before `setup`), with `config` or the defaults and the robot's limits."""
@@ -162,6 +166,23 @@ class WalkScenario(Scenario):
             raise ConfigError(f"step adjustment works on flat `walk` scenarios, not kind '{self.kind}'",
                               file=self.spec.file, key="--step-adjustment")
         self.step_adjustment = config or StepAdjustmentConfig.from_stepping(self.robot.profile.stepping)
+        self._step_adjustment_given = frozenset()
+
+    def adopt_step_adjustment(self, settings: dict, source: str = "") -> None:
+        """The controller's own step-adjustment settings (its task set's `step_adjustment:` section, e.g. a
+        position-controlled scheme whose stabilizer absorbs part of the DCM error), for every key the scenario
+        does not set itself; nothing when the step adjustment is off. Before `setup`."""
+        from dataclasses import replace
+
+        from ..errors import ConfigError
+        if self.step_adjustment is None or not settings:
+            return
+        kw = {k: v for k, v in settings.items() if k not in self._step_adjustment_given}
+        try:
+            self.step_adjustment = replace(self.step_adjustment, **kw)
+        except PlanningError as exc:
+            raise ConfigError(f"step adjustment: {exc}", file=source or self.spec.file,
+                              key="step_adjustment") from None
 
     def setup(self, q0, com0):
         import pinocchio as pin
@@ -197,11 +218,13 @@ class WalkScenario(Scenario):
             from ..planning.step_adjustment import StepAdjuster
             self.adjuster = StepAdjuster(self.walk, self.step_adjustment, self.pg_config, sep)
             self._data = self.robot.model.createData()
+            from ..estimation.feet import FeetSensing
+            self._feet = FeetSensing(self.robot)
 
     def observe(self, t: float, meas) -> None:
         """The measurement of this tick (what the controller sees): with step adjustment on, the DCM from the
-        measured configuration and velocity (wbcbench.estimation.dcm) against the plan's; a re-plan replaces the
-        walk's references from this tick on."""
+        measured configuration and velocity (wbcbench.estimation.dcm) against the plan's, and the feet the ankle
+        F/T sensors find loaded; a re-plan replaces the walk's references from this tick on."""
         if self.adjuster is None:
             return
         import pinocchio as pin
@@ -214,7 +237,13 @@ class WalkScenario(Scenario):
         xi = dcm(com, vcom, w.omega)
         # the LIPM acceleration about this tick's planned ZMP (the stance sole in single support)
         acc = w.omega ** 2 * (com[:2] - w.p_world_zmp_ref[k, :2])
-        new = self.adjuster.update(int(round(t / w.dt)), xi[:2], np.vstack([com[:2], vcom[:2], acc]))
+        # the feet the ankle F/T sensors find loaded (vertical ground force, the foot below the sensor removed)
+        feet = self._feet
+        for fid in feet.sensor_ids.values():
+            pin.updateFramePlacement(self.robot.model, self._data, fid)
+        fmin = self.step_adjustment.contact_force
+        loaded = frozenset(s for s, f in feet.vertical_forces(meas, self._data).items() if f > fmin)
+        new = self.adjuster.update(int(round(t / w.dt)), xi[:2], np.vstack([com[:2], vcom[:2], acc]), loaded)
         if new is not None:
             self.walk = new
 
@@ -355,24 +384,18 @@ def _checked_rows(a, shape: tuple, what: str) -> np.ndarray:
 
 
 def _parse_step_adjustment(sec, robot):
-    """The walk's `step_adjustment:` section -> StepAdjustmentConfig, or None when `enabled: false`."""
-    from ..planning.step_adjustment import StepAdjustmentConfig
+    """The walk's `step_adjustment:` section -> (StepAdjustmentConfig, the keys it gives), or (None, {}) when
+    `enabled: false`."""
+    from ..planning.step_adjustment import StepAdjustmentConfig, parse_settings
     if not sec.bool("enabled", True):
         for k in list(sec.data):
             sec.raw(k)
-        return None
-    d = StepAdjustmentConfig.from_stepping(robot.profile.stepping)
-    kw = {}
-    for name in ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
-                 "max_single_support", "min_remaining", "w_step", "w_time", "w_offset"):
-        kw[name] = sec.float(name, getattr(d, name), positive=True)
-    for name in ("min_clearance", "min_change"):
-        kw[name] = sec.float(name, getattr(d, name), min=0.0)
-    kw["adapt_timing"] = sec.bool("adapt_timing", d.adapt_timing)
-    kw["replan_from"] = sec.str("replan_from", d.replan_from, choices=["measured", "planned"])
+        return None, frozenset()
+    given = frozenset(k for k in sec.data if k != "enabled")
+    kw = parse_settings(sec, StepAdjustmentConfig.from_stepping(robot.profile.stepping))
     sec.finish()
     try:
-        return StepAdjustmentConfig(**kw)
+        return StepAdjustmentConfig(**kw), given
     except PlanningError as exc:
         raise sec.error(None, str(exc)) from None
 
