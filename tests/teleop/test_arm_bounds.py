@@ -4,8 +4,10 @@ integrated arm moves only as fast as the arm's actuators can follow it (wbcbench
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from wbcbench.controllers.teleop import TSIDTeleop, arm_acceleration_bounds, arm_joints
+from wbcbench.errors import ConfigError
 from wbcbench.runner import run
 from wbcbench.scenarios.teleop_kind import TeleopScenario
 from wbcbench.types import ActuationMode
@@ -56,3 +58,8 @@ def test_the_measured_arm_follows_the_integrated_arm_on_a_fast_motion(talos, tmp
         lags[share] = ctrl.lag
     assert lags[0.0] > 0.2
     assert lags[None] < 0.16
+
+
+def test_a_bad_arm_torque_share_is_a_config_error(talos):
+    with pytest.raises(ConfigError, match="arm_torque_share"):
+        TSIDTeleop(talos, ActuationMode.SPD, 1e-3, arm_torque_share=-0.1)

@@ -31,6 +31,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..errors import ConfigError
 from ..jit import njit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
@@ -66,6 +67,7 @@ def _max2(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """``out[:] = _max(a), _max(b)`` in one call."""
     out[0] = _max(a)
     out[1] = _max(b)
+
 
 @njit(exact=True)
 def arm_acceleration_bounds(M, nle, idx, tau_max, share, lb, ub, saved):
@@ -164,7 +166,8 @@ class TSIDTeleop(InverseDynamicsController):
         # SPD and position modes: the arms' joints (velocity indices), whose accelerations `_solve` bounds
         share = self.ARM_TORQUE_SHARE if arm_torque_share is None else float(arm_torque_share)
         if not (np.isfinite(share) and 0.0 <= share):
-            raise ValueError(f"arm_torque_share must be a finite number >= 0, got {arm_torque_share!r}")
+            raise ConfigError(f"arm_torque_share must be a finite number >= 0, got {arm_torque_share!r}",
+                              key="arm_torque_share")
         self.arm_torque_share = share
         self._arm_v = (arm_joints(robot) if self.mode is not ActuationMode.TORQUE and share > 0.0
                        else np.zeros(0, dtype=np.intp))
@@ -241,7 +244,7 @@ class TSIDTeleop(InverseDynamicsController):
         """SPD and position modes: the base class's solve with each arm joint's acceleration bounded by
         `arm_torque_share` of its torque limit, ``(+-share tau_max - h_i) / M_ii`` at the model's state
         (`arm_acceleration_bounds`). The joint servos get positions and velocities only and saturate at the arms'
-        torque limits: with accelerations the arms cannot produce (the QP's arm torques reached 10-25 times the
+        torque limits: with accelerations the arms cannot produce (the QP's arm torques reached up to 30 times the
         limits on fast real motions, the torque-limited QP being infeasible) the measured arm lagged the
         integrated one by up to 0.9 rad, then ran after it at saturated torque and overshot it, and the measured
         gripper hit the thigh while the model's stayed outside the repulsors. When the bounds conflict with
