@@ -14,7 +14,10 @@ It is `InverseDynamicsController` (inverse_dynamics.py) with its own policy:
   is not determined by the motion: without a target it drifts from tick to tick, and the foot force difference
   (Eq. 4-5) and CoM admittance (Eq. 2), which compare it with the measured forces, wind up;
 * when the torque-limited QP is infeasible in SPD and position modes the joint-limited solution is kept
-  (`_solve_limited`).
+  (`_solve_limited`);
+* SPD and position modes: each arm joint's acceleration is bounded by what a share of its torque limit gives it
+  (`_solve`, `arm_acceleration_bounds`), so that the integrated arm, which the joint servos follow, moves only as
+  fast as the arm's actuators can follow it.
 
 Default mode: SPD (stable PD at the joints, as the paper in simulation); position and torque also work.
 """
@@ -28,6 +31,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..errors import ConfigError
 from ..jit import njit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
@@ -40,7 +44,7 @@ from .base import register
 from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
-__all__ = ["TSIDTeleop", "teleop_taskset"]
+__all__ = ["TSIDTeleop", "arm_acceleration_bounds", "arm_joints", "teleop_taskset"]
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
@@ -64,7 +68,50 @@ def _max2(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out[0] = _max(a)
     out[1] = _max(b)
 
+
+@njit(exact=True)
+def arm_acceleration_bounds(M, nle, idx, tau_max, share, lb, ub, saved):
+    """Per arm joint k (velocity index ``idx[k]``, joint index ``idx[k] - 6`` of ``tau_max``, ``lb``, ``ub``):
+    the acceleration bounds ``(+-share tau_max - h) / M_kk`` at the QP's state (``M``, ``nle``: pinocchio's
+    mass matrix and nonlinear effects), intersected with the joint-limit bounds ``lb``, ``ub`` (na,) in place;
+    where the intersection is empty the joint-limit bounds are kept. The bounds replaced go to ``saved`` (2, k)."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        j = i - 6
+        lo, hi = lb[j], ub[j]
+        saved[0, k], saved[1, k] = lo, hi
+        t = share * tau_max[j]
+        m = M[i, i]
+        a_lo = (-t - nle[i]) / m
+        a_hi = (t - nle[i]) / m
+        if a_lo > lo:
+            lo = a_lo
+        if a_hi < hi:
+            hi = a_hi
+        if lo <= hi:
+            lb[j], ub[j] = lo, hi
+
+
+@njit(exact=True)
+def _restore_bounds(idx, saved, lb, ub):
+    """Undo `arm_acceleration_bounds`."""
+    for k in range(idx.shape[0]):
+        j = idx[k] - 6
+        lb[j], ub[j] = saved[0, k], saved[1, k]
+
+
 TASKSET_NAME = "teleop"
+
+
+def arm_joints(robot: Robot) -> np.ndarray:
+    """Velocity indices of the arms' joints: those that carry one gripper (the protected frame of a side's
+    `repulsors` in the robot profile) and not the other, increasing."""
+    model = robot.model
+    chains = [set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
+              for spec in robot.profile.repulsors.values()]
+    joints = chains[0] ^ chains[1] if len(chains) == 2 else set()
+    idx = [model.joints[j].idx_v + k for j in sorted(joints) if j > 0 for k in range(model.joints[j].nv)]
+    return np.array(sorted(idx), dtype=np.intp)
 
 
 def teleop_taskset(robot: Robot, *, repulsors: bool = True) -> TaskSetSpec:
@@ -85,6 +132,8 @@ class TSIDTeleop(InverseDynamicsController):
         taskset: a task set (default: `teleop_taskset(robot, repulsors=repulsors)`).
         repulsors: keep the task set's self_collision tasks (ignored when `taskset` is given).
         stabilizer: apply the task set's `teleop_stabilizer` (paper Eq. 2-7) when it has one.
+        arm_torque_share: SPD and position modes: bound each arm joint's acceleration by what this share of its
+            torque limit gives it (default `ARM_TORQUE_SHARE`; 0: no bound, the integrated arm unbounded).
     """
 
     name = "tsid-teleop"
@@ -93,9 +142,13 @@ class TSIDTeleop(InverseDynamicsController):
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
     #: daqp's iteration limit on the torque-limited QP in SPD and position modes (see `__init__`)
     TORQUE_QP_ITERATIONS = 60
+    #: SPD and position modes: the share of an arm joint's torque limit its acceleration bound leaves it on its own
+    #: (`_solve`); the rest is headroom for what the per-joint bound leaves out (the other joints' accelerations
+    #: through the mass matrix, the servo's error-driven torques, the measured arm's own state)
+    ARM_TORQUE_SHARE = 0.7
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
-                 repulsors: bool = True, stabilizer: bool = True):
+                 repulsors: bool = True, stabilizer: bool = True, arm_torque_share: float | None = None):
         if isinstance(taskset, (str, Path)):
             taskset = load_taskset(taskset, robot)
         spec = taskset if taskset is not None else teleop_taskset(robot, repulsors=repulsors)
@@ -110,6 +163,16 @@ class TSIDTeleop(InverseDynamicsController):
         self.repulsors = any(t.type == "self_collision" for t in spec.tasks)
         self.collision_tasks = [t for t in self.tasks if isinstance(t, SelfCollisionTask)]
         self.n_torque_rows_dropped = 0
+        # SPD and position modes: the arms' joints (velocity indices), whose accelerations `_solve` bounds
+        share = self.ARM_TORQUE_SHARE if arm_torque_share is None else float(arm_torque_share)
+        if not (np.isfinite(share) and 0.0 <= share):
+            raise ConfigError(f"arm_torque_share must be a finite number >= 0, got {arm_torque_share!r}",
+                              key="arm_torque_share")
+        self.arm_torque_share = share
+        self._arm_v = (arm_joints(robot) if self.mode is not ActuationMode.TORQUE and share > 0.0
+                       else np.zeros(0, dtype=np.intp))
+        self._arm_saved = np.zeros((2, self._arm_v.size))
+        self.n_arm_bounds_dropped = 0
         self._sole_center = np.array([*robot.profile.sole.center, 0.0])
         self._feet_nominal: dict = {}
         self._feet_nominal_arrays = None
@@ -144,9 +207,9 @@ class TSIDTeleop(InverseDynamicsController):
         return super().step(meas, refs)
 
     def _warm_up(self, meas: Measurement) -> None:
-        dropped = self.n_torque_rows_dropped
+        dropped = self.n_torque_rows_dropped, self.n_arm_bounds_dropped
         super()._warm_up(meas)
-        self.n_torque_rows_dropped = dropped  # not a tick
+        self.n_torque_rows_dropped, self.n_arm_bounds_dropped = dropped  # not a tick
 
     def _wrench_targets(self, refs: References) -> dict | None:
         """The stabilizer's F* (Eq. 7) when it gave them, else F (Eq. 6) of the reference ZMP."""
@@ -176,6 +239,39 @@ class TSIDTeleop(InverseDynamicsController):
                 self._targets_cache = reference_wrench_targets(com, acc, feet, self._sole_center, self.robot.mass)
             self._targets_key = key
         return self._targets_cache
+
+    def _solve(self):
+        """SPD and position modes: the base class's solve with each arm joint's acceleration bounded by
+        `arm_torque_share` of its torque limit, ``(+-share tau_max - h_i) / M_ii`` at the model's state
+        (`arm_acceleration_bounds`). The joint servos get positions and velocities only and saturate at the arms'
+        torque limits: with accelerations the arms cannot produce (the QP's arm torques reached up to 30 times the
+        limits on fast real motions, the torque-limited QP being infeasible) the measured arm lagged the
+        integrated one by up to 0.9 rad, then ran after it at saturated torque and overshot it, and the measured
+        gripper hit the thigh while the model's stayed outside the repulsors. When the bounds conflict with
+        another constraint (the QP is infeasible) the QP is solved without them (counted in
+        `qp_arm_bounds_dropped_ticks`)."""
+        idx = self._arm_v
+        if not idx.size:
+            return super()._solve()
+        F = self.formulation
+        P = F.problem()
+        L = F._layout
+        d = F.data
+        arm_acceleration_bounds(d.M, d.nle, idx, F.tau_max, self.arm_torque_share, L.lb_joints, L.ub_joints,
+                                self._arm_saved)
+        t0 = perf_counter()
+        res = self.solver.solve(P)
+        if not res.ok:
+            _restore_bounds(idx, self._arm_saved, L.lb_joints, L.ub_joints)
+            self.n_arm_bounds_dropped += 1
+            res = self.solver.solve(P)
+        if res.ok:
+            tau, within = F.torques(res.x)
+            if within:
+                self._t_solve = perf_counter() - t0
+                self.qp_status = QP_OK
+                return res.x, tau
+        return self._solve_limited(res, t0)
 
     def _solve_limited(self, res, t0: float):
         """The first QP (joint limits, no torque rows) is solved but its torques exceed a limit. In SPD and
@@ -221,4 +317,5 @@ class TSIDTeleop(InverseDynamicsController):
         out["repulsors"] = self.repulsors
         out["stabilizer"] = self.stabilizer is not None
         out["qp_torque_rows_dropped_ticks"] = self.n_torque_rows_dropped
+        out["qp_arm_bounds_dropped_ticks"] = self.n_arm_bounds_dropped
         return out
