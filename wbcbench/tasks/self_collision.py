@@ -559,6 +559,7 @@ class SelfCollisionTask(Task):
             self.barrier = tuple(float(x) for x in barrier)
             # C at the distance clearance * a_i, per repulsor
             self._barrier_cmax = val.frozen(np.exp(-((self.barrier[0] * a) ** self._exponent) / self._scales))
+        self._barrier_idle = False  # `barrier_rows` zeroed the rows of its last call (no repulsor active)
 
     # ------------------------------------------------------------------------------------------ description
     @property
@@ -740,11 +741,21 @@ class SelfCollisionTask(Task):
         """`barrier_bounds` into ``out``, and the rows ``A`` copied into ``rows_out`` (dim, nv) when given, in one
         compiled call (the inverse-dynamics formulation's per-tick use)."""
         _, kp_b, kd_b = self.barrier
-        C = self._evaluate(model, data).C
-        cmax, kp, kd = self._barrier_cmax, self._kp, self._kd
+        cache = self._evaluate(model, data)
+        cmax = self._barrier_cmax if self._all_selected else self._barrier_cmax[self._selection]
+        if not cache.active and rows_out is not None:
+            # no repulsor active: every row and value is zero, the bounds kp_b C_max (the same numbers); the rows are
+            # zeroed once when the last repulsor leaves
+            if not self._barrier_idle:
+                rows_out[...] = 0.0
+                self._barrier_idle = True
+            np.multiply(cmax, kp_b, out=out)
+            return
+        self._barrier_idle = False
+        C, kp, kd = cache.C, self._kp, self._kd
         if not self._all_selected:
             sel = self._selection
-            C, cmax, kp, kd = C[sel], cmax[sel], kp[sel], kd[sel]
+            C, kp, kd = C[sel], kp[sel], kd[sel]
         _barrier_rows(A, b, A @ v, C, cmax, kp, kd, float(kd_b), float(kp_b),
                       _NO_ROWS if rows_out is None else rows_out, rows_out is not None, out)
 
