@@ -74,3 +74,22 @@ def test_reproduce_for_another_robot_has_our_numbers_only(monkeypatch, tmp_path)
     assert again.results["robot"]["name"] == "g1"
     assert again.results["tables"]["table2"]["values"]["tsid-torque"]["walk-20cm"]["zmp_error_m.x.mean"] == \
         cell["zmp_error_m.x.mean"]
+
+
+@pytest.mark.parametrize("robot_name", ["talos", "g1"])
+def test_no_shipped_scenario_plans_the_com_above_the_robots_standing_height(robot_name):
+    """A scenario's `com_height` is TALOS-sized unless the robot's profile sizes it: every shipped scenario, as
+    loaded for each shipped robot, plans the CoM below that robot's standing CoM height above its soles (the
+    platforms' 0.86 m, TALOS' walking height, once reached the G1 unsized: its position schemes fell)."""
+    import pinocchio as pin
+
+    from wbcbench.scenarios import available_scenarios
+    from wbcbench.side import Side
+
+    robot = load_robot(robot_name)
+    m, d = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(m, d, robot.q0)
+    standing = pin.centerOfMass(m, d, robot.q0)[2] - min(d.oMf[robot.sole_frame_id(s)].translation[2] for s in Side)
+    for name in available_scenarios():
+        height = getattr(load_scenario(name, robot), "com_height", None)
+        assert height is None or height < standing, (name, height, standing)
