@@ -223,7 +223,7 @@ class InverseDynamicsController(Controller):
         t0 = perf_counter()
         # Torque limits are lazy constraints: solve without them, and only if the optimum violates one solve
         # again with all of them (then the optimum is exactly the full problem's).
-        res = self.solver.solve(P)
+        res = self._first_solve(P)
         if res.ok:
             tau, within = F.torques(res.x)
             if within:
@@ -231,6 +231,10 @@ class InverseDynamicsController(Controller):
                 self.qp_status = QP_OK
                 return res.x, tau
         return self._solve_limited(res, t0)
+
+    def _first_solve(self, P):
+        """The tick's first solve, without the torque rows (a hook: a controller may bound it further)."""
+        return self.solver.solve(P)
 
     def _solve_limited(self, res, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
         """The first solve failed or its torques exceed a limit: solve with the torque rows, then relaxed."""

@@ -240,8 +240,8 @@ class TSIDTeleop(InverseDynamicsController):
             self._targets_key = key
         return self._targets_cache
 
-    def _solve(self):
-        """SPD and position modes: the base class's solve with each arm joint's acceleration bounded by
+    def _first_solve(self, P):
+        """SPD and position modes: the first solve with each arm joint's acceleration bounded by
         `arm_torque_share` of its torque limit, ``(+-share tau_max - h_i) / M_ii`` at the model's state
         (`arm_acceleration_bounds`). The joint servos get positions and velocities only and saturate at the arms'
         torque limits: with accelerations the arms cannot produce (the QP's arm torques reached up to 30 times the
@@ -252,26 +252,18 @@ class TSIDTeleop(InverseDynamicsController):
         `qp_arm_bounds_dropped_ticks`)."""
         idx = self._arm_v
         if not idx.size:
-            return super()._solve()
+            return super()._first_solve(P)
         F = self.formulation
-        P = F.problem()
         L = F._layout
         d = F.data
         arm_acceleration_bounds(d.M, d.nle, idx, F.tau_max, self.arm_torque_share, L.lb_joints, L.ub_joints,
                                 self._arm_saved)
-        t0 = perf_counter()
         res = self.solver.solve(P)
         if not res.ok:
             _restore_bounds(idx, self._arm_saved, L.lb_joints, L.ub_joints)
             self.n_arm_bounds_dropped += 1
             res = self.solver.solve(P)
-        if res.ok:
-            tau, within = F.torques(res.x)
-            if within:
-                self._t_solve = perf_counter() - t0
-                self.qp_status = QP_OK
-                return res.x, tau
-        return self._solve_limited(res, t0)
+        return res
 
     def _solve_limited(self, res, t0: float):
         """The first QP (joint limits, no torque rows) is solved but its torques exceed a limit. In SPD and
