@@ -168,13 +168,20 @@ def test_adjuster_replans_a_continuous_walk_onto_the_new_foothold():
     assert new.n_ticks == walk.n_ticks + (td - int(round(walk.plan.touch_down_time(step) / walk.dt)))
 
 
-def test_replan_from_the_plan_keeps_the_com_reference_continuous():
+def _replan_mid_swing(replan_from: str, dcm_offset):
+    """A walk's adjuster re-planning from `replan_from` in the second step's swing, the measured DCM off the plan's
+    by `dcm_offset` (the measured CoM state zero: these modes do not use it); (walk, adjuster, tick, DCM, new walk)."""
     walk, cfg = _walk()
-    adj = StepAdjuster(walk, StepAdjustmentConfig(replan_from="planned"), cfg, SEP)
+    adj = StepAdjuster(walk, StepAdjustmentConfig(replan_from=replan_from), cfg, SEP)
     k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))
-    dcm = walk.p_world_dcm[k, :2] + [0.06, 0.0]
-    new = adj.update(k, dcm, np.zeros((3, 2)))        # the measured CoM state is not used
+    dcm = walk.p_world_dcm[k, :2] + dcm_offset
+    new = adj.update(k, dcm, np.zeros((3, 2)))
     assert new is not None
+    return walk, adj, k, dcm, new
+
+
+def test_replan_from_the_plan_keeps_the_com_reference_continuous():
+    walk, adj, k, dcm, new = _replan_mid_swing("planned", [0.06, 0.0])
     for a in ("p_world_com", "v_world_com", "a_world_com"):
         np.testing.assert_allclose(getattr(new, a)[k], getattr(walk, a)[k], atol=1e-12)
     assert adj.history[0][2].p_world_foothold[0] > walk.plan.steps[1].p_world_sole[0] + 0.05
@@ -183,12 +190,7 @@ def test_replan_from_the_plan_keeps_the_com_reference_continuous():
 
 
 def test_replan_from_the_dcm_keeps_the_com_position_and_takes_the_measured_dcm():
-    walk, cfg = _walk()
-    adj = StepAdjuster(walk, StepAdjustmentConfig(replan_from="dcm"), cfg, SEP)
-    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))
-    dcm = walk.p_world_dcm[k, :2] + [0.06, 0.02]
-    new = adj.update(k, dcm, np.zeros((3, 2)))        # the measured CoM state is not used
-    assert new is not None
+    walk, adj, k, dcm, new = _replan_mid_swing("dcm", [0.06, 0.02])
     for a in ("p_world_com", "a_world_com"):
         np.testing.assert_allclose(getattr(new, a)[k], getattr(walk, a)[k], atol=1e-12)
     np.testing.assert_allclose(new.p_world_dcm[k, :2], dcm, atol=1e-9)
