@@ -139,7 +139,6 @@ class BalanceEstimator:
         self.normal_force = {left: float(out[0]), right: float(out[1])}
         self.support = right if support else left
         self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
-        self._com_prev = self.com
 
 
 @njit

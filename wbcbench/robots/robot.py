@@ -173,8 +173,7 @@ class Robot:
         soles = np.array([self.data.oMf[self.sole_frame_id(s)].translation for s in Side])
         q[0] = -soles[:, 0].mean()
         q[1] = -soles[:, 1].mean()
-        q[2] = -max(float((self.data.oMf[self.sole_frame_id(s)].act(c))[2]) for s in Side
-                    for c in self.profile.sole.corners)
+        q[2] = -max(self.sole_rest_height(self.data, s) for s in Side)
         return q
 
     # ------------------------------------------------------------------ accessors
@@ -211,6 +210,12 @@ class Robot:
 
     def sole_frame_id(self, side: Side) -> int:
         return self.model.getFrameId(self.profile.feet[side].frame)
+
+    def sole_rest_height(self, data: pin.Data, side: Side) -> float:
+        """z [m] of the highest corner of a side's sole rectangle, in `data`'s frame placements: the ground a
+        sole tilted by its posture rests on (its other corners at or below it)."""
+        M = data.oMf[self.sole_frame_id(side)]
+        return max(float(M.act(c)[2]) for c in self.profile.sole.corners)
 
     def frame_id(self, name: str) -> int:
         return self._frame_id(name, "frame")

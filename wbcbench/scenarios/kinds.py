@@ -172,8 +172,6 @@ class WalkScenario(Scenario):
         """The controller's own step-adjustment settings (its task set's `step_adjustment:` section, e.g. a
         position-controlled scheme whose stabilizer absorbs part of the DCM error), for every key the scenario
         does not set itself; nothing when the step adjustment is off. Before `setup`."""
-        from dataclasses import replace
-
         from ..errors import ConfigError
         if self.step_adjustment is None or not settings:
             return
@@ -496,8 +494,8 @@ class TerrainWalkScenario(WalkScenario):
             # tilted sole rests on; its origin is 0.11 mm lower)
             M = data.oMf[self.robot.sole_frame_id(s)]
             yaw = float(np.arctan2(M.rotation[1, 0], M.rotation[0, 0]))
-            z = max(float(M.act(c)[2]) for c in self.robot.profile.sole.corners)
-            start[s] = Footstep.from_xyz_yaw(s, M.translation[0], M.translation[1], z, yaw=yaw)
+            start[s] = Footstep.from_xyz_yaw(s, M.translation[0], M.translation[1],
+                                             self.robot.sole_rest_height(data, s), yaw=yaw)
         sole = self.robot.profile.sole
         rect = SoleRectangle(sole.length, sole.width, *sole.center)
         timing = StepTiming(self.single, self.double, self.initial_ds, self.final_ds)
