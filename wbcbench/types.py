@@ -167,7 +167,8 @@ class References:
     wrench_targets: per contact, a (6,) wrench the inverse-dynamics QP regularises the contact wrench towards
         [N, N m], LOCAL sole frame at its origin, exerted by the ground (e.g. the force-based stabilizer's
         Eq. 6-7 split); empty: no target.
-    contact_poses: per active contact, the reference pose of the contact (`pinocchio.SE3`, world) replacing the
+    contact_poses: per active contact, the reference pose of the contact (world; a `pinocchio.SE3`, or a
+        `PoseReference` whose position and rotation are used: no SE3 made per tick) replacing the
         one it took at touch-down (e.g. the ankle admittance's tilt, Eq. 3); empty: keep it.
     lift_off: per foot in contact, the time [s] (the clock of `t`) of its next planned lift-off: the plan's
         contact schedule ahead, so that a controller can unload a leaving foot before it leaves; empty: none

@@ -584,7 +584,8 @@ class TeleopStabilizer(Stabilizer):
                 if how == 1:
                     contact_poses[s] = nominal[s]
                 elif how == 2:
-                    contact_poses[s] = pin.SE3(self._tilt_R[i], self._contact_nominal_p[s])
+                    contact_poses[s] = PoseReference.unchecked(self._contact_nominal_p[s], self._tilt_R[i].copy(),
+                                                               _ZERO6, _ZERO6)
         if (com_ref is refs.com and targets is refs.targets and wrench_targets is refs.wrench_targets
                 and contact_poses is refs.contact_poses):
             return refs

@@ -143,7 +143,11 @@ class Contact6D(Task):
             )
         self._f_max_nominal = f_max
         self._C = val.frozen(self._wrench_cone_matrix())
-        self._M_ref: pin.SE3 | None = None
+        # the reference placement: its rotation and translation (new arrays at each `set_reference`), and the SE3
+        # made from them when asked for (`_M_ref`)
+        self._R_ref: FloatArray | None = None
+        self._p_ref: FloatArray | None = None
+        self._M_cache: pin.SE3 | None = None
         self.set_max_force(f_max)
 
     # ---------------------------------------------------------------------------------------- geometry
@@ -275,15 +279,34 @@ class Contact6D(Task):
         return np.array([-w[4] / w[2], w[3] / w[2]])
 
     # ---------------------------------------------------------------------------------------- references
-    def set_reference(self, pose: pin.SE3) -> None:
-        """Set the contact's reference placement ``T_world_ref`` (where the sole should stay)."""
-        if not isinstance(pose, pin.SE3):
-            raise TaskConfigError(self.owner, "pose", f"expected a pinocchio.SE3, got {type(pose).__name__}")
+    def set_reference(self, pose: Any) -> None:
+        """Set the contact's reference placement ``T_world_ref`` (where the sole should stay): a `pinocchio.SE3`,
+        or a pose with ``position`` (3,) and ``rotation`` (3, 3) (e.g. `wbcbench.types.PoseReference`: a
+        stabilizer's per-tick pose without making an SE3)."""
+        if isinstance(pose, pin.SE3):
+            position, rotation = pose.translation, pose.rotation
+        else:
+            position, rotation = getattr(pose, "position", None), getattr(pose, "rotation", None)
+            if position is None or rotation is None:
+                raise TaskConfigError(self.owner, "pose", "expected a pinocchio.SE3 or a pose with a position and "
+                                      f"a rotation (e.g. a PoseReference), got {type(pose).__name__}")
+            position = np.asarray(position, dtype=np.float64)
+            rotation = np.asarray(rotation, dtype=np.float64)
+            if position.shape != (3,) or rotation.shape != (3, 3):
+                raise TaskConfigError(self.owner, "pose", f"expected a (3,) position and a (3, 3) rotation, got "
+                                      f"{position.shape} and {rotation.shape}")
         R, p = np.empty((3, 3)), np.empty(3)
         E = val.EMPTY
-        if not val.copy_pose_checked(pose.translation, pose.rotation, E, E, p, R, E, E):
+        if not val.copy_pose_checked(position, rotation, E, E, p, R, E, E):
             raise TaskConfigError(self.owner, "pose", "expected a finite rigid transform")
-        self._M_ref = pin.SE3(R, p)
+        self._R_ref, self._p_ref, self._M_cache = val.frozen(R), val.frozen(p), None
+
+    @property
+    def _M_ref(self) -> pin.SE3 | None:
+        """The reference placement as an SE3 (made once per `set_reference`), None before the first."""
+        if self._M_cache is None and self._R_ref is not None:
+            self._M_cache = pin.SE3(self._R_ref, self._p_ref)
+        return self._M_cache
 
     def set_reference_to_current(self, model: pin.Model, data: pin.Data) -> None:
         """Set the reference placement to the frame's current placement (call when the contact is made)."""

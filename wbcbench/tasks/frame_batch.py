@@ -103,18 +103,13 @@ class FrameBatch:
         ``drift`` (the stack's buffers), for the state of the last kinematics update."""
         seen, local = self._seen, self._local
         for i, task in enumerate(self.tasks):
-            ref = task._M_ref if local[i] else task._R_ref
-            if ref is not seen[i]:  # set_reference stores a new object
-                if local[i]:
-                    if ref is None:
-                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the contact")
-                    self._R_ref[i] = ref.rotation
-                    self._p_ref[i] = ref.translation
-                else:
-                    if ref is None or task._p_ref is None:
-                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
-                    self._R_ref[i] = ref
-                    self._p_ref[i] = task._p_ref
+            ref = task._R_ref
+            if ref is not seen[i]:  # set_reference stores new arrays (contacts and frame tasks alike)
+                if ref is None or task._p_ref is None:
+                    what = "contact" if local[i] else "task"
+                    raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the {what}")
+                self._R_ref[i] = ref
+                self._p_ref[i] = task._p_ref
                 seen[i] = ref
         com_ref = self._com_ref
         if self._com:
