@@ -89,7 +89,7 @@ def test_a_task_set_sets_what_the_scenario_leaves(talos, tmp_path):
 
     spec = load_taskset(taskset_path(talos, "tsid-position"), talos)
     assert dict(spec.step_adjustment) == {"threshold": 0.05, "deadband": 0.04, "replan_from": "dcm"}
-    assert load_taskset(taskset_path(talos, "tsid-torque"), talos).step_adjustment is None
+    assert dict(load_taskset(taskset_path(talos, "tsid-torque"), talos).step_adjustment) == {"min_single_support": 0.35}
     params = {"steps": 1, "step_length": 0.2, "single_support": 0.9, "double_support": 0.1,
               "step_adjustment": {"threshold": 0.07}}
     scen = make_scenario("walk", talos, params=params)
