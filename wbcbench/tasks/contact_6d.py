@@ -299,7 +299,7 @@ class Contact6D(Task):
         E = val.EMPTY
         if not val.copy_pose_checked(position, rotation, E, E, p, R, E, E):
             raise TaskConfigError(self.owner, "pose", "expected a finite rigid transform")
-        self._R_ref, self._p_ref, self._M_cache = val.frozen(R), val.frozen(p), None
+        self._R_ref, self._p_ref, self._M_cache = R, p, None  # private (handed out as an SE3 copy)
 
     @property
     def _M_ref(self) -> pin.SE3 | None:
