@@ -63,8 +63,8 @@ class TaskSetSpec:
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
-    the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the configured one;
-    `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
+    the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
+    configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
     scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
 
