@@ -62,8 +62,9 @@ class TaskSetSpec:
     """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||a * w||^2,
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
-    (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one;
-    `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
+    (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
+    the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
+    configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
     scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
 
@@ -74,6 +75,7 @@ class TaskSetSpec:
     regularization_wrench: float = 1e-5
     regularization_wrench_axes: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     joint_limit_horizon: float = 0.01
+    arm_damping_injection: float = 0.0
     regularization_wrench_target: float = 0.0
     solver: str = "daqp"
     stabilizer: "StabilizerConfig | None" = None
@@ -240,6 +242,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                                                                    nonnegative=True).tolist()),
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
+                       arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
                        file=file)
