@@ -65,7 +65,9 @@ class TaskSetSpec:
     (0: off); `joint_limit_horizon` [s]; `solver`: the QP backend; `stabilizer`: None or the configured one;
     `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
-    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
+    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
+    `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): an inverse-dynamics controller adds the pitch the plan
+    offers (`References.swing_pitch`) to its swing feet's references."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -80,6 +82,7 @@ class TaskSetSpec:
     base_feedback: "BaseFeedbackConfig | None" = None
     touchdown_search: "TouchdownSearchConfig | None" = None
     step_adjustment: tuple[tuple[str, object], ...] | None = None
+    swing_pitch_with_leg: bool = False
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -195,6 +198,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     sw = root.section("swing_foot")
     sw.data.setdefault("type", "frame")
     sw.data.setdefault("frame", "left_foot")
+    pitch_with_leg = sw.bool("pitch_with_leg", False)
     swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
     stab = None
@@ -242,7 +246,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
-                       file=file)
+                       swing_pitch_with_leg=pitch_with_leg, file=file)
     reg.finish()
     root.finish()
     return spec
