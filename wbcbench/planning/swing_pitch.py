@@ -46,7 +46,7 @@ class LegGeometry:
     """What the prediction of a swing shank needs of a robot, per side.
 
     Attributes:
-        hip_offset: side -> (3,) hip pitch joint relative to the CoM at the start, in the walking frame [m].
+        hip_offset: side -> (3,) hip (the leg's root joint) relative to the CoM at the start, in the walking frame [m].
         ankle_in_sole: side -> (3,) ankle joint in the sole frame [m].
         thigh, shank: side -> lengths hip-knee and knee-ankle [m].
         lever: distance from the sole origin to its farther end along the foot [m] (toe or heel clearance).
@@ -61,8 +61,8 @@ class LegGeometry:
     @classmethod
     def from_robot(cls, robot, q0: np.ndarray, com0: np.ndarray, yaw0: float = 0.0) -> "LegGeometry":
         """From the model at the initial configuration q0 (CoM com0, walking heading yaw0 [rad]): the ankle is the
-        sole frame's parent joint, the knee and hip the first joints up the chain at least 0.1 m from the one
-        below (the joints of a hip or an ankle share their origin)."""
+        sole frame's parent joint, the knee the first joint up the chain at least 0.1 m from it, the hip the leg's
+        root (the joint on the floating base)."""
         import pinocchio as pin
 
         model = robot.model
@@ -76,18 +76,13 @@ class LegGeometry:
             M = data.oMf[fid]
             j = model.frames[fid].parentJoint
             chain = [j]
-            while model.parents[chain[-1]] > 0:
+            while model.parents[chain[-1]] > 1:  # up to the leg's root (its parent: the floating base)
                 chain.append(model.parents[chain[-1]])
             pos = [data.oMi[k].translation for k in chain]
-            picks = [0]
-            for k in range(1, len(chain)):
-                if np.linalg.norm(pos[k] - pos[picks[-1]]) >= 0.1:
-                    picks.append(k)
-                if len(picks) == 3:
-                    break
-            if len(picks) < 3:
+            knee = next((k for k in range(1, len(chain) - 1) if np.linalg.norm(pos[k] - pos[0]) >= 0.1), None)
+            if knee is None:
                 raise PlanningError(f"swing pitch: no ankle-knee-hip chain above the {side.value} sole")
-            a, kn, h = (pos[k] for k in picks)
+            a, kn, h = pos[0], pos[knee], pos[-1]
             hip[side] = Rz_t @ (h - com0)
             ankle[side] = M.rotation.T @ (a - M.translation)
             thigh[side] = float(np.linalg.norm(kn - h))

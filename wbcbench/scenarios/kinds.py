@@ -216,8 +216,11 @@ class WalkScenario(Scenario):
         self.base_offset = q0[:3] - com0
         if self.swing_pitch_max > 0.0:
             from ..planning.swing_pitch import LegGeometry, SwingPitchConfig
-            self.legs = LegGeometry.from_robot(self.robot, q0, com0)
-            self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max)
+            try:
+                self.legs = LegGeometry.from_robot(self.robot, q0, com0)
+                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max)
+            except PlanningError:  # a model without an ankle-knee-hip chain: no swing pitch offered
+                self.legs = self.swing_pitch = None
         self.adjuster = None
         if self.step_adjustment is not None:
             from ..planning.step_adjustment import StepAdjuster
