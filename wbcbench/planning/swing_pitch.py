@@ -96,7 +96,7 @@ class SwingPitchConfig:
     """max_pitch: bound of |delta| [rad]; clearance: the height [m] the sole's lower end keeps above the swing's
     lower end wherever the foot pitches (none below it); n_basis: polynomials P_0 .. P_{n-1}."""
 
-    max_pitch: float = 0.2
+    max_pitch: float = 0.3
     clearance: float = 0.005
     n_basis: int = 8
 

@@ -124,7 +124,7 @@ class WalkScenario(Scenario):
     walking, default: the initial one; a lower one is reached by a quintic descent during the initial double
     support, before the ZMP first moves, and the preview controller's cart-table height is set to it),
     swing_pitch_max [rad] (the bound of the swing-foot pitch the references offer, `References.swing_pitch`, see
-    wbcbench.planning.swing_pitch; default 0.2, 0: none offered).
+    wbcbench.planning.swing_pitch; default 0.3, 0: none offered).
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
@@ -155,7 +155,7 @@ class WalkScenario(Scenario):
         self.width = params.float("step_width", 0.0, min=0.0)
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
-        self.swing_pitch_max = params.float("swing_pitch_max", 0.2, min=0.0)
+        self.swing_pitch_max = params.float("swing_pitch_max", 0.3, min=0.0)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment"):
             self.step_adjustment, self._step_adjustment_given = _parse_step_adjustment(
