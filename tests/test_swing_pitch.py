@@ -50,7 +50,7 @@ def test_planned_swing_pitch_is_level_at_both_ends_bounded_and_relieves_the_ankl
             z = f.p_world_sole[sl, 2] - min(f.p_world_sole[lo, 2], f.p_world_sole[td, 2])
             low = z <= cfg.clearance
             assert low[:5].all() and low[-5:].all()
-            assert np.abs(d[low]).max() < 1e-9
+            assert np.abs(d[low]).max() < 1e-6  # the window's last tick: the polynomials to rounding
             # bounded, and the sole's lower end (toe or heel) stays `clearance` above the ground
             assert np.abs(d[:, 0]).max() <= cfg.max_pitch + 1e-6
             tilted = np.abs(d[:, 0]) > 1e-9
