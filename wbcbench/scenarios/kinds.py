@@ -271,9 +271,9 @@ class WalkScenario(Scenario):
     def references(self, t):
         w = self.walk
         table = self._table
-        if table is None or table.walk is not w:
-            table = self._tabulate(w)
         k = min(int(round(t / w.dt)), w.n_ticks - 1)
+        if table is None or table.walk is not w:
+            table = self._tabulate(w, None if table is None else (k, table.pitch))
         i = k - table.k0  # among the references made ahead (`_WalkTable.make_ahead`)?
         if 0 <= i < len(table.ahead):
             ref = table.ahead[i]
@@ -287,8 +287,10 @@ class WalkScenario(Scenario):
     #: by `setup` (None: none offered)
     legs = swing_pitch = None
 
-    def _tabulate(self, walk) -> "_WalkTable":
-        self._table = _WalkTable(walk, self.legs, self.swing_pitch)
+    def _tabulate(self, walk, previous=None) -> "_WalkTable":
+        """The table of `walk`; previous: (tick, the swing pitch of the table it replaces from that tick on)."""
+        self._table = _WalkTable(walk, self.legs, self.swing_pitch,
+                                 previous if previous is not None and previous[1] is not None else None)
         return self._table
 
     def metrics(self, log):
@@ -314,11 +316,11 @@ class _WalkTable:
     """A walk's references, tick by tick, from arrays arranged once per walk (a re-plan makes a new walk): the
     contact set of every tick, the swing feet's 6-D velocities and accelerations (linear, zero angular), the
     planned lift-offs ahead (`References.lift_off`: one dict per stance phase, shared by its ticks), the swing
-    pitch offered with the swing feet (`References.swing_pitch`, from `legs` and `pitch_config`; None: none
-    offered), and the rows
+    pitch offered with the swing feet (`References.swing_pitch`, from `legs` and `pitch_config`, continuing a
+    replaced table's `previous` (tick, pitch) through a re-plan; None: none offered), and the rows
     that `references` hands out as they are (the plan's arrays, checked here once)."""
 
-    def __init__(self, walk, legs=None, pitch_config=None):
+    def __init__(self, walk, legs=None, pitch_config=None, previous=None):
         self.walk = walk
         n = walk.n_ticks
         self.com = tuple(_checked_rows(a, (3,), "CoM") for a in (walk.p_world_com, walk.v_world_com, walk.a_world_com))
@@ -338,7 +340,7 @@ class _WalkTable:
         pitch = None
         if legs is not None:
             from ..planning.swing_pitch import plan_swing_pitch
-            pitch = plan_swing_pitch(walk, legs, pitch_config)
+            pitch = plan_swing_pitch(walk, legs, pitch_config, previous)
         self.pitch = pitch
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
