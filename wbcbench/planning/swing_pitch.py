@@ -130,13 +130,14 @@ def _pitch(R: np.ndarray) -> np.ndarray:
     return np.arctan2(-x[:, 2], np.hypot(x[:, 0], x[:, 1]))
 
 
-def swing_pitch_offsets(t: np.ndarray, p_com: np.ndarray, yaw: np.ndarray, p_sole: np.ndarray, R_sole: np.ndarray,
-                        side: Side, legs: LegGeometry, config: SwingPitchConfig = SwingPitchConfig()
-                        ) -> tuple[np.ndarray, np.ndarray]:
+def swing_pitch_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_world_sole: np.ndarray,
+                        R_world_sole: np.ndarray, side: Side, legs: LegGeometry,
+                        config: SwingPitchConfig = SwingPitchConfig()) -> tuple[np.ndarray, np.ndarray]:
     """One swing: the offset (n, 3) [delta, delta_dot, delta_ddot] [rad, rad/s, rad/s^2] at the times t (lift-off
     first, touch-down last), and the predicted ankle pitch acceleration without it (n,) [rad/s^2].
 
-    p_com (n, 3), yaw (n,) the walk's CoM and heading; p_sole (n, 3), R_sole (n, 3, 3) the planned sole."""
+    p_world_com (n, 3), yaw (n,) the walk's CoM and heading; p_world_sole (n, 3), R_world_sole (n, 3, 3) the
+    planned sole."""
     n = len(t)
     T = float(t[-1] - t[0])
     if n < 8 or T <= 0.0:
@@ -144,9 +145,9 @@ def swing_pitch_offsets(t: np.ndarray, p_com: np.ndarray, yaw: np.ndarray, p_sol
         return z, np.zeros(n)
     c, s_ = np.cos(yaw), np.sin(yaw)
     h = legs.hip_offset[side]
-    hip = p_com + np.column_stack([c * h[0] - s_ * h[1], s_ * h[0] + c * h[1], np.full(n, h[2])])
-    ankle = p_sole + R_sole @ legs.ankle_in_sole[side]
-    fwd = R_sole[:, :, 0].copy()
+    hip = p_world_com + np.column_stack([c * h[0] - s_ * h[1], s_ * h[0] + c * h[1], np.full(n, h[2])])
+    ankle = p_world_sole + R_world_sole @ legs.ankle_in_sole[side]
+    fwd = R_world_sole[:, :, 0].copy()
     fwd[:, 2] = 0.0
     fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
     d = ankle - hip
@@ -155,13 +156,13 @@ def swing_pitch_offsets(t: np.ndarray, p_com: np.ndarray, yaw: np.ndarray, p_sol
     r = np.clip(np.hypot(dx, dz), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
     psi = np.arctan2(dx, -dz)
     beta = np.arccos(np.clip((l2 * l2 + r * r - l1 * l1) / (2.0 * l2 * r), -1.0, 1.0))
-    q_ankle = _pitch(R_sole) + (psi - beta)  # foot pitch - shank pitch (shank pitch = -(psi - beta))
+    q_ankle = _pitch(R_world_sole) + (psi - beta)  # foot pitch - shank pitch (shank pitch = -(psi - beta))
     dt = T / (n - 1)
     acc = np.gradient(np.gradient(q_ankle, dt), dt)
     # the foot pitches while its sole is `clearance` above the swing's lower end, |delta| bounded by max_pitch and
     # by the room of the sole's lower end (toe or heel) above that height
-    z_low = min(p_sole[0, 2], p_sole[-1, 2])
-    room = (p_sole[:, 2] - z_low - config.clearance) / legs.lever
+    z_low = min(p_world_sole[0, 2], p_world_sole[-1, 2])
+    room = (p_world_sole[:, 2] - z_low - config.clearance) / legs.lever
     inside = np.flatnonzero(room > 0.0)
     out = np.zeros((n, 3))
     if len(inside) < 8 or config.max_pitch == 0.0:
