@@ -210,6 +210,7 @@ def _bad_taskset(tmp_path, talos, old, new):
     ("wrench_axes: [1.0, 1.0, 0.1, 2.0, 2.0, 2.0]", "wrench_axes: [1.0, 1.0, 2.0]",
      ["regularization.wrench_axes", "6 values"]),
     ("wrench_axes: [1.0, 1.0, 0.1,", "wrench_axes: [1.0, 1.0, -0.1,", ["regularization.wrench_axes", ">= 0"]),
+    ("pitch_with_leg: true", "pitch_with_leg: 1", ["swing_foot.pitch_with_leg", "true or false"]),
 ])
 def test_bad_task_files_name_file_and_key(talos, tmp_path, old, new, needles):
     p = _bad_taskset(tmp_path, talos, old, new)

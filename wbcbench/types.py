@@ -173,6 +173,10 @@ class References:
     lift_off: per foot in contact, the time [s] (the clock of `t`) of its next planned lift-off: the plan's
         contact schedule ahead, so that a controller can unload a leaving foot before it leaves; empty: none
         planned (or the scenario has no plan).
+    swing_pitch: per swinging foot, a (3,) [delta, delta_dot, delta_ddot] [rad, rad/s, rad/s^2]: a pitch about the
+        sole's lateral axis the plan offers on top of `feet`' rotation, shaped so that the swing ankle accelerates
+        less (`wbcbench.planning.swing_pitch`; zero at lift-off and touch-down); a controller takes it only when its
+        task set asks for it; empty: none offered.
     """
 
     t: float
@@ -184,21 +188,24 @@ class References:
     wrench_targets: dict = field(default_factory=dict)
     contact_poses: dict = field(default_factory=dict)
     lift_off: dict = field(default_factory=dict)
+    swing_pitch: dict = field(default_factory=dict)
 
     @classmethod
     def planned(cls, t: float, contacts: frozenset, com: PointReference | None, zmp: np.ndarray | None,
-                feet: dict, targets: dict | None = None, lift_off: dict | None = None) -> "References":
+                feet: dict, targets: dict | None = None, lift_off: dict | None = None,
+                swing_pitch: dict | None = None) -> "References":
         """A tick of a plan from values already checked (no stabilizer fields): as the constructor, without its
         per-field machinery (a walk or a teleoperation source makes one every tick)."""
         return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {},
-                           _NO_LIFT_OFF if lift_off is None else lift_off)
+                           _NO_LIFT_OFF if lift_off is None else lift_off,
+                           _NO_LIFT_OFF if swing_pitch is None else swing_pitch)
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict, feet: dict | None = None) -> "References":
         """A copy with the fields a stabilizer corrects replaced, and the feet's when given (`dataclasses.replace`
         without its per-field machinery: a stabilizer does this every tick)."""
         return _references(self.t, self.contacts, com, self.zmp, self.feet if feet is None else feet, targets,
-                           wrench_targets, contact_poses, self.lift_off)
+                           wrench_targets, contact_poses, self.lift_off, self.swing_pitch)
 
     def missing(self, names) -> list[str]:
         """The fields among `names` this tick leaves unset (None or empty)."""
@@ -216,14 +223,17 @@ _new = object.__new__
 _POINT_SET = tuple(PointReference.__dict__[n].__set__ for n in ("position", "velocity", "acceleration"))
 _POSE_SET = tuple(PoseReference.__dict__[n].__set__ for n in ("position", "rotation", "velocity", "acceleration"))
 _REFERENCE_SET = tuple(References.__dict__[n].__set__ for n in ("t", "contacts", "com", "zmp", "feet", "targets",
-                                                                "wrench_targets", "contact_poses", "lift_off"))
-_NO_LIFT_OFF: dict = {}  # shared by the references without a schedule ahead (never written)
+                                                                "wrench_targets", "contact_poses", "lift_off",
+                                                                "swing_pitch"))
+_NO_LIFT_OFF: dict = {}  # shared by the references without a schedule ahead or a swing pitch (never written)
 
 
-def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses, lift_off) -> References:
+def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses, lift_off,
+                swing_pitch) -> References:
     """A `References` of these fields (`References.planned`, `References.corrected`), set slot by slot."""
     new = _new(References)
-    t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_, lift_off_ = _REFERENCE_SET
+    (t_, contacts_, com_, zmp_, feet_, targets_, wrench_targets_, contact_poses_, lift_off_,
+     swing_pitch_) = _REFERENCE_SET
     t_(new, t)
     contacts_(new, contacts)
     com_(new, com)
@@ -233,6 +243,7 @@ def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_po
     wrench_targets_(new, wrench_targets)
     contact_poses_(new, contact_poses)
     lift_off_(new, lift_off)
+    swing_pitch_(new, swing_pitch)
     return new
 
 

@@ -33,7 +33,7 @@ from ..tasks.registry import TaskSpec, task_class
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
 from .base import Controller, register
 from .id_formulation import InverseDynamicsFormulation
-from .task_references import TaskReferences
+from .task_references import TaskReferences, with_swing_pitch
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 from .touchdown import TouchdownSearch
 
@@ -207,6 +207,9 @@ class InverseDynamicsController(Controller):
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
 
     def _set_references(self, refs: References) -> None:
+        if self.spec.swing_pitch_with_leg and refs.swing_pitch:  # the plan's swing that pitches with the leg
+            refs = refs.corrected(refs.com, refs.targets, refs.wrench_targets, refs.contact_poses,
+                                  feet=with_swing_pitch(refs.feet, refs.swing_pitch))
         self.references.apply(refs)
         if refs.contact_poses:
             self.formulation.set_contact_references(refs.contact_poses)

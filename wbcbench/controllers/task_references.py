@@ -5,11 +5,36 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+import numpy as np
+
 from ..side import Side
 from ..tasks import CoMTask, FrameTask, Task
-from ..types import References
+from ..types import PoseReference, References
 
-__all__ = ["TaskReferences"]
+__all__ = ["TaskReferences", "with_swing_pitch"]
+
+
+def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
+    """The swing feet's references with the plan's pitch offsets (`References.swing_pitch`) added: each foot's
+    rotation turned about its own lateral (y) axis by delta, the angular velocity and acceleration (world axes)
+    with delta's rate and acceleration about that axis (the axis turning with the planned rotation); positions and
+    feet without an offset (or without a rotation) as they are."""
+    out = dict(feet)
+    for side, d in pitch.items():
+        foot = feet.get(side)
+        if foot is None or foot.rotation is None:
+            continue
+        delta, rate, acc = float(d[0]), float(d[1]), float(d[2])
+        R = foot.rotation
+        c, s = np.cos(delta), np.sin(delta)
+        R_new = R @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        y = R[:, 1]
+        v = np.array(foot.velocity, dtype=float)
+        a = np.array(foot.acceleration, dtype=float)
+        a[3:] += y * acc + np.cross(v[3:], y) * rate
+        v[3:] += y * rate
+        out[side] = PoseReference(foot.position, R_new, v, a)
+    return out
 
 
 class TaskReferences:

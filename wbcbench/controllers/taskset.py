@@ -66,7 +66,9 @@ class TaskSetSpec:
     the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
     configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
-    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults."""
+    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
+    `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): an inverse-dynamics controller adds the pitch the plan
+    offers (`References.swing_pitch`) to its swing feet's references."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -82,6 +84,7 @@ class TaskSetSpec:
     base_feedback: "BaseFeedbackConfig | None" = None
     touchdown_search: "TouchdownSearchConfig | None" = None
     step_adjustment: tuple[tuple[str, object], ...] | None = None
+    swing_pitch_with_leg: bool = False
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -197,6 +200,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     sw = root.section("swing_foot")
     sw.data.setdefault("type", "frame")
     sw.data.setdefault("frame", "left_foot")
+    pitch_with_leg = sw.bool("pitch_with_leg", False)
     swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
     stab = None
@@ -245,7 +249,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
-                       file=file)
+                       swing_pitch_with_leg=pitch_with_leg, file=file)
     reg.finish()
     root.finish()
     return spec

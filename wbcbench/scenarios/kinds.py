@@ -122,7 +122,9 @@ class WalkScenario(Scenario):
     first_side (left|right), step_width (default: the feet's initial separation), max_step_length [m] (the
     reach limit the plan is checked against, default 0.65), com_height [m] (the CoM height above the soles while
     walking, default: the initial one; a lower one is reached by a quintic descent during the initial double
-    support, before the ZMP first moves, and the preview controller's cart-table height is set to it).
+    support, before the ZMP first moves, and the preview controller's cart-table height is set to it),
+    swing_pitch_max [rad] (the bound of the swing-foot pitch the references offer, `References.swing_pitch`, see
+    wbcbench.planning.swing_pitch; default 0.3, 0: none offered).
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
@@ -153,6 +155,7 @@ class WalkScenario(Scenario):
         self.width = params.float("step_width", 0.0, min=0.0)
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
+        self.swing_pitch_max = params.float("swing_pitch_max", 0.3, min=0.0)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment"):
             self.step_adjustment, self._step_adjustment_given = _parse_step_adjustment(
@@ -211,6 +214,13 @@ class WalkScenario(Scenario):
             raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
         self.plan = plan
         self.base_offset = q0[:3] - com0
+        if self.swing_pitch_max > 0.0:
+            from ..planning.swing_pitch import LegGeometry, SwingPitchConfig
+            try:
+                self.legs = LegGeometry.from_robot(self.robot, q0, com0)
+                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max)
+            except PlanningError:  # a model without an ankle-knee-hip chain: no swing pitch offered
+                self.legs = self.swing_pitch = None
         self.adjuster = None
         if self.step_adjustment is not None:
             from ..planning.step_adjustment import StepAdjuster
@@ -261,9 +271,9 @@ class WalkScenario(Scenario):
     def references(self, t):
         w = self.walk
         table = self._table
-        if table is None or table.walk is not w:
-            table = self._tabulate(w)
         k = min(int(round(t / w.dt)), w.n_ticks - 1)
+        if table is None or table.walk is not w:
+            table = self._tabulate(w, None if table is None else (k, table.pitch))
         i = k - table.k0  # among the references made ahead (`_WalkTable.make_ahead`)?
         if 0 <= i < len(table.ahead):
             ref = table.ahead[i]
@@ -273,8 +283,14 @@ class WalkScenario(Scenario):
 
     _table = None
 
-    def _tabulate(self, walk) -> "_WalkTable":
-        self._table = _WalkTable(walk)
+    #: the leg geometry and settings of the swing pitch offered with the references (`References.swing_pitch`), set
+    #: by `setup` (None: none offered)
+    legs = swing_pitch = None
+
+    def _tabulate(self, walk, previous=None) -> "_WalkTable":
+        """The table of `walk`; previous: (tick, the swing pitch of the table it replaces from that tick on)."""
+        self._table = _WalkTable(walk, self.legs, self.swing_pitch,
+                                 previous if previous is not None and previous[1] is not None else None)
         return self._table
 
     def metrics(self, log):
@@ -299,10 +315,12 @@ class WalkScenario(Scenario):
 class _WalkTable:
     """A walk's references, tick by tick, from arrays arranged once per walk (a re-plan makes a new walk): the
     contact set of every tick, the swing feet's 6-D velocities and accelerations (linear, zero angular), the
-    planned lift-offs ahead (`References.lift_off`: one dict per stance phase, shared by its ticks), and the rows
+    planned lift-offs ahead (`References.lift_off`: one dict per stance phase, shared by its ticks), the swing
+    pitch offered with the swing feet (`References.swing_pitch`, from `legs` and `pitch_config`, continuing a
+    replaced table's `previous` (tick, pitch) through a re-plan; None: none offered), and the rows
     that `references` hands out as they are (the plan's arrays, checked here once)."""
 
-    def __init__(self, walk):
+    def __init__(self, walk, legs=None, pitch_config=None, previous=None):
         self.walk = walk
         n = walk.n_ticks
         self.com = tuple(_checked_rows(a, (3,), "CoM") for a in (walk.p_world_com, walk.v_world_com, walk.a_world_com))
@@ -319,6 +337,11 @@ class _WalkTable:
                        _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
         self.code = code.tolist()
         self.lift_off = _lift_off_by_tick([walk.feet[s].in_contact[:n] for s in Side], walk.dt)
+        pitch = None
+        if legs is not None:
+            from ..planning.swing_pitch import plan_swing_pitch
+            pitch = plan_swing_pitch(walk, legs, pitch_config, previous)
+        self.pitch = pitch
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
         self.swinging = [[(s, feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
@@ -346,9 +369,11 @@ class _WalkTable:
         feet = {}
         for s, (p, R, v, a) in self.swinging[code]:
             feet[s] = PoseReference.unchecked(p[k], R[k], v[k], a[k])
+        pitch = self.pitch
+        pitch = {s: pitch[s][k] for s in feet} if pitch is not None and feet else None
         p, v, a = self.com
         return References.planned(t, self.contacts[code], PointReference.unchecked(p[k], v[k], a[k]), self.zmp[k],
-                                  feet, None, self.lift_off[k])
+                                  feet, None, self.lift_off[k], pitch)
 
 
 def _lift_off_by_tick(in_contact: list, dt: float) -> list[dict]:

@@ -1,0 +1,238 @@
+"""A swing-foot pitch that follows the leg: the plan's offer of a swing in which the foot's pitch is shaped so
+that the swing ankle's pitch joint accelerates less than it must to hold the foot at its planned orientation.
+
+Why: with the leaving foot unloaded, a swing ankle's torque is mostly its rotor's (TALOS carries an armature on
+every actuated joint), I_rotor q_a_ddot. In the sagittal plane the ankle pitch is q_a = theta_foot - theta_shank,
+so holding the foot level makes the ankle take every acceleration of the shank, which swings through about a
+radian while the pelvis moves on. A foot that pitches a little with the shank (toe down after lift-off, up
+before touch-down, as a human's) takes part of it.
+
+The shank's pitch over a swing is predicted from the plan: the hip follows the CoM plan at its offset from the
+CoM at the start (turned with the walk's heading), the ankle the sole plan at its offset in the sole frame, and
+a two-link leg (thigh and shank lengths of the model) in the foot's sagittal plane gives the shank. The pitch
+offset about the sole's lateral axis,
+
+    delta(s) = s^3 (1 - s)^3 sum_k c_k P_k(2 s - 1),   s = (t - t_lift-off) / T_swing,
+
+(P_k Legendre polynomials; zero value, rate and acceleration at lift-off and touch-down: the foot leaves and
+lands at its planned orientation, at rest) minimises
+
+    int (q_a_ddot)^2 dt,   q_a_ddot = theta_foot_ddot - theta_shank_ddot + delta_ddot,
+
+(a small QP) with |delta| <= max_pitch and the sole's lower end (toe or heel, at the sole's half length plus
+its centre offset) above the lower end of the swing (to 0.1 mm). It is an offer: a controller whose
+task set asks for it (`swing_foot.pitch_with_leg`) adds it to the planned orientation; the others ignore it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import Polynomial
+from numpy.polynomial import legendre as _legendre
+
+from ..errors import PlanningError
+from ..qp.problem import QPProblem
+from ..qp.registry import make_solver
+from ..side import Side
+
+__all__ = ["LegGeometry", "SwingPitchConfig", "swing_pitch_offsets", "plan_swing_pitch"]
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """What the prediction of a swing shank needs of a robot, per side.
+
+    Attributes:
+        hip_offset: side -> (3,) hip (the leg's root joint) relative to the CoM at the start, in the walking frame [m].
+        ankle_in_sole: side -> (3,) ankle joint in the sole frame [m].
+        thigh, shank: side -> lengths hip-knee and knee-ankle [m].
+        lever: distance from the sole origin to its farther end along the foot [m] (toe or heel clearance).
+    """
+
+    hip_offset: Mapping
+    ankle_in_sole: Mapping
+    thigh: Mapping
+    shank: Mapping
+    lever: float
+
+    @classmethod
+    def from_robot(cls, robot, q0: np.ndarray, com0: np.ndarray, yaw0: float = 0.0) -> "LegGeometry":
+        """From the model at the initial configuration q0 (CoM com0, walking heading yaw0 [rad]): the ankle is the
+        sole frame's parent joint, the knee the first joint up the chain at least 0.1 m from it, the hip the leg's
+        root (the joint on the floating base)."""
+        import pinocchio as pin
+
+        model = robot.model
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, q0)
+        c, s = np.cos(yaw0), np.sin(yaw0)
+        Rz_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        hip, ankle, thigh, shank = {}, {}, {}, {}
+        for side in Side:
+            fid = robot.sole_frame_id(side)
+            M = data.oMf[fid]
+            j = model.frames[fid].parentJoint
+            chain = [j]
+            while model.parents[chain[-1]] > 1:  # up to the leg's root (its parent: the floating base)
+                chain.append(model.parents[chain[-1]])
+            pos = [data.oMi[k].translation for k in chain]
+            knee = next((k for k in range(1, len(chain) - 1) if np.linalg.norm(pos[k] - pos[0]) >= 0.1), None)
+            if knee is None:
+                raise PlanningError(f"swing pitch: no ankle-knee-hip chain above the {side.value} sole")
+            a, kn, h = pos[0], pos[knee], pos[-1]
+            hip[side] = Rz_t @ (h - com0)
+            ankle[side] = M.rotation.T @ (a - M.translation)
+            thigh[side] = float(np.linalg.norm(kn - h))
+            shank[side] = float(np.linalg.norm(a - kn))
+        sole = robot.profile.sole
+        return cls(hip, ankle, thigh, shank, float(sole.length / 2 + abs(sole.center[0])))
+
+
+@dataclass(frozen=True)
+class SwingPitchConfig:
+    """max_pitch: bound of |delta| [rad]; clearance: the height [m] the sole's lower end keeps above the swing's
+    lower end wherever the foot pitches (none below it); n_basis: polynomials P_0 .. P_{n-1}."""
+
+    max_pitch: float = 0.3
+    clearance: float = 0.005
+    n_basis: int = 8
+
+    def __post_init__(self):
+        if not np.isfinite(self.max_pitch) or self.max_pitch < 0.0:
+            raise PlanningError(f"SwingPitchConfig.max_pitch must be >= 0 [rad], got {self.max_pitch!r}")
+        if not np.isfinite(self.clearance) or self.clearance < 0.0:
+            raise PlanningError(f"SwingPitchConfig.clearance must be >= 0 [m], got {self.clearance!r}")
+        if int(self.n_basis) != self.n_basis or self.n_basis < 1:
+            raise PlanningError(f"SwingPitchConfig.n_basis must be a positive integer, got {self.n_basis!r}")
+
+
+_SOLVER = make_solver("daqp")
+
+
+def _basis(n_basis: int) -> tuple[list, list]:
+    """The basis polynomials in s and their second derivatives."""
+    w = Polynomial([0.0, 0.0, 0.0, 1.0]) * Polynomial([1.0, -1.0]) ** 3  # s^3 (1 - s)^3
+    out = []
+    for k in range(n_basis):
+        coef = np.zeros(k + 1)
+        coef[k] = 1.0
+        pk = Polynomial(_legendre.leg2poly(coef))(Polynomial([-1.0, 2.0]))  # P_k(2 s - 1)
+        out.append(w * pk)
+    return out, [p.deriv(1) for p in out], [p.deriv(2) for p in out]
+
+
+def _pitch(R: np.ndarray) -> np.ndarray:
+    """Pitch of rotations (n, 3, 3) about their own lateral axis: the angle of the x axis below the horizontal."""
+    x = R[:, :, 0]
+    return np.arctan2(-x[:, 2], np.hypot(x[:, 0], x[:, 1]))
+
+
+def swing_pitch_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_world_sole: np.ndarray,
+                        R_world_sole: np.ndarray, side: Side, legs: LegGeometry,
+                        config: SwingPitchConfig = SwingPitchConfig()) -> tuple[np.ndarray, np.ndarray]:
+    """One swing: the offset (n, 3) [delta, delta_dot, delta_ddot] [rad, rad/s, rad/s^2] at the times t (lift-off
+    first, touch-down last), and the predicted ankle pitch acceleration without it (n,) [rad/s^2].
+
+    p_world_com (n, 3), yaw (n,) the walk's CoM and heading; p_world_sole (n, 3), R_world_sole (n, 3, 3) the
+    planned sole."""
+    n = len(t)
+    T = float(t[-1] - t[0])
+    if n < 8 or T <= 0.0:
+        z = np.zeros((n, 3))
+        return z, np.zeros(n)
+    c, s_ = np.cos(yaw), np.sin(yaw)
+    h = legs.hip_offset[side]
+    hip = p_world_com + np.column_stack([c * h[0] - s_ * h[1], s_ * h[0] + c * h[1], np.full(n, h[2])])
+    ankle = p_world_sole + R_world_sole @ legs.ankle_in_sole[side]
+    fwd = R_world_sole[:, :, 0].copy()
+    fwd[:, 2] = 0.0
+    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
+    d = ankle - hip
+    dx, dz = np.einsum("ij,ij->i", d, fwd), d[:, 2]
+    l1, l2 = legs.thigh[side], legs.shank[side]
+    r = np.clip(np.hypot(dx, dz), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+    psi = np.arctan2(dx, -dz)
+    beta = np.arccos(np.clip((l2 * l2 + r * r - l1 * l1) / (2.0 * l2 * r), -1.0, 1.0))
+    q_ankle = _pitch(R_world_sole) + (psi - beta)  # foot pitch - shank pitch (shank pitch = -(psi - beta))
+    dt = T / (n - 1)
+    acc = np.gradient(np.gradient(q_ankle, dt), dt)
+    # the foot pitches while its sole is `clearance` above the swing's lower end, |delta| bounded by max_pitch and
+    # by the room of the sole's lower end (toe or heel) above that height
+    z_low = min(p_world_sole[0, 2], p_world_sole[-1, 2])
+    room = (p_world_sole[:, 2] - z_low - config.clearance) / legs.lever
+    inside = np.flatnonzero(room > 0.0)
+    out = np.zeros((n, 3))
+    if len(inside) < 8 or config.max_pitch == 0.0:
+        return out, acc
+    i0, i1 = inside[0] - 1, inside[-1] + 1  # the pitch window [t[i0], t[i1]]: delta = 0 at both ends, at rest
+    w = slice(i0, i1 + 1)
+    Tw = float(t[i1] - t[i0])
+    s = (t[w] - t[i0]) / Tw
+    P, dP, ddP = _basis(config.n_basis)
+    B = np.column_stack([p(s) for p in P])
+    B1 = np.column_stack([p(s) for p in dP]) / Tw
+    B2 = np.column_stack([p(s) for p in ddP]) / Tw**2
+    bound = np.minimum(config.max_pitch, np.arcsin(np.clip(room[w], 0.0, 1.0)))
+    # min ||acc + B2 c||^2 dt over the window (+ a small ridge), |B c| <= bound on every tick inside it
+    H = dt * (B2.T @ B2) + 1e-9 * np.eye(len(P))
+    g = dt * (B2.T @ acc[w])
+    rows = slice(1, len(s) - 1)
+    res = _SOLVER.solve(QPProblem(H, g, C=B[rows], l=-bound[rows], u=bound[rows]))
+    if not res.ok:
+        return out, acc
+    coef = res.x
+    out[w] = np.column_stack([B @ coef, B1 @ coef, B2 @ coef])
+    return out, acc
+
+
+def _to_rest(state: np.ndarray, T: float, s: np.ndarray) -> np.ndarray:
+    """(len(s), 3): the quintic from `state` [delta, delta_dot, delta_ddot] at s = 0 to rest at s = 1, over T [s]."""
+    h = sum(x * T**j * q for j, (x, q) in enumerate(zip(state, _TO_REST)))
+    return np.column_stack([h(s), h.deriv(1)(s) / T, h.deriv(2)(s) / T**2])
+
+
+_TO_REST = (Polynomial([1.0, 0.0, 0.0, -10.0, 15.0, -6.0]), Polynomial([0.0, 1.0, 0.0, -6.0, 8.0, -3.0]),
+            Polynomial([0.0, 0.0, 0.5, -1.5, 1.5, -0.5]))
+
+
+def plan_swing_pitch(walk, legs: LegGeometry, config: SwingPitchConfig = SwingPitchConfig(),
+                     previous: tuple[int, Mapping] | None = None) -> dict:
+    """Per side, (n_ticks, 3) [delta, delta_dot, delta_ddot] over the walk (`WalkTrajectory`): each swing's
+    `swing_pitch_offsets`, zero in contact. The heading is the mean yaw of the two planned soles.
+
+    previous: (tick, offsets) when `walk` replaces another from that tick on (an online re-plan, e.g. step
+    adjustment): the swing under way at the tick keeps the previous offsets up to it and goes from their state
+    there back to level and at rest by its touch-down (a quintic, no jump in the reference); no other swing
+    pitches (measured: pitching the re-planned steps lowered the largest push TSID torque survives with step
+    adjustment, forwards 75 -> 67.5 and backwards 67.5 -> 60 N s)."""
+    n = walk.n_ticks
+    dt = walk.dt
+    yaws = np.unwrap(np.stack([np.arctan2(walk.feet[s].R_world_sole[:n, 1, 0], walk.feet[s].R_world_sole[:n, 0, 0])
+                               for s in Side]), axis=1)
+    yaw = yaws.mean(axis=0)
+    out = {}
+    for side in Side:
+        f = walk.feet[side]
+        air = ~np.asarray(f.in_contact[:n], dtype=bool)
+        offs = np.zeros((n, 3))
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], air.astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            # the swing from the last tick in contact to the first tick back in contact
+            lo, hi = max(a - 1, 0), min(b, n - 1)
+            sl = slice(lo, hi + 1)
+            if previous is not None:
+                k, old = previous[0], previous[1].get(side)
+                if old is not None and lo < k <= hi and k < len(old):
+                    offs[lo:k] = old[lo:k]
+                    if hi > k:
+                        offs[k:hi + 1] = _to_rest(old[k], (hi - k) * dt, np.arange(hi + 1 - k) / (hi - k))
+                continue
+            t = np.arange(lo, hi + 1) * dt
+            d, _ = swing_pitch_offsets(t, walk.p_world_com[sl], yaw[sl], f.p_world_sole[sl], f.R_world_sole[sl],
+                                       side, legs, config)
+            offs[sl] = d
+        out[side] = offs
+    return out
