@@ -126,6 +126,34 @@ def test_ctrl_c_keeps_the_log_and_says_so(tmp_path: Path):
     assert summary["sim_time_s"] == pytest.approx(log["t"][-1], abs=0.002) or summary["sim_time_s"] >= log["t"][-1]
 
 
+def test_ctrl_c_inside_a_compiled_call_is_an_interruption_not_a_crash(talos, tmp_path: Path):
+    """A Ctrl-C that lands while a compiled kernel calls back into the interpreter comes out of the kernel as a
+    SystemError caused by the KeyboardInterrupt (seen under load in the test above): the run is interrupted, with
+    its log and summary, not a controller crash."""
+    import json
+
+    from wbcbench.controllers.joint_pd import JointPD
+    from wbcbench.runner import RunInterrupted, run
+    from wbcbench.types import ActuationMode
+
+    class Interrupted(JointPD):
+        def step(self, meas, refs):
+            if meas.t >= 0.05:
+                try:
+                    raise KeyboardInterrupt
+                except KeyboardInterrupt as exc:
+                    raise SystemError("a kernel returned a result with an exception set") from exc
+            return super().step(meas, refs)
+
+    out = tmp_path / "r"
+    with pytest.raises(RunInterrupted, match="interrupted at t ="):
+        run("stand", Interrupted(talos, ActuationMode.TORQUE, 0.001), talos, out=out, duration=0.2)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and not summary["fell"] and summary["fall_reason"] is None
+    assert not (out / "error.txt").exists()
+    assert 0.04 <= summary["sim_time_s"] <= 0.06
+
+
 def test_full_disk_during_logging_is_one_line_and_keeps_the_log(tmp_path: Path, monkeypatch):
     """The disk fills after 2000 ticks: one WbcError naming the log and the time, the flushed ticks readable."""
     import errno

@@ -430,8 +430,11 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     except KeyboardInterrupt:  # Ctrl-C: stop here, keep the log and say so in the summary
         interrupted = True
     except Exception as exc:  # a crash in a controller: keep the log, say why
-        fell, reason = True, f"error: {type(exc).__name__}: {exc}"
-        error = traceback.format_exc()
+        if _from_interrupt(exc):  # Ctrl-C inside a compiled call, which re-raised it as another error
+            interrupted = True
+        else:
+            fell, reason = True, f"error: {type(exc).__name__}: {exc}"
+            error = traceback.format_exc()
     finally:
         _close_quietly(rec)
         if gc_paused:
@@ -575,6 +578,18 @@ class _PlanError(Exception):
     def __init__(self, error: Exception):
         super().__init__(str(error))
         self.error = error
+
+
+def _from_interrupt(exc: BaseException) -> bool:
+    """Whether an error was caused by a Ctrl-C: a KeyboardInterrupt raised while a compiled kernel was calling back
+    into the interpreter comes out of the kernel as a SystemError whose cause is the interrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 class _ContactFlags(dict):
