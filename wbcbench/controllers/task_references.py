@@ -31,9 +31,12 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
         y = R[:, 1]
         v = np.array(foot.velocity, dtype=float)
         a = np.array(foot.acceleration, dtype=float)
-        a[3:] += y * acc + np.cross(v[3:], y) * rate
+        # omega x y, written out (numpy's cross, the same products and differences, costs 13 us a call)
+        wx, wy, wz = v[3:].tolist()
+        yx, yy, yz = y.tolist()
+        a[3:] += y * acc + np.array([wy * yz - wz * yy, wz * yx - wx * yz, wx * yy - wy * yx]) * rate
         v[3:] += y * rate
-        out[side] = PoseReference(foot.position, R_new, v, a)
+        out[side] = PoseReference.unchecked(np.asarray(foot.position, dtype=float), R_new, v, a)
     return out
 
 
