@@ -3,6 +3,7 @@ the inverse-dynamics and the kinematic formulations (a velocity-level task ignor
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -24,18 +25,18 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
         foot = feet.get(side)
         if foot is None or foot.rotation is None:
             continue
-        delta, rate, acc = float(d[0]), float(d[1]), float(d[2])
+        delta, rate, acc = (float(x) for x in d)
         R = foot.rotation
-        c, s = np.cos(delta), np.sin(delta)
+        c, s = math.cos(delta), math.sin(delta)
         R_new = R @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-        y = R[:, 1]
-        v = np.array(foot.velocity, dtype=float)
-        a = np.array(foot.acceleration, dtype=float)
-        # omega x y, written out (numpy's cross, the same products and differences, costs 13 us a call)
-        wx, wy, wz = v[3:].tolist()
-        yx, yy, yz = y.tolist()
-        a[3:] += y * acc + np.array([wy * yz - wz * yy, wz * yx - wx * yz, wx * yy - wy * yx]) * rate
-        v[3:] += y * rate
+        # in floats, term by term as numpy would (v_w += y rate, a_w += y acc + (omega x y) rate): a tick's few
+        # numbers cost less than numpy's small-array calls
+        yx, yy, yz = R[:, 1].tolist()
+        v0, v1, v2, wx, wy, wz = np.asarray(foot.velocity, dtype=float).tolist()
+        a0, a1, a2, ax, ay, az = np.asarray(foot.acceleration, dtype=float).tolist()
+        v = np.array([v0, v1, v2, wx + yx * rate, wy + yy * rate, wz + yz * rate])
+        a = np.array([a0, a1, a2, ax + (yx * acc + (wy * yz - wz * yy) * rate),
+                      ay + (yy * acc + (wz * yx - wx * yz) * rate), az + (yz * acc + (wx * yy - wy * yx) * rate)])
         out[side] = PoseReference.unchecked(np.asarray(foot.position, dtype=float), R_new, v, a)
     return out
 
