@@ -145,20 +145,3 @@ def test_the_fast_reference_constructors_set_every_field():
         assert getattr(fixed, n) is getattr(expect, n) or getattr(fixed, n) == getattr(expect, n), n
     p = PointReference.unchecked(com.position, com.velocity, com.acceleration)
     assert p == com
-
-
-def test_dcm_stabilizer_keys_for_a_compliant_robot():
-    """`adm_damping` and `dcm_velocity_cutoff_hz` in a task set's `stabilizer:` section (off by default, the
-    paper's law); a bad value is one ConfigError naming the key."""
-    from wbcbench.errors import ConfigError
-    from wbcbench.stabilizers.balance import BalanceStabilizer
-
-    base = {"kp_adm": 16.0, "kp_dcm": 8.0, "ki_dcm": 1.0, "kz_dcm": 1.0}
-    gains = BalanceStabilizer.parse(Section(base, "ts.yaml", "stabilizer"))
-    assert gains.adm_damping == 0.0 and gains.dcm_velocity_cutoff_hz is None
-    gains = BalanceStabilizer.parse(Section({**base, "adm_damping": 4, "dcm_velocity_cutoff_hz": 0.5}, "ts.yaml",
-                                            "stabilizer"))
-    assert gains.adm_damping == 4.0 and gains.dcm_velocity_cutoff_hz == 0.5
-    for key, bad in (("adm_damping", -1.0), ("dcm_velocity_cutoff_hz", 0.0), ("dcm_velocity_cutoff_hz", "fast")):
-        with pytest.raises(ConfigError, match=f"stabilizer.{key}"):
-            BalanceStabilizer.parse(Section({**base, key: bad}, "ts.yaml", "stabilizer"))

@@ -31,16 +31,10 @@ class BalanceStabilizer(Stabilizer):
     @classmethod
     def parse(cls, sec: Section) -> DcmGains:
         cutoff = sec.raw("zmp_cutoff_hz", None)
-        velocity_cutoff = sec.raw("dcm_velocity_cutoff_hz", None)
         gains = DcmGains(kp_adm=sec.float("kp_adm", min=0.0), kp_dcm=sec.float("kp_dcm", min=0.0),
                          ki_dcm=sec.float("ki_dcm", min=0.0), kz_dcm=sec.float("kz_dcm", min=0.0),
                          integral_limit=sec.float("integral_limit", 0.1, positive=True),
-                         zmp_cutoff_hz=None if cutoff is None else sec.float("zmp_cutoff_hz", positive=True),
-                         adm_damping=sec.float("adm_damping", 0.0, min=0.0),
-                         dcm_velocity_cutoff_hz=(None if velocity_cutoff is None
-                                                 else sec.float("dcm_velocity_cutoff_hz", positive=True)),
-                         zmp_lead=sec.float("zmp_lead", 0.0, min=0.0),
-                         zmp_lead_cutoff_hz=sec.float("zmp_lead_cutoff_hz", 10.0, positive=True))
+                         zmp_cutoff_hz=None if cutoff is None else sec.float("zmp_cutoff_hz", positive=True))
         sec.finish()
         return gains
 

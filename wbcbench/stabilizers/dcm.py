@@ -17,13 +17,7 @@ As in the TALOS balance stack (sot-talos-balance), the integral is updated after
 position is the one reached at the end of the tick under c_ddot*. Extras, all optional: a first-order
 low-pass on the measured ZMP (cut-off in Hz; SIM-NOTES: 20 Hz made the torque-mode loop stable, 5 Hz broke
 the position-mode one, so it is off by default), a clamp on the DCM error integral (anti-windup), a leak on
-that integral, a clamp on the CoM offset, a damping of the admittance (the offset's acceleration loses
-`adm_damping` times the offset's velocity) and a DCM whose CoM velocity is the commanded one (the planned
-velocity plus the offset's) with the measured-minus-commanded difference low-passed (`dcm_velocity_cutoff_hz`).
-
-The last two are for a position-controlled robot whose joint servos yield under load: there the measured CoM
-follows the commanded one through a lightly damped compliance (the whole body swaying on the servos' stiffness),
-and the DCM's velocity feedback taken through that compliance pumps its sway mode (see README, Uneven terrain).
+that integral, and a clamp on the CoM offset.
 """
 
 from __future__ import annotations
@@ -109,14 +103,6 @@ class DcmGains:
         integral_leak: leak rate of that integral [1/s]: I += (e - leak I) dt (0: pure integral).
         zmp_cutoff_hz: cut-off of a first-order low-pass on the measured ZMP [Hz]; None: unfiltered.
         com_offset_limit: clamp on each horizontal axis of the corrected-minus-planned CoM [m]; None: no clamp.
-        adm_damping: damping of the CoM admittance [1/s]: the offset's acceleration c_ddot* - c_ddot_ref loses
-            adm_damping times the offset's velocity (0: the paper's double integration).
-        dcm_velocity_cutoff_hz: the measured DCM's CoM velocity taken as the commanded one (planned plus the
-            offset's, last tick) plus the measured-minus-commanded velocity low-passed at this cut-off [Hz]; None:
-            the measured velocity as it is (the paper's).
-        zmp_lead: phase lead on the measured ZMP [s]: z + zmp_lead dz/dt, the derivative of z low-passed (first
-            order) at zmp_lead_cutoff_hz; 0: none (the paper's).
-        zmp_lead_cutoff_hz: that low-pass's cut-off [Hz].
     """
 
     kp_adm: float = 15.0
@@ -127,16 +113,11 @@ class DcmGains:
     integral_leak: float = 0.0
     zmp_cutoff_hz: float | None = None
     com_offset_limit: float | None = None
-    adm_damping: float = 0.0
-    dcm_velocity_cutoff_hz: float | None = None
-    zmp_lead: float = 0.0
-    zmp_lead_cutoff_hz: float = 10.0
 
     def __post_init__(self) -> None:
-        _check("DcmGains", "zmp_lead_cutoff_hz", self.zmp_lead_cutoff_hz, positive=True)
-        for name in ("kp_adm", "kp_dcm", "ki_dcm", "kz_dcm", "integral_leak", "adm_damping", "zmp_lead"):
+        for name in ("kp_adm", "kp_dcm", "ki_dcm", "kz_dcm", "integral_leak"):
             _check("DcmGains", name, getattr(self, name))
-        for name in ("integral_limit", "zmp_cutoff_hz", "com_offset_limit", "dcm_velocity_cutoff_hz"):
+        for name in ("integral_limit", "zmp_cutoff_hz", "com_offset_limit"):
             _check("DcmGains", name, getattr(self, name), optional=True, positive=True)
 
 
@@ -234,21 +215,14 @@ class DcmStabilizer:
         self.dt = float(dt)
         self.omega = natural_frequency(com_height, gravity)
         self._filter = FirstOrderLowPass(gains.zmp_cutoff_hz, dt) if gains.zmp_cutoff_hz is not None else None
+        # `_step`'s constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
         g = gains
-        # the low-pass gain of the measured-minus-commanded CoM velocity (`dcm_velocity_cutoff_hz`)
-        self._velocity_alpha = (float(1.0 - np.exp(-2.0 * np.pi * g.dcm_velocity_cutoff_hz * dt))
-                                if g.dcm_velocity_cutoff_hz is not None else 0.0)
-        self._lead_alpha = float(1.0 - np.exp(-2.0 * np.pi * g.zmp_lead_cutoff_hz * dt))
-        # `_step`'s constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt,
-        # the admittance's damping, the commanded-velocity DCM's switch and its low-pass gain, the ZMP lead [s]
-        # and its low-pass gain
         self._constants = np.array([
             g.kp_adm, g.kp_dcm, g.ki_dcm, g.kz_dcm, g.integral_leak,
             g.integral_limit is not None, g.integral_limit or 0.0,
             g.com_offset_limit is not None, g.com_offset_limit or 0.0,
             self._filter is not None, self._filter.alpha if self._filter is not None else 0.0,
-            self.omega, self.dt, g.adm_damping, g.dcm_velocity_cutoff_hz is not None, self._velocity_alpha,
-            g.zmp_lead, self._lead_alpha])
+            self.omega, self.dt])
         self.reset()
 
     def reset(self) -> None:
@@ -257,8 +231,6 @@ class DcmStabilizer:
         self._offset_p = np.zeros(2)
         self._offset_v = np.zeros(2)
         self._filtered = None  # the ZMP filter's output (2,), None until its first sample
-        self._velocity_difference = np.zeros(2)  # the low-passed measured-minus-commanded CoM velocity
-        self._lead = None  # the ZMP lead's low-passed ZMP (2,), None until its first sample
         if self._filter is not None:
             self._filter.reset()
 
@@ -303,15 +275,10 @@ class DcmStabilizer:
         fresh = filtered is None
         if fresh:
             filtered = np.zeros(2)
-        lead = self._lead
-        state = np.concatenate((self._integral, self._offset_p, self._offset_v, filtered, self._velocity_difference,
-                                np.zeros(2) if lead is None else lead))
-        if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, fresh, lead is None, state, out):
+        state = np.concatenate((self._integral, self._offset_p, self._offset_v, filtered))
+        if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, fresh, state, out):
             return self._step_numpy(c_ref, v_ref, a_ref, z_ref, c, v, z)  # raises, naming the bad input
         self._integral, self._offset_p, self._offset_v = state[0:2], state[2:4], state[4:6]
-        self._velocity_difference = state[8:10]
-        if self.gains.zmp_lead:
-            self._lead = state[10:12]
         if self._filter is not None:
             self._filtered = state[6:8]
         return DcmStabilizerOutput(out[0:3], out[3:6], out[6:9], out[9:11], out[11:13], out[13:15], out[15:17],
@@ -336,23 +303,12 @@ class DcmStabilizer:
             z = self._filter(z)
             self._filtered = z.copy()
         omega, dt = self.omega, self.dt
-        if g.zmp_lead:  # z + T dz/dt, the derivative of the low-passed ZMP
-            y_old = z if self._lead is None else self._lead
-            self._lead = y_old + self._lead_alpha * (z - y_old)
-            z = z + g.zmp_lead * ((self._lead - y_old) / dt)
-        if g.dcm_velocity_cutoff_hz is not None:  # the commanded velocity, the measured one's departure low-passed
-            v_cmd = v_ref[:2] + self._offset_v
-            d = self._velocity_difference
-            self._velocity_difference = d + self._velocity_alpha * ((v - v_cmd) - d)
-            v = v_cmd + self._velocity_difference
         xi_ref = dcm_from_com(c_ref[:2], v_ref[:2], omega)
         xi = dcm_from_com(c, v, omega)
         z_star = dcm_pi_zmp(z_ref, xi_ref, xi, z, self._integral, omega, g.kp_dcm, g.ki_dcm, g.kz_dcm)
         a_star = com_admittance(a_ref[:2], z, z_star, g.kp_adm)
-        # Integrate c_ddot* relative to the plan: offset'' = c_ddot* - c_ddot_ref (- adm_damping offset').
+        # Integrate c_ddot* relative to the plan: offset'' = c_ddot* - c_ddot_ref.
         da = a_star - a_ref[:2]
-        if g.adm_damping:
-            da = da - g.adm_damping * self._offset_v
         self._offset_p = self._offset_p + (self._offset_v + (0.5 * dt) * da) * dt
         self._offset_v = self._offset_v + da * dt
         if g.com_offset_limit is not None:
@@ -390,42 +346,29 @@ def _finite(x, n):
 
 
 @njit(exact=True)
-def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, lead_fresh, state, out):
+def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     """`DcmStabilizer.step`'s arithmetic, element by element in the numpy code's order. ``k``: the
-    stabilizer's `_constants`; ``state`` (12,): integral, CoM offset position, velocity, the ZMP filter's last
-    output (``fresh``: none yet), the low-passed measured-minus-commanded CoM velocity, the ZMP lead's low-passed
-    ZMP (``lead_fresh``: none yet), updated in place;
-    ``out`` (20,): CoM position, velocity, acceleration (3 each), z*, filtered measured ZMP, measured DCM, planned DCM (2 each), integral saturated (2, 0 / 1). Returns False
+    stabilizer's `_constants`; ``state`` (8,): integral, CoM offset position, velocity, the ZMP filter's last
+    output (``fresh``: none yet), updated in place; ``out`` (20,): CoM position, velocity, acceleration (3 each),
+    z*, filtered measured ZMP, measured DCM, planned DCM (2 each), integral saturated (2, 0 / 1). Returns False
     (nothing changed) when an input is not finite."""
     if not (_finite(c_ref, 3) and _finite(v_ref, 3) and _finite(a_ref, 3) and _finite(z_ref, 2) and _finite(c, 2)
             and _finite(v, 2) and _finite(z, 2)):
         return False
     kp_adm, kp_dcm, ki_dcm, kz_dcm, leak = k[0], k[1], k[2], k[3], k[4]
     omega, dt = k[11], k[12]
-    damping = k[13]
     for i in range(2):
         zi = z[i]
         if k[9] != 0.0:  # the ZMP's low-pass: y += alpha (u - y), the first sample as it is
             zi = zi if fresh else state[6 + i] + k[10] * (zi - state[6 + i])
             state[6 + i] = zi
-        if k[16] != 0.0:  # the ZMP's lead: z + T dz/dt of the low-passed ZMP
-            y_old = zi if lead_fresh else state[10 + i]
-            state[10 + i] = y_old + k[17] * (zi - y_old)
-            zi = zi + k[16] * ((state[10 + i] - y_old) / dt)
-        vi = v[i]
-        if k[14] != 0.0:  # the commanded velocity, the measured one's departure low-passed
-            v_cmd = v_ref[i] + state[4 + i]
-            state[8 + i] = state[8 + i] + k[15] * ((vi - v_cmd) - state[8 + i])
-            vi = v_cmd + state[8 + i]
         xi_ref = c_ref[i] + v_ref[i] / omega
-        xi = c[i] + vi / omega
+        xi = c[i] + v[i] / omega
         err = xi_ref - xi
         z_star = (z_ref[i] - (1.0 + kp_dcm / omega) * err + (kz_dcm / omega) * (z_ref[i] - zi)
                   - (ki_dcm / omega) * state[i])
         a_star = a_ref[i] + kp_adm * (zi - z_star)
         da = a_star - a_ref[i]
-        if damping != 0.0:
-            da = da - damping * state[4 + i]
         p = state[2 + i] + (state[4 + i] + (0.5 * dt) * da) * dt
         vel = state[4 + i] + da * dt
         out[6 + i] = a_star
