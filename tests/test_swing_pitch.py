@@ -121,3 +121,14 @@ def test_a_replan_brings_the_swing_pitch_under_way_back_to_level(talos):
     other[lo:td + 1] = False
     assert not new[side][other].any() and not new[Side.RIGHT].any()
     assert fresh[Side.RIGHT].any()  # the right foot's swings, fresh, do pitch
+
+
+def test_a_run_plans_the_swing_pitch_only_for_a_controller_that_takes_it(talos, tmp_path):
+    """The walk plans the pitch (about 20 ms a walk, again at each re-plan) for tsid-torque, whose task set takes it,
+    not for IK, whose does not; the same scenario object follows each run's controller."""
+    scen = load_scenario("walk-20cm-quick", talos)
+    run(scen, "ik", talos, out=tmp_path / "ik", duration=0.05)
+    assert scen.legs is None and scen.references(3.0).swing_pitch == {}
+    run(scen, "tsid-torque", talos, out=tmp_path / "torque", duration=0.05)
+    assert scen.legs is not None and scen.references(3.0).swing_pitch
+    assert _walk(talos, "walk-20cm-quick").legs is not None  # outside a run: offered

@@ -261,6 +261,8 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
     ts = getattr(ctrl, "spec", None)  # the controller's task set may carry its own step-adjustment settings
     if getattr(ts, "step_adjustment", None) and hasattr(scen, "adopt_step_adjustment"):
         scen.adopt_step_adjustment(dict(ts.step_adjustment), ts.file)
+    if hasattr(scen, "offer_swing_pitch"):  # a walk plans the swing pitch only for a controller that takes it
+        scen.offer_swing_pitch = getattr(ts, "swing_pitch_with_leg", True)
     scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
     duration = spec.duration if spec.duration > 0 else scen.planned_duration
     n_ticks = int(round(duration / spec.control_dt))

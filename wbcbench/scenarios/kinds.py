@@ -214,7 +214,8 @@ class WalkScenario(Scenario):
             raise ConfigError(f"invalid walk: {exc}", file=self.spec.file, key="params") from None
         self.plan = plan
         self.base_offset = q0[:3] - com0
-        if self.swing_pitch_max > 0.0:
+        self.legs = self.swing_pitch = None
+        if self.swing_pitch_max > 0.0 and self.offer_swing_pitch:
             from ..planning.swing_pitch import LegGeometry, SwingPitchConfig
             try:
                 self.legs = LegGeometry.from_robot(self.robot, q0, com0)
@@ -286,6 +287,9 @@ class WalkScenario(Scenario):
     #: the leg geometry and settings of the swing pitch offered with the references (`References.swing_pitch`), set
     #: by `setup` (None: none offered)
     legs = swing_pitch = None
+    #: whether `setup` plans the swing pitch at all (about 20 ms a walk, and again at each re-plan): a run whose
+    #: controller's task set does not take it switches it off (`runner`); other callers get it
+    offer_swing_pitch = True
 
     def _tabulate(self, walk, previous=None) -> "_WalkTable":
         """The table of `walk`; previous: (tick, the swing pitch of the table it replaces from that tick on)."""
