@@ -181,14 +181,14 @@ class TSIDTeleop(InverseDynamicsController):
             raise ConfigError(f"arm_torque_share must be a finite number >= 0, got {arm_torque_share!r}",
                               key="arm_torque_share")
         self.arm_torque_share = share
-        self._arm_v = (arm_joints(robot) if self.mode is not ActuationMode.TORQUE and share > 0.0
-                       else np.zeros(0, dtype=np.intp))
+        arms, none = arm_joints(robot), np.zeros(0, dtype=np.intp)
+        self._arm_v = arms if self.mode is not ActuationMode.TORQUE and share > 0.0 else none
         self._arm_saved = np.zeros((2, self._arm_v.size))
         self.n_arm_bounds_dropped = 0
         # SPD and position modes: the gain c of the arms' velocity references on their tracking error (`step`)
         self.arm_damping_injection = (float(spec.arm_damping_injection) if self.mode is not ActuationMode.TORQUE
                                       else 0.0)
-        self._arm_damped = arm_joints(robot) if self.arm_damping_injection > 0.0 else np.zeros(0, dtype=np.intp)
+        self._arm_damped = arms if self.arm_damping_injection > 0.0 else none
         self._sole_center = np.array([*robot.profile.sole.center, 0.0])
         self._feet_nominal: dict = {}
         self._feet_nominal_arrays = None
