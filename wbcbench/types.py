@@ -197,8 +197,8 @@ class References:
         """A tick of a plan from values already checked (no stabilizer fields): as the constructor, without its
         per-field machinery (a walk or a teleoperation source makes one every tick)."""
         return _references(t, contacts, com, zmp, feet, {} if targets is None else targets, {}, {},
-                           _NO_LIFT_OFF if lift_off is None else lift_off,
-                           _NO_LIFT_OFF if swing_pitch is None else swing_pitch)
+                           _NONE_AHEAD if lift_off is None else lift_off,
+                           _NONE_AHEAD if swing_pitch is None else swing_pitch)
 
     def corrected(self, com: PointReference | None, targets: dict, wrench_targets: dict,
                   contact_poses: dict, feet: dict | None = None) -> "References":
@@ -225,7 +225,7 @@ _POSE_SET = tuple(PoseReference.__dict__[n].__set__ for n in ("position", "rotat
 _REFERENCE_SET = tuple(References.__dict__[n].__set__ for n in ("t", "contacts", "com", "zmp", "feet", "targets",
                                                                 "wrench_targets", "contact_poses", "lift_off",
                                                                 "swing_pitch"))
-_NO_LIFT_OFF: dict = {}  # shared by the references without a schedule ahead or a swing pitch (never written)
+_NONE_AHEAD: dict = {}  # shared by the references without a schedule ahead or a swing pitch (never written)
 
 
 def _references(t, contacts, com, zmp, feet, targets, wrench_targets, contact_poses, lift_off,
