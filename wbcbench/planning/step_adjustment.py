@@ -54,6 +54,12 @@ __all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk
 REPLAN_FROM = ("measured", "planned", "dcm")
 
 
+#: the settings that must be > 0 and >= 0 (`StepAdjustmentConfig`, `parse_settings`)
+_POSITIVE = ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
+             "max_single_support", "min_remaining", "w_step", "w_time", "w_offset")
+_NONNEGATIVE = ("min_clearance", "min_change", "contact_force", "deadband")
+
+
 @dataclass(frozen=True)
 class StepAdjustmentConfig:
     """Settings of the step adjustment.
@@ -108,15 +114,14 @@ class StepAdjustmentConfig:
         if self.replan_from not in REPLAN_FROM:
             raise PlanningError(f"StepAdjustmentConfig.replan_from: unknown {self.replan_from!r}; allowed: "
                                 f"{', '.join(REPLAN_FROM)}")
-        for name in ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
-                     "max_single_support", "min_remaining", "w_step", "w_time", "w_offset"):
+        for name in _POSITIVE:
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or v <= 0.0:
                 raise PlanningError(f"StepAdjustmentConfig.{name} must be > 0, got {v!r}")
         if not 0.0 <= self.deadband < self.threshold:
             raise PlanningError(f"StepAdjustmentConfig.deadband must be >= 0 and below threshold ({self.threshold} m), "
                                 f"got {self.deadband!r}")
-        for name in ("min_clearance", "min_change", "contact_force"):
+        for name in _NONNEGATIVE:  # (the deadband checked above)
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or v < 0.0:
                 raise PlanningError(f"StepAdjustmentConfig.{name} must be >= 0, got {v!r}")
@@ -132,9 +137,6 @@ class StepAdjustmentConfig:
         return cls(**{**base, **overrides})
 
 
-_POSITIVE = ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
-             "max_single_support", "min_remaining", "w_step", "w_time", "w_offset")
-_NONNEGATIVE = ("min_clearance", "min_change", "contact_force", "deadband")
 
 
 def parse_settings(sec, defaults: StepAdjustmentConfig | None = None) -> dict:
