@@ -137,8 +137,6 @@ class StepAdjustmentConfig:
         return cls(**{**base, **overrides})
 
 
-
-
 def parse_settings(sec, defaults: StepAdjustmentConfig | None = None) -> dict:
     """The settings of a `step_adjustment:` section (a `wbcbench.config.Section`; errors name its file and key) as
     keyword arguments of `StepAdjustmentConfig`: every field, the missing ones from `defaults`; without
