@@ -75,5 +75,5 @@ def test_base_feedback_keeps_ik_on_its_plan(talos, tmp_path):
     res = run("side-step-1m-quick", ctrl, talos, out=tmp_path)
     s = res.summary
     assert not s["fell"], s["fall_reason"]
-    assert 1e-3 < np.hypot(*ctrl.base_feedback.drift[:2]) < 0.1
+    assert 1e-3 < np.hypot(*ctrl.corrections.base_feedback.drift[:2]) < 0.1
     assert s["metrics"]["final_position_error_m"] < 0.01

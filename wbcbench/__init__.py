@@ -31,6 +31,7 @@ _EXPORTS = {
     "InverseDynamicsFormulation": "wbcbench.controllers.id_formulation",
     "KinematicHierarchy": "wbcbench.controllers.ik_formulation",
     "TaskReferences": "wbcbench.controllers.task_references",
+    "PlanCorrections": "wbcbench.controllers.plan_corrections",
     "Stabilizer": "wbcbench.stabilizers.base", "register_stabilizer": "wbcbench.stabilizers.base",
     "register_task": "wbcbench.tasks",
     # vocabulary

@@ -21,19 +21,18 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
-from ..estimation.base_feedback import BaseFeedback
 from ..qp import HierarchicalSolver
 from ..robots import Robot
 from ..side import Side
-from ..stabilizers.base import Stabilizer, make_stabilizer
+from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
 from .base import Controller, register
 from .ik_formulation import KinematicHierarchy
 from .inverse_dynamics import build_task
+from .plan_corrections import PlanCorrections
 from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path
-from .touchdown import TouchdownSearch
 
 MAX_LEVELS = 8
 
@@ -74,18 +73,18 @@ class IKController(Controller):
         self.level_names = K.level_names
         self.references = TaskReferences(self.tasks, swing)
         self.solver = HierarchicalSolver(m.nv, solver=spec.solver)
-        if stabilizer is None and spec.stabilizer is not None:
-            stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
-        self.stabilizer = stabilizer
-        # the plan mapped into the integrated model's world (estimation/base_feedback.py), when the task set asks
-        self.base_feedback = BaseFeedback(robot, dt, spec.base_feedback) if spec.base_feedback is not None else None
-        # a foot unloaded at its planned touch-down keeps descending until loaded (controllers/touchdown.py)
-        self.touchdown = TouchdownSearch(spec.touchdown_search) if spec.touchdown_search is not None else None
+        # touch-down search, base feedback and stabilizer, as the task set asks (plan_corrections.py)
+        self.corrections = PlanCorrections(robot, dt, spec, stabilizer)
         self.n_unmet = 0
         self.n_failed = 0
         self.unmet_levels = -1
         self.v = np.zeros(m.nv)
         self._t_pin = self._t_solve = 0.0
+
+    @property
+    def stabilizer(self) -> Stabilizer | None:
+        """The stabilizer in front of the solve (None: none), the task set's or the one given."""
+        return self.corrections.stabilizer
 
     def reset(self, meas: Measurement, refs: References) -> None:
         K = self.formulation
@@ -93,13 +92,7 @@ class IKController(Controller):
         self.v = np.zeros(self.model.nv)
         K.update(self.q_int)
         K.reset_references(self.robot.q0, refs.contacts)
-        if self.base_feedback is not None:
-            self.base_feedback.reset()
-        if self.touchdown is not None:
-            self.touchdown.reset()
-        if self.stabilizer is not None:
-            self.stabilizer.check(refs)
-            self.stabilizer.reset(meas, refs, ModelFeedback(self.q_int, frozenset(refs.contacts)))
+        self.corrections.reset(meas, refs, lambda: ModelFeedback(self.q_int, frozenset(refs.contacts)))
         self._warm_up()
 
     def _warm_up(self) -> None:
@@ -110,12 +103,7 @@ class IKController(Controller):
 
     def step(self, meas: Measurement, refs: References) -> Command:
         K = self.formulation
-        if self.touchdown is not None:
-            refs = self.touchdown.apply(meas, refs)
-        if self.base_feedback is not None:
-            refs = self.base_feedback.correct(meas, refs, self.q_int)
-        if self.stabilizer is not None:
-            refs = self.stabilizer.correct(meas, refs, ModelFeedback(self.q_int, refs.contacts))
+        refs = self.corrections.apply(meas, refs, self.q_int, self._stabilizer_feedback)
         t0 = perf_counter()
         K.update(self.q_int)
         self._t_pin = perf_counter() - t0
@@ -138,6 +126,10 @@ class IKController(Controller):
         self.q_int = pin.integrate(self.model, self.q_int, self.v * self.dt)
         return Command(q=self.q_int[7:].copy(), v=self.v[6:].copy())
 
+    def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
+        """What the stabilizer may know of the model: the integrated configuration and the planned contacts."""
+        return ModelFeedback(self.q_int, refs.contacts)
+
     @property
     def last_timing_us(self) -> dict[str, float]:
         return {"pinocchio": self._t_pin * 1e6, "solve": self._t_solve * 1e6}
@@ -155,7 +147,4 @@ class IKController(Controller):
         return vals
 
     def status(self) -> dict:
-        out = {"unmet_level_ticks": self.n_unmet, "solver_failed_ticks": self.n_failed}
-        if self.touchdown is not None:
-            out["touchdown_searches"] = self.touchdown.n_searches
-        return out
+        return self.corrections.status({"unmet_level_ticks": self.n_unmet, "solver_failed_ticks": self.n_failed})

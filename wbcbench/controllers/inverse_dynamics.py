@@ -25,17 +25,16 @@ import pinocchio as pin
 
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
-from ..estimation.base_feedback import BaseFeedback
 from ..robots import Robot, Side
-from ..stabilizers.base import Stabilizer, make_stabilizer
+from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
 from ..tasks.registry import TaskSpec, task_class
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
 from .base import Controller, register
 from .id_formulation import InverseDynamicsFormulation
+from .plan_corrections import PlanCorrections
 from .task_references import TaskReferences, with_swing_pitch
 from .taskset import TaskSetSpec, load_taskset, taskset_path
-from .touchdown import TouchdownSearch
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log values every tick)
 
@@ -109,16 +108,16 @@ class InverseDynamicsController(Controller):
         self.dv = np.zeros(self.nv)
         self.q_int = None
         self.v_int = None
-        if stabilizer is None and spec.stabilizer is not None:
-            stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
-        self.stabilizer = stabilizer
-        # the plan mapped into the integrated model's world (position mode only: torque mode feeds back the state)
-        self.base_feedback = (BaseFeedback(robot, dt, spec.base_feedback)
-                              if spec.base_feedback is not None and mode is not ActuationMode.TORQUE else None)
-        # a foot unloaded at its planned touch-down keeps descending until its F/T sensor reads a load (position
-        # mode only: in torque mode the contact forces press the foot down)
-        self.touchdown = (TouchdownSearch(spec.touchdown_search)
-                          if spec.touchdown_search is not None and mode is not ActuationMode.TORQUE else None)
+        # touch-down search, base feedback and stabilizer, as the task set asks (plan_corrections.py); the first two
+        # only in position and SPD modes (torque mode feeds back the measured state, and its contact forces press a
+        # landing foot down)
+        self.corrections = PlanCorrections(robot, dt, spec, stabilizer,
+                                           integrated_model=mode is not ActuationMode.TORQUE)
+
+    @property
+    def stabilizer(self) -> Stabilizer | None:
+        """The stabilizer in front of the solve (None: none), the task set's or the one given."""
+        return self.corrections.stabilizer
 
     # ------------------------------------------------------------------ limits (the formulation's, replaceable)
     @property
@@ -140,14 +139,9 @@ class InverseDynamicsController(Controller):
         F.reset_references(self.robot.q0, refs.contacts)
         from .joint_pd import JointPD
         self.fallback_pd = JointPD(self.robot, ActuationMode.TORQUE, self.dt)
-        if self.base_feedback is not None:
-            self.base_feedback.reset()
-        if self.touchdown is not None:
-            self.touchdown.reset()
         self._warm_up(meas)
-        if self.stabilizer is not None:
-            self.stabilizer.check(refs)
-            self.stabilizer.reset(meas, refs, self.feedback(at_reset=True))
+        # the stabilizer's feedback at reset holds the warm-up solve's wrenches
+        self.corrections.reset(meas, refs, lambda: self.feedback(at_reset=True))
 
     def _warm_up(self, meas: Measurement) -> None:
         """Assemble and solve this tick's QP once, without acting: the compiled kernels are compiled (or loaded
@@ -176,6 +170,9 @@ class InverseDynamicsController(Controller):
         task_refs = {t.name: t.reference for t in self.tasks if isinstance(t, FrameTask)}
         return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses, contact_refs, task_refs)
 
+    def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
+        return self.feedback()
+
     def _model_q(self) -> np.ndarray:
         return self.q_int
 
@@ -183,12 +180,8 @@ class InverseDynamicsController(Controller):
     def step(self, meas: Measurement, refs: References) -> Command:
         F = self.formulation
         q, v = self._state(meas)
-        if self.touchdown is not None:
-            refs = self.touchdown.apply(meas, refs)
-        if self.base_feedback is not None:
-            refs = self.base_feedback.correct(meas, refs, self.q_int)
-        if self.stabilizer is not None:  # on the model of the last solve (its wrenches and contact placements)
-            refs = self.stabilizer.correct(meas, refs, self.feedback())
+        # the stabilizer on the model of the last solve (its wrenches and contact placements)
+        refs = self.corrections.apply(meas, refs, self.q_int, self._stabilizer_feedback)
         t0 = perf_counter()
         F.update(q, v)
         self._t_pin = perf_counter() - t0
@@ -291,10 +284,7 @@ class InverseDynamicsController(Controller):
         return [self.qp_status, self.tau, self.stabilizer.log, wrenches[_LEFT], wrenches[_RIGHT], active]
 
     def status(self) -> dict:
-        out = {"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback}
-        if self.touchdown is not None:
-            out["touchdown_searches"] = self.touchdown.n_searches
-        return out
+        return self.corrections.status({"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback})
 
 
 @register
