@@ -132,3 +132,30 @@ def test_a_run_plans_the_swing_pitch_only_for_a_controller_that_takes_it(talos, 
     run(scen, "tsid-torque", talos, out=tmp_path / "torque", duration=0.05)
     assert scen.legs is not None and scen.references(3.0).swing_pitch
     assert _walk(talos, "walk-20cm-quick").legs is not None  # outside a run: offered
+
+
+def test_ik_takes_the_swing_pitch_when_its_task_set_asks(talos, tmp_path):
+    """The offer reaches any controller through its task set: IK with `swing_foot.pitch_with_leg` gives its swing
+    task the planned rotation turned by the plan's offset (toe down mid-swing) and walks the quick 20 cm walk
+    without a fall; with the shipped set (off) the swing task keeps the planned (level) rotation."""
+    from wbcbench.controllers.ik import IKController
+
+    spec = load_taskset(taskset_path(talos, "ik"), talos, max_level=8)
+    assert not spec.swing_pitch_with_leg
+    scen = _walk(talos, "walk-20cm-quick")
+    w = scen.walk
+    lo, td = _swings(w.feet[Side.LEFT], w.n_ticks)[0]
+    t = (lo + (td - lo) // 2) * w.dt
+    refs = scen.references(t)
+    delta = float(refs.swing_pitch[Side.LEFT][0])
+    assert delta > 0.05  # toe down mid-swing
+    planned = refs.feet[Side.LEFT].rotation
+    for on in (True, False):
+        ctrl = IKController(talos, ActuationMode.POSITION, 1e-3, replace(spec, swing_pitch_with_leg=on))
+        ctrl.references.apply(refs)
+        R = ctrl.references.free_tasks[Side.LEFT]._R_ref
+        turned = pin.log3(planned.T @ R)  # in the planned foot's frame
+        np.testing.assert_allclose(turned, [0.0, delta if on else 0.0, 0.0], atol=1e-12)
+    res = run("walk-20cm-quick", IKController(talos, ActuationMode.POSITION, 1e-3,
+                                              replace(spec, swing_pitch_with_leg=True)), talos, out=tmp_path)
+    assert not res.summary["fell"], res.summary["fall_reason"]

@@ -71,7 +71,7 @@ class IKController(Controller):
         self.data = K.data
         self.task_by_name = K.task_by_name
         self.level_names = K.level_names
-        self.references = TaskReferences(self.tasks, swing)
+        self.references = TaskReferences(self.tasks, swing, swing_pitch=spec.swing_pitch_with_leg)
         self.solver = HierarchicalSolver(m.nv, solver=spec.solver)
         # touch-down search, base feedback and stabilizer, as the task set asks (plan_corrections.py)
         self.corrections = PlanCorrections(robot, dt, spec, stabilizer)

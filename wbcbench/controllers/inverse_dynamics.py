@@ -33,7 +33,7 @@ from ..types import ActuationMode, Command, Measurement, ModelFeedback, Referenc
 from .base import Controller, register
 from .id_formulation import InverseDynamicsFormulation
 from .plan_corrections import PlanCorrections
-from .task_references import TaskReferences, with_swing_pitch
+from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log values every tick)
@@ -92,7 +92,7 @@ class InverseDynamicsController(Controller):
         self.data = F.data
         self.tasks = tasks
         self.task_by_name = F.task_by_name
-        self.references = TaskReferences(tasks, swing)
+        self.references = TaskReferences(tasks, swing, swing_pitch=spec.swing_pitch_with_leg)
         # Each QP first tries the active set of its previous optimum, accepted only with a KKT certificate, and
         # otherwise goes to the backend solved cold (see ActiveSetGuessSolver): standing or walking, the active
         # set rarely changes from one tick to the next.
@@ -200,9 +200,6 @@ class InverseDynamicsController(Controller):
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
 
     def _set_references(self, refs: References) -> None:
-        if self.spec.swing_pitch_with_leg and refs.swing_pitch:  # the plan's swing that pitches with the leg
-            refs = refs.corrected(refs.com, refs.targets, refs.wrench_targets, refs.contact_poses,
-                                  feet=with_swing_pitch(refs.feet, refs.swing_pitch))
         self.references.apply(refs)
         if refs.contact_poses:
             self.formulation.set_contact_references(refs.contact_poses)

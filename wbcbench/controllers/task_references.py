@@ -44,12 +44,15 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
 class TaskReferences:
     """Hands references to tasks: the CoM plan to every CoM task, each named target to the task of that name
     (unknown names are ignored: a scenario may serve several controllers), each swing-foot reference to the
-    free-motion task of that foot. A pose reference without a rotation keeps the task's current one."""
+    free-motion task of that foot. A pose reference without a rotation keeps the task's current one.
+    `swing_pitch` (the task set's `swing_foot.pitch_with_leg`): the swing feet's references take the plan's pitch
+    offsets (`References.swing_pitch`, `with_swing_pitch`)."""
 
-    def __init__(self, tasks: Sequence[Task], free_tasks: Mapping[Side, FrameTask]):
+    def __init__(self, tasks: Sequence[Task], free_tasks: Mapping[Side, FrameTask], swing_pitch: bool = False):
         self.com_tasks = tuple(t for t in tasks if isinstance(t, CoMTask))
         self.by_name = {t.name: t for t in tasks}
         self.free_tasks = dict(free_tasks)
+        self.swing_pitch = bool(swing_pitch)
 
     def apply(self, refs: References) -> None:
         com = refs.com
@@ -60,5 +63,8 @@ class TaskReferences:
             task = self.by_name.get(name)
             if task is not None:
                 task.set_pose(target.position, target.rotation, target.velocity, target.acceleration)
-        for side, foot in refs.feet.items():
+        feet = refs.feet
+        if self.swing_pitch and refs.swing_pitch:  # the plan's swing that pitches with the leg
+            feet = with_swing_pitch(feet, refs.swing_pitch)
+        for side, foot in feet.items():
             self.free_tasks[side].set_pose(foot.position, foot.rotation, foot.velocity, foot.acceleration)

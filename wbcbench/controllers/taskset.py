@@ -67,8 +67,8 @@ class TaskSetSpec:
     configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
     scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
-    `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): an inverse-dynamics controller adds the pitch the plan
-    offers (`References.swing_pitch`) to its swing feet's references."""
+    `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
+    (`References.swing_pitch`) to its swing feet's references (`TaskReferences`)."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
