@@ -35,7 +35,7 @@ from .centroidal import CentroidalConfig, CentroidalTrajectory, plan_centroidal
 from .contact_planner import ContactPlan, ContactPlannerConfig, plan_contacts
 from .footsteps import Footstep, FootstepPlan, StepTiming
 from .geometry import SoleRectangle, convex_hull
-from .swing import SwingTrajectory
+from .swing import SwingTrajectory, foot_arrays, write_swing
 from .terrain import ContactTerrain, sole_box
 from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTrajectory, WalkTrajectory
 from ..side import Side
@@ -188,22 +188,11 @@ def _feet(plan: FootstepPlan, swings: Sequence[SwingTrajectory], in_contact: Map
     arrays = {}
     for side in Side:
         foot = plan.initial_feet[side]
-        arrays[side] = {"p": np.tile(foot.p_world_sole, (n, 1)), "R": np.tile(foot.R_world_sole, (n, 1, 1)),
-                        "v": np.zeros((n, 3)), "w": np.zeros((n, 3)), "a": np.zeros((n, 3)),
-                        "dw": np.zeros((n, 3))}
+        arrays[side] = foot_arrays(foot.p_world_sole, foot.R_world_sole, n)
     events = []
     for i, (step, sw) in enumerate(zip(plan.steps, swings)):
         lo, td = int(round(sw.t_start / dt)), int(round(sw.t_end / dt))
-        sample = sw.sample(t[lo:td])
-        arr = arrays[step.side]
-        arr["p"][lo:td] = sample.p_world_sole
-        arr["R"][lo:td] = sample.R_world_sole
-        arr["v"][lo:td] = sample.v_world_sole
-        arr["w"][lo:td] = sample.w_world_sole
-        arr["a"][lo:td] = sample.a_world_sole
-        arr["dw"][lo:td] = sample.dw_world_sole
-        arr["p"][td:] = step.p_world_sole
-        arr["R"][td:] = step.R_world_sole
+        write_swing(arrays[step.side], sw.sample(t[lo:td]), lo, td, step.p_world_sole, step.R_world_sole)
         events.append(ContactEvent(ContactEventKind.LIFT_OFF, step.side, lo, lo * dt, i))
         events.append(ContactEvent(ContactEventKind.TOUCH_DOWN, step.side, td, td * dt, i))
     feet = {s: FootTrajectory(s, a["p"], a["R"], a["v"], a["w"], a["a"], a["dw"], in_contact[s])

@@ -36,7 +36,7 @@ from ..errors import PlanningError
 from .footsteps import Footstep, FootstepPlan
 from .preview_control import PreviewGains, preview_gains, simulate_preview
 from ..side import Side
-from .swing import SwingTrajectory, quintic_blend
+from .swing import SwingTrajectory, foot_arrays, quintic_blend, write_swing
 from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTrajectory, WalkTrajectory
 
 __all__ = ["ZmpTransfer", "PatternGeneratorConfig", "zmp_reference", "generate_walk"]
@@ -293,12 +293,7 @@ def _feet(plan: FootstepPlan, config: PatternGeneratorConfig, n: int
     arrays = {}
     for side in (Side.LEFT, Side.RIGHT):
         foot = plan.initial_feet[side]
-        arrays[side] = {
-            "p": np.tile(foot.p_world_sole, (n, 1)),
-            "R": np.tile(foot.R_world_sole, (n, 1, 1)),
-            "v": np.zeros((n, 3)), "w": np.zeros((n, 3)), "a": np.zeros((n, 3)), "dw": np.zeros((n, 3)),
-            "contact": np.ones(n, bool),
-        }
+        arrays[side] = {**foot_arrays(foot.p_world_sole, foot.R_world_sole, n), "contact": np.ones(n, bool)}
     events: list[ContactEvent] = []
     current = dict(plan.initial_feet)
     for i, step in enumerate(plan.steps):
@@ -306,17 +301,9 @@ def _feet(plan: FootstepPlan, config: PatternGeneratorConfig, n: int
         swing = SwingTrajectory.between(current[step.side], step, lo * dt, (td - lo) * dt,
                                         apex_height=config.swing_apex_height, apex_phase=config.swing_apex_phase,
                                         horizontal_window=config.swing_horizontal_window)
-        sample = swing.sample(t[lo:td])
         arr = arrays[step.side]
-        arr["p"][lo:td] = sample.p_world_sole
-        arr["R"][lo:td] = sample.R_world_sole
-        arr["v"][lo:td] = sample.v_world_sole
-        arr["w"][lo:td] = sample.w_world_sole
-        arr["a"][lo:td] = sample.a_world_sole
-        arr["dw"][lo:td] = sample.dw_world_sole
-        # From touch-down on: exactly on the footstep, at rest (zeros already there).
-        arr["p"][td:] = step.p_world_sole
-        arr["R"][td:] = step.R_world_sole
+        # the swing, then from touch-down on exactly on the footstep, at rest (zeros already there)
+        write_swing(arr, swing.sample(t[lo:td]), lo, td, step.p_world_sole, step.R_world_sole)
         arr["contact"][lo:td] = False
         events.append(ContactEvent(ContactEventKind.LIFT_OFF, step.side, lo, lo * dt, i))
         events.append(ContactEvent(ContactEventKind.TOUCH_DOWN, step.side, td, td * dt, i))

@@ -23,7 +23,7 @@ from ..errors import PlanningError
 from .footsteps import Footstep
 from .geometry import so3_log
 
-__all__ = ["quintic_blend", "SwingSample", "SwingTrajectory"]
+__all__ = ["quintic_blend", "SwingSample", "SwingTrajectory", "foot_arrays", "write_swing"]
 
 
 def quintic_blend(u: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -71,6 +71,27 @@ class SwingSample:
     w_world_sole: np.ndarray
     a_world_sole: np.ndarray
     dw_world_sole: np.ndarray
+
+
+def foot_arrays(p_world_sole: np.ndarray, R_world_sole: np.ndarray, n: int) -> dict[str, np.ndarray]:
+    """A foot's reference arrays over n ticks (`p`, `R`, `v`, `w`, `a`, `dw`, as `SwingSample`'s), at rest where
+    it stands."""
+    return {"p": np.tile(p_world_sole, (n, 1)), "R": np.tile(R_world_sole, (n, 1, 1)),
+            "v": np.zeros((n, 3)), "w": np.zeros((n, 3)), "a": np.zeros((n, 3)), "dw": np.zeros((n, 3))}
+
+
+def write_swing(arrays: dict[str, np.ndarray], sample: SwingSample, lo: int, td: int,
+                p_world_sole: np.ndarray, R_world_sole: np.ndarray) -> None:
+    """Into a foot's reference arrays (`foot_arrays`): the swing's sample over ticks [lo, td), and from the
+    touch-down tick td on the footstep's pose, at rest (the rates left as they are: zero after a touch-down)."""
+    arrays["p"][lo:td] = sample.p_world_sole
+    arrays["R"][lo:td] = sample.R_world_sole
+    arrays["v"][lo:td] = sample.v_world_sole
+    arrays["w"][lo:td] = sample.w_world_sole
+    arrays["a"][lo:td] = sample.a_world_sole
+    arrays["dw"][lo:td] = sample.dw_world_sole
+    arrays["p"][td:] = p_world_sole
+    arrays["R"][td:] = R_world_sole
 
 
 @dataclass(frozen=True, eq=False)
