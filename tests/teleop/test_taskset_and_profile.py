@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wbcbench.controllers.inverse_dynamics import build_task
+from wbcbench.tasks.registry import build_task
 from wbcbench.controllers.taskset import load_taskset, taskset_path
 from wbcbench.controllers.teleop import TSIDTeleop, teleop_taskset
 from wbcbench.errors import ConfigError, UnknownNameError

@@ -26,10 +26,10 @@ from ..robots import Robot
 from ..side import Side
 from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
+from ..tasks.registry import build_task
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
 from .base import Controller, register
 from .ik_formulation import KinematicHierarchy
-from .inverse_dynamics import build_task
 from .plan_corrections import PlanCorrections
 from .task_references import TaskReferences
 from .taskset import TaskSetSpec, load_taskset, taskset_path

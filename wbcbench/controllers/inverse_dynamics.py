@@ -28,7 +28,7 @@ from ..qp.registry import make_solver
 from ..robots import Robot, Side
 from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
-from ..tasks.registry import TaskSpec, task_class
+from ..tasks.registry import build_task
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
 from .base import Controller, register
 from .id_formulation import InverseDynamicsFormulation
@@ -39,11 +39,6 @@ from .taskset import TaskSetSpec, load_taskset, taskset_path
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log values every tick)
 
 QP_OK, QP_RELAXED, QP_FALLBACK = 0, 1, 2
-
-
-def build_task(robot: Robot, spec: TaskSpec):
-    """A task object of the task library from its spec (through the task registry)."""
-    return task_class(spec.type).from_spec(robot, spec)
 
 
 class InverseDynamicsController(Controller):

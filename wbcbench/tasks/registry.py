@@ -22,7 +22,7 @@ from ..errors import UnknownNameError
 if TYPE_CHECKING:  # pragma: no cover
     from .task import Task
 
-__all__ = ["TaskSpec", "register_task", "resolve_frame", "task_class", "task_types"]
+__all__ = ["TaskSpec", "build_task", "register_task", "resolve_frame", "task_class", "task_types"]
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,11 @@ def task_class(name: str, *, file: str | None = None, key: str | None = None) ->
     if name not in types:
         raise UnknownNameError("task type", name, types, file=file, key=key)
     return types[name]
+
+
+def build_task(robot: Any, spec: TaskSpec) -> Task:
+    """A task object of the task library from its spec (through the registry), for any formulation."""
+    return task_class(spec.type).from_spec(robot, spec)
 
 
 def resolve_frame(robot: Any, frame: str) -> str:
