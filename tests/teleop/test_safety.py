@@ -179,3 +179,19 @@ def test_bad_safety_params_name_the_key(talos, safety, needle):
     with pytest.raises(ConfigError) as err:
         TeleopScenario.from_source(talos, "arms_down", duration=1.0, safety=safety)
     assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_interleaved_interventions_are_one_event_each(talos, start):
+    """A clamp of one kind that lasts (counted every tick) is one event from its first to its last tick, even
+    when another kind on the same effector comes and goes between its ticks."""
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    flt._count(0.0, "left_hand", "speed")
+    for k in range(1, 30):
+        flt._count(k * DT, "left_hand", "speed")
+        if k % 2:
+            flt._count(k * DT, "left_hand", "acceleration")
+    flt._count(0.5, "left_hand", "speed")  # later: a new event
+    events = [(e["kind"], e["t"], e["t_last"]) for e in flt.summary()["events"]]
+    assert events == [("speed", 0.0, pytest.approx(29 * DT)), ("acceleration", DT, pytest.approx(29 * DT)),
+                      ("speed", 0.5, 0.5)]
+    assert flt.counts["speed"]["left_hand"] == 31 and flt.counts["acceleration"]["left_hand"] == 15

@@ -174,6 +174,7 @@ class CommandFilter:
         self.dt = dt
         self.counts = {k: {} for k in FILTER_KINDS}
         self.events: list[dict] = []
+        self._open: dict[tuple[str, str], dict] = {}  # each (effector, kind)'s latest event, extended while it lasts
         self.flags = np.zeros(len(FILTER_KINDS))
         self._last: dict[str, pin.SE3] = {}
         self._t_prev: float | None = None
@@ -256,12 +257,14 @@ class CommandFilter:
         c = self.counts[kind]
         c[effector] = c.get(effector, 0) + 1
         self.flags[FILTER_KINDS.index(kind)] = 1.0
-        if len(self.events) < _MAX_EVENTS and (not self.events or self.events[-1]["kind"] != kind
-                                                or self.events[-1]["effector"] != effector
-                                                or t - self.events[-1]["t_last"] > 2 * self.dt):
-            self.events.append({"t": t, "t_last": t, "effector": effector, "kind": kind})
-        elif self.events and self.events[-1]["kind"] == kind and self.events[-1]["effector"] == effector:
-            self.events[-1]["t_last"] = t
+        # an event is a run of ticks with the same intervention on the same effector (gaps up to 2 ticks), whatever
+        # else happens between them (a speed and an acceleration clamp alternate on a fast hand)
+        ev = self._open.get((effector, kind))
+        if ev is not None and t - ev["t_last"] < 2.5 * self.dt:
+            ev["t_last"] = t
+        elif len(self.events) < _MAX_EVENTS:
+            ev = self._open[(effector, kind)] = {"t": t, "t_last": t, "effector": effector, "kind": kind}
+            self.events.append(ev)
 
     def bind_rows(self, effectors) -> None:
         """Prepare `pass_rows` for references given as stacked rows of these effectors, in this order."""
