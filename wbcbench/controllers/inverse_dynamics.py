@@ -194,6 +194,7 @@ class InverseDynamicsController(Controller):
         self._t_pin = perf_counter() - t0
         self._set_references(refs)
         F.set_contacts(meas.t, refs.contacts, refs.lift_off)
+        self._set_contact_pitch(refs)
         solved = self._solve()
         if solved is None:
             return self._fallback(meas, list(F.active))
@@ -214,6 +215,16 @@ class InverseDynamicsController(Controller):
         if refs.contact_poses:
             self.formulation.set_contact_references(refs.contact_poses)
         self.formulation.set_wrench_targets(self._wrench_targets(refs))
+
+    def _set_contact_pitch(self, refs: References) -> None:
+        """A foot still in contact with a pitch offered about a sole edge (a toe-off before its lift-off): its
+        contact turns about that edge (`InverseDynamicsFormulation.set_contact_pitch`)."""
+        F = self.formulation
+        roll = None
+        if self.spec.swing_pitch_with_leg and refs.swing_pitch:
+            roll = {s: d for s, d in refs.swing_pitch.items() if len(d) > 3 and s not in refs.feet}
+        if roll or any(cs.contact.edge is not None for cs in F.contacts.values()):
+            F.set_contact_pitch(roll or {})
 
     def _wrench_targets(self, refs: References) -> dict | None:
         """The wrench targets of this tick (policy hook): the references'."""

@@ -50,6 +50,7 @@ class LegGeometry:
         ankle_in_sole: side -> (3,) ankle joint in the sole frame [m].
         thigh, shank: side -> lengths hip-knee and knee-ankle [m].
         lever: distance from the sole origin to its farther end along the foot [m] (toe or heel clearance).
+        toe: x of the sole's front edge in the sole frame [m]; sole_length: the sole's length [m] (a toe-off).
     """
 
     hip_offset: Mapping
@@ -57,6 +58,8 @@ class LegGeometry:
     thigh: Mapping
     shank: Mapping
     lever: float
+    toe: float = 0.0
+    sole_length: float = 0.0
 
     @classmethod
     def from_robot(cls, robot, q0: np.ndarray, com0: np.ndarray, yaw0: float = 0.0) -> "LegGeometry":
@@ -88,23 +91,28 @@ class LegGeometry:
             thigh[side] = float(np.linalg.norm(kn - h))
             shank[side] = float(np.linalg.norm(a - kn))
         sole = robot.profile.sole
-        return cls(hip, ankle, thigh, shank, float(sole.length / 2 + abs(sole.center[0])))
+        return cls(hip, ankle, thigh, shank, float(sole.length / 2 + abs(sole.center[0])),
+                   float(sole.center[0] + sole.length / 2), float(sole.length))
 
 
 @dataclass(frozen=True)
 class SwingPitchConfig:
     """max_pitch: bound of |delta| [rad]; clearance: the height [m] the sole's lower end keeps above the swing's
-    lower end wherever the foot pitches (none below it); n_basis: polynomials P_0 .. P_{n-1}."""
+    lower end wherever the foot pitches (none below it); n_basis: polynomials P_0 .. P_{n-1}; toe_off [s]: the
+    longest roll of a leaving foot about its toe before its lift-off (0: none; `toe_off_offsets`)."""
 
     max_pitch: float = 0.3
     clearance: float = 0.005
     n_basis: int = 8
+    toe_off: float = 0.0
 
     def __post_init__(self):
         if not np.isfinite(self.max_pitch) or self.max_pitch < 0.0:
             raise PlanningError(f"SwingPitchConfig.max_pitch must be >= 0 [rad], got {self.max_pitch!r}")
         if not np.isfinite(self.clearance) or self.clearance < 0.0:
             raise PlanningError(f"SwingPitchConfig.clearance must be >= 0 [m], got {self.clearance!r}")
+        if not np.isfinite(self.toe_off) or self.toe_off < 0.0:
+            raise PlanningError(f"SwingPitchConfig.toe_off must be >= 0 [s], got {self.toe_off!r}")
         if int(self.n_basis) != self.n_basis or self.n_basis < 1:
             raise PlanningError(f"SwingPitchConfig.n_basis must be a positive integer, got {self.n_basis!r}")
 
@@ -213,11 +221,12 @@ def plan_swing_pitch(walk, legs: LegGeometry, config: SwingPitchConfig = SwingPi
     yaws = np.unwrap(np.stack([np.arctan2(walk.feet[s].R_world_sole[:n, 1, 0], walk.feet[s].R_world_sole[:n, 0, 0])
                                for s in Side]), axis=1)
     yaw = yaws.mean(axis=0)
+    toe_off = config.toe_off > 0.0 and legs.sole_length > 0.0
     out = {}
     for side in Side:
         f = walk.feet[side]
         air = ~np.asarray(f.in_contact[:n], dtype=bool)
-        offs = np.zeros((n, 3))
+        offs = np.zeros((n, 4 if toe_off else 3))
         edges = np.flatnonzero(np.diff(np.concatenate([[0], air.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2]):
             # the swing from the last tick in contact to the first tick back in contact
@@ -230,9 +239,136 @@ def plan_swing_pitch(walk, legs: LegGeometry, config: SwingPitchConfig = SwingPi
                     if hi > k:
                         offs[k:hi + 1] = _to_rest(old[k], (hi - k) * dt, np.arange(hi + 1 - k) / (hi - k))
                 continue
+            if toe_off:
+                r0 = _roll_start(walk, side, lo, int(round(config.toe_off / dt)), legs.toe)
+                if hi - r0 >= 8:
+                    sl = slice(r0, hi + 1)
+                    t = np.arange(r0, hi + 1) * dt
+                    d, _ = toe_off_offsets(t, walk.p_world_com[sl], yaw[sl], f.p_world_sole[sl], f.R_world_sole[sl],
+                                           side, legs, legs.toe, legs.sole_length, config, n_roll=lo + 1 - r0)
+                    offs[sl, :3] = d
+                    offs[r0:hi, 3] = legs.toe  # the pivot, up to the touch-down (then the whole sole again)
+                continue
             t = np.arange(lo, hi + 1) * dt
             d, _ = swing_pitch_offsets(t, walk.p_world_com[sl], yaw[sl], f.p_world_sole[sl], f.R_world_sole[sl],
                                        side, legs, config)
             offs[sl] = d
         out[side] = offs
     return out
+
+
+def _roll_start(walk, side: Side, lo: int, n_roll: int, toe_x: float) -> int:
+    """The tick a toe-off before the lift-off after tick `lo` (the foot's last tick in contact) starts: `n_roll`
+    ticks before it, but not before the double support began (the other foot's touch-down) nor before the planned
+    ZMP has passed the foot's toe edge (the foot on its toe can no longer hold the ZMP behind it)."""
+    f = walk.feet[side]
+    other = walk.feet[Side.RIGHT if side is Side.LEFT else Side.LEFT]
+    k = lo
+    start = max(lo - n_roll, 0)
+    in_other = np.asarray(other.in_contact, dtype=bool)
+    while k > start and in_other[k - 1]:
+        k -= 1
+    # k: the first tick of the double support (or `start`); then the first tick with the ZMP ahead of the toe
+    toe = f.p_world_sole[lo] + f.R_world_sole[lo] @ np.array([toe_x, 0.0, 0.0])
+    fwd = f.R_world_sole[lo][:, 0]
+    ahead = (walk.p_world_zmp_ref[k:lo + 1] - toe) @ fwd >= 0.0
+    return k + int(np.argmax(ahead)) if ahead.any() else lo
+
+
+#: knot spacing [s] of the toe-off's pitch (quintic B-splines): a roll of a tenth of a second is a few of them
+_KNOT_SPACING = 0.04
+
+
+def _spline_basis(t: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quintic B-splines on uniform knots over [0, T] (at most `_KNOT_SPACING` apart), without the three at each
+    end: every combination is zero with its rate and acceleration at both ends. Values, first and second
+    derivatives at t (n,) -> three (n, m)."""
+    from scipy.interpolate import BSpline
+
+    k = 5
+    m = max(1, int(np.ceil(T / _KNOT_SPACING)))
+    knots = np.concatenate([np.zeros(k), np.linspace(0.0, T, m + 1), np.full(k, T)])
+    nb = len(knots) - k - 1
+    cols = range(3, nb - 3)
+    out = []
+    for nu in (0, 1, 2):
+        M = np.empty((len(t), len(cols)))
+        for j, i in enumerate(cols):
+            c = np.zeros(nb)
+            c[i] = 1.0
+            spl = BSpline(knots, c, k, extrapolate=False)
+            M[:, j] = np.nan_to_num(spl.derivative(nu)(t) if nu else spl(t))
+        out.append(M)
+    return out[0], out[1], out[2]
+
+
+def _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch_foot):
+    """The predicted ankle pitch (n,) [rad]: foot pitch `pitch_foot` minus the shank's (the two-link leg from the
+    hip, at its start offset from the CoM, to `ankle` (n, 3))."""
+    n = len(yaw)
+    c, s_ = np.cos(yaw), np.sin(yaw)
+    h = legs.hip_offset[side]
+    hip = p_world_com + np.column_stack([c * h[0] - s_ * h[1], s_ * h[0] + c * h[1], np.full(n, h[2])])
+    fwd = R_world_sole[:, :, 0].copy()
+    fwd[:, 2] = 0.0
+    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
+    d = ankle - hip
+    dx, dz = np.einsum("ij,ij->i", d, fwd), d[:, 2]
+    l1, l2 = legs.thigh[side], legs.shank[side]
+    r = np.clip(np.hypot(dx, dz), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+    psi = np.arctan2(dx, -dz)
+    beta = np.arccos(np.clip((l2 * l2 + r * r - l1 * l1) / (2.0 * l2 * r), -1.0, 1.0))
+    return pitch_foot + (psi - beta)
+
+
+def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_world_sole: np.ndarray,
+                    R_world_sole: np.ndarray, side: Side, legs: LegGeometry, toe_x: float, length: float,
+                    config: SwingPitchConfig = SwingPitchConfig(), iterations: int = 3, n_roll: int = 0,
+                    roll_weight: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """A swing that starts with a toe-off: the pitch delta about the sole's front edge (x = toe_x [m] in the sole
+    frame; delta > 0 lifts the heel) from the first time of `t` (the foot flat and at rest on the ground, its
+    roll about the toe starting) to the last (touch-down, flat and at rest), that minimises the predicted ankle
+    pitch acceleration over the whole window: the foot leaves the ground already turned with its shank.
+
+    delta is a sum of quintic B-splines on knots `_KNOT_SPACING` apart, zero with its rate and acceleration at
+    both ends (a roll of a tenth of a second takes a few knots); delta <= max_pitch, and the heel (`length`
+    [m] behind the toe) `clearance` above the swing's lower end or delta >= 0 while the sole is lower (on the
+    ground: the foot turns about its toe only heel up). The first `n_roll` ticks (the roll, the foot on the
+    ground) weigh `roll_weight` in the sum. The ankle moves with the turn (about the toe), so the
+    prediction of the shank is iterated `iterations` times from delta = 0. Returns (n, 3) [delta, delta_dot,
+    delta_ddot] and the predicted ankle pitch acceleration (n,) [rad/s^2] of the flat foot."""
+    n = len(t)
+    T = float(t[-1] - t[0])
+    out = np.zeros((n, 3))
+    if n < 8 or T <= 0.0:
+        return out, np.zeros(n)
+    dt = T / (n - 1)
+    pe = np.array([toe_x, 0.0, 0.0])
+    toe = p_world_sole + R_world_sole @ pe
+    a_rel = legs.ankle_in_sole[side] - pe
+    pitch0 = _pitch(R_world_sole)
+    B, B1, B2 = _spline_basis(t - t[0], T)
+    z_low = min(p_world_sole[0, 2], p_world_sole[-1, 2])
+    room = (p_world_sole[:, 2] - z_low - config.clearance) / length
+    lower = -np.arcsin(np.clip(room, 0.0, 1.0))
+    upper = np.full(n, config.max_pitch)
+    rows = slice(1, n - 1)
+    wt = np.full(n, dt)
+    wt[:n_roll] *= roll_weight  # the roll's ankle acceleration weighs less: the foot still carries (a little)
+    H = (B2.T * wt) @ B2 + 1e-9 * np.eye(B.shape[1])
+    delta = np.zeros(n)
+    acc_flat = None
+    for _ in range(max(1, iterations)):
+        c, s_ = np.cos(delta), np.sin(delta)
+        turned = np.column_stack([c * a_rel[0] + s_ * a_rel[2], np.full(n, a_rel[1]), -s_ * a_rel[0] + c * a_rel[2]])
+        ankle = toe + np.einsum("nij,nj->ni", R_world_sole, turned)
+        q_a = _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch0)  # without delta's own
+        acc = np.gradient(np.gradient(q_a, dt), dt)
+        if acc_flat is None:
+            acc_flat = acc
+        res = _SOLVER.solve(QPProblem(H, (B2.T * wt) @ acc, C=B[rows], l=lower[rows], u=upper[rows]))
+        if not res.ok:
+            return np.zeros((n, 3)), acc_flat
+        delta = B @ res.x
+    out[:] = np.column_stack([B @ res.x, B1 @ res.x, B2 @ res.x])
+    return out, acc_flat

@@ -124,7 +124,9 @@ class WalkScenario(Scenario):
     walking, default: the initial one; a lower one is reached by a quintic descent during the initial double
     support, before the ZMP first moves, and the preview controller's cart-table height is set to it),
     swing_pitch_max [rad] (the bound of the swing-foot pitch the references offer, `References.swing_pitch`, see
-    wbcbench.planning.swing_pitch; default 0.3, 0: none offered).
+    wbcbench.planning.swing_pitch; default 0.3, 0: none offered), toe_off [s] (the longest roll of a leaving foot
+    about its toe edge before its lift-off, with the swing's pitch about that edge: `toe_off_offsets`; default 0,
+    none; not with step adjustment).
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
@@ -156,6 +158,7 @@ class WalkScenario(Scenario):
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
         self.swing_pitch_max = params.float("swing_pitch_max", 0.3, min=0.0)
+        self.toe_off = params.float("toe_off", 0.0, min=0.0)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment"):
             self.step_adjustment, self._step_adjustment_given = _parse_step_adjustment(
@@ -219,10 +222,14 @@ class WalkScenario(Scenario):
             from ..planning.swing_pitch import LegGeometry, SwingPitchConfig
             try:
                 self.legs = LegGeometry.from_robot(self.robot, q0, com0)
-                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max)
+                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max, toe_off=self.toe_off)
             except PlanningError:  # a model without an ankle-knee-hip chain: no swing pitch offered
                 self.legs = self.swing_pitch = None
         self.adjuster = None
+        if self.step_adjustment is not None and self.toe_off > 0.0:
+            raise ConfigError("toe_off and step_adjustment do not go together (a re-plan does not continue a "
+                              "toe-off under way): set toe_off: 0 or switch the step adjustment off",
+                              file=self.spec.file, key="params.toe_off")
         if self.step_adjustment is not None:
             from ..planning.step_adjustment import StepAdjuster
             self.adjuster = StepAdjuster(self.walk, self.step_adjustment, self.pg_config, sep)
@@ -346,6 +353,13 @@ class _WalkTable:
             from ..planning.swing_pitch import plan_swing_pitch
             pitch = plan_swing_pitch(walk, legs, pitch_config, previous)
         self.pitch = pitch
+        # the ticks on which a foot in contact turns about its toe (a toe-off)
+        self.rolling = [False] * n
+        if pitch is not None and pitch[Side.LEFT].shape[1] > 3:
+            roll = np.zeros(n, dtype=bool)
+            for bit, s in enumerate(Side):
+                roll |= (pitch[s][:n, 3] != 0.0) & ((code >> bit) & 1).astype(bool)
+            self.rolling = roll.tolist()
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
         self.swinging = [[(s, feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
@@ -374,7 +388,10 @@ class _WalkTable:
         for s, (p, R, v, a) in self.swinging[code]:
             feet[s] = PoseReference.unchecked(p[k], R[k], v[k], a[k])
         pitch = self.pitch
-        pitch = {s: pitch[s][k] for s in feet} if pitch is not None and feet else None
+        if pitch is not None and self.rolling[k]:  # a toe-off: the leaving foot turns about its toe, in contact
+            pitch = {s: pitch[s][k] for s in Side if s in feet or pitch[s][k, 3] != 0.0}
+        else:
+            pitch = {s: pitch[s][k] for s in feet} if pitch is not None and feet else None
         p, v, a = self.com
         return References.planned(t, self.contacts[code], PointReference.unchecked(p[k], v[k], a[k]), self.zmp[k],
                                   feet, None, self.lift_off[k], pitch)
