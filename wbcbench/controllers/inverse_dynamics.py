@@ -222,7 +222,7 @@ class InverseDynamicsController(Controller):
         F = self.formulation
         roll = None
         if self.spec.swing_pitch_with_leg and refs.swing_pitch:
-            roll = {s: d for s, d in refs.swing_pitch.items() if len(d) > 3 and s not in refs.feet}
+            roll = {s: d for s, d in refs.swing_pitch.items() if len(d) > 3 and d[3] != 0.0 and s not in refs.feet}
         if roll or any(cs.contact.edge is not None for cs in F.contacts.values()):
             F.set_contact_pitch(roll or {})
 

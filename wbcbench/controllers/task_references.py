@@ -19,16 +19,12 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
     """The swing feet's references with the plan's pitch offsets (`References.swing_pitch`) added: each foot's
     rotation turned about its own lateral (y) axis by delta, the angular velocity and acceleration (world axes)
     with delta's rate and acceleration about that axis (the axis turning with the planned rotation); positions and
-    feet without an offset (or without a rotation) as they are. An offset of 4 values (delta, rate, acc, x) with
-    x != 0 turns the foot about its sole's edge at x [m] in the sole frame instead (a toe-off's swing: that edge
-    keeps the planned path, the frame's origin moves with the turn)."""
+    feet without an offset (or without a rotation) as they are (an offset of 4 values: the first 3; a toe-off's
+    swing, whose planned positions already carry the turn about the toe)."""
     out = dict(feet)
     for side, d in pitch.items():
         foot = feet.get(side)
         if foot is None or foot.rotation is None:
-            continue
-        if len(d) > 3 and d[3] != 0.0:
-            out[side] = _about_edge(foot, *(float(x) for x in d))
             continue
         delta, rate, acc = (float(x) for x in d[:3])
         R = foot.rotation
@@ -44,26 +40,6 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
                       ay + (yy * acc + (wz * yx - wx * yz) * rate), az + (yz * acc + (wx * yy - wy * yx) * rate)])
         out[side] = PoseReference.unchecked(np.asarray(foot.position, dtype=float), R_new, v, a)
     return out
-
-
-def _about_edge(foot: PoseReference, delta: float, rate: float, acc: float, x: float) -> PoseReference:
-    """`foot` turned by delta about the lateral axis through the point (x, 0, 0) of its own frame (a sole edge:
-    that point keeps the planned path), with the twist and acceleration of that turn added (world axes)."""
-    R = foot.rotation
-    c, s = math.cos(delta), math.sin(delta)
-    Ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-    v, a = np.asarray(foot.velocity, dtype=float), np.asarray(foot.acceleration, dtype=float)
-    w, alpha = v[3:], a[3:]
-    y = R[:, 1]
-    o = R @ np.array([x * (1.0 - c), 0.0, x * s])  # the frame origin's offset: R (pe - Ry pe)
-    do = -R @ np.array([-x * s, 0.0, -x * c]) * rate  # its rate of change from delta, the plan's rotation aside
-    ddo = -R @ (np.array([-x * c, 0.0, x * s]) * rate**2 + np.array([-x * s, 0.0, -x * c]) * acc)
-    v_lin = v[:3] + np.cross(w, o) + do
-    a_lin = a[:3] + np.cross(alpha, o) + np.cross(w, np.cross(w, o)) + 2.0 * np.cross(w, do) + ddo
-    w_new = w + y * rate
-    a_ang = alpha + y * acc + np.cross(w, y) * rate
-    return PoseReference.unchecked(np.asarray(foot.position, dtype=float) + o, R @ Ry,
-                                   np.concatenate([v_lin, w_new]), np.concatenate([a_lin, a_ang]))
 
 
 class TaskReferences:

@@ -22,6 +22,10 @@ lands at its planned orientation, at rest) minimises
 (a small QP) with |delta| <= max_pitch and the sole's lower end (toe or heel, at the sole's half length plus
 its centre offset) above the lower end of the swing (to 0.1 mm). It is an offer: a controller whose
 task set asks for it (`swing_foot.pitch_with_leg`) adds it to the planned orientation; the others ignore it.
+
+A walk's toe-off (`SwingPitchConfig.toe_off`, `toe_off_offsets`) plans instead one pitch about the sole's toe edge
+from a roll before the lift-off (the foot on the ground, heel up) to the touch-down, minimising the predicted ankle
+torque; the swing's planned positions then carry that turn (`about_edge_offset`).
 """
 
 from __future__ import annotations
@@ -51,6 +55,10 @@ class LegGeometry:
         thigh, shank: side -> lengths hip-knee and knee-ankle [m].
         lever: distance from the sole origin to its farther end along the foot [m] (toe or heel clearance).
         toe: x of the sole's front edge in the sole frame [m]; sole_length: the sole's length [m] (a toe-off).
+        foot_mass [kg], foot_com (side -> (3,) in the sole frame [m]), foot_inertia [kg m^2]: the bodies the ankle
+            pitch joint carries (its own and the ankle roll's, the roll at zero), their CoM and inertia about the
+            lateral axis through it; armature: the ankle pitch joint's rotor inertia [kg m^2] (a toe-off's plan
+            minimises the ankle's torque with them: `toe_off_offsets`).
     """
 
     hip_offset: Mapping
@@ -60,6 +68,10 @@ class LegGeometry:
     lever: float
     toe: float = 0.0
     sole_length: float = 0.0
+    foot_mass: float = 0.0
+    foot_com: Mapping | None = None
+    foot_inertia: float = 0.0
+    armature: float = 0.0
 
     @classmethod
     def from_robot(cls, robot, q0: np.ndarray, com0: np.ndarray, yaw0: float = 0.0) -> "LegGeometry":
@@ -73,7 +85,8 @@ class LegGeometry:
         pin.framesForwardKinematics(model, data, q0)
         c, s = np.cos(yaw0), np.sin(yaw0)
         Rz_t = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-        hip, ankle, thigh, shank = {}, {}, {}, {}
+        hip, ankle, thigh, shank, fcom = {}, {}, {}, {}, {}
+        fmass = finertia = arm = 0.0
         for side in Side:
             fid = robot.sole_frame_id(side)
             M = data.oMf[fid]
@@ -86,13 +99,30 @@ class LegGeometry:
             if knee is None:
                 raise PlanningError(f"swing pitch: no ankle-knee-hip chain above the {side.value} sole")
             a, kn, h = pos[0], pos[knee], pos[-1]
+            # the bodies the ankle pitch joint carries (the joint above the sole's: its own and the sole's body)
+            bodies = chain[:2] if len(chain) > 2 else chain[:1]
+            m_tot, c_w, I_yy = 0.0, np.zeros(3), 0.0
+            for k in bodies:
+                Y = model.inertias[k]
+                m_tot += Y.mass
+                c_w += Y.mass * data.oMi[k].act(Y.lever)
+            c_w /= max(m_tot, 1e-12)
+            y = M.rotation[:, 1]
+            for k in bodies:
+                Y = model.inertias[k]
+                R = data.oMi[k].rotation
+                r = data.oMi[k].act(Y.lever) - c_w
+                I_yy += float(y @ R @ Y.inertia @ R.T @ y) + Y.mass * float(r @ r - (r @ y) ** 2)
+            fmass, finertia = m_tot, I_yy
+            fcom[side] = M.rotation.T @ (c_w - M.translation)
+            arm = float(model.armature[model.joints[bodies[-1]].idx_v]) if hasattr(model, "armature") else 0.0
             hip[side] = Rz_t @ (h - com0)
             ankle[side] = M.rotation.T @ (a - M.translation)
             thigh[side] = float(np.linalg.norm(kn - h))
             shank[side] = float(np.linalg.norm(a - kn))
         sole = robot.profile.sole
         return cls(hip, ankle, thigh, shank, float(sole.length / 2 + abs(sole.center[0])),
-                   float(sole.center[0] + sole.length / 2), float(sole.length))
+                   float(sole.center[0] + sole.length / 2), float(sole.length), fmass, fcom, finertia, arm)
 
 
 @dataclass(frozen=True)
@@ -328,7 +358,8 @@ def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_w
     """A swing that starts with a toe-off: the pitch delta about the sole's front edge (x = toe_x [m] in the sole
     frame; delta > 0 lifts the heel) from the first time of `t` (the foot flat and at rest on the ground, its
     roll about the toe starting) to the last (touch-down, flat and at rest), that minimises the predicted ankle
-    pitch acceleration over the whole window: the foot leaves the ground already turned with its shank.
+    pitch torque over the whole window (`_toe_off_by_torque`: the rotor's and the foot's own, when `legs` has the
+    foot's inertia; otherwise the ankle's acceleration): the foot leaves the ground already turned with its shank.
 
     delta is a sum of quintic B-splines on knots `_KNOT_SPACING` apart, zero with its rate and acceleration at
     both ends (a roll of a tenth of a second takes a few knots); delta <= max_pitch, and the heel (`length`
@@ -356,6 +387,9 @@ def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_w
     wt = np.full(n, dt)
     wt[:n_roll] *= roll_weight  # the roll's ankle acceleration weighs less: the foot still carries (a little)
     H = (B2.T * wt) @ B2 + 1e-9 * np.eye(B.shape[1])
+    if legs.foot_com is not None and legs.foot_mass > 0.0:  # minimise the ankle's torque, its rotor and its foot
+        return _toe_off_by_torque(t, dt, p_world_com, yaw, toe, R_world_sole, side, legs, pe, pitch0, B, B1, B2, wt,
+                                  lower, upper, rows, iterations)
     delta = np.zeros(n)
     acc_flat = None
     for _ in range(max(1, iterations)):
@@ -372,3 +406,73 @@ def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_w
         delta = B @ res.x
     out[:] = np.column_stack([B @ res.x, B1 @ res.x, B2 @ res.x])
     return out, acc_flat
+
+
+_GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+def _toe_off_by_torque(t, dt, p_world_com, yaw, toe, R_world_sole, side, legs, pe, pitch0, B, B1, B2, wt, lower,
+                       upper, rows, iterations):
+    """`toe_off_offsets` minimising the predicted ankle pitch torque, the rotor's (armature times the ankle's
+    acceleration) and the foot's (the bodies below the joint: their inertia and weight, the acceleration of their
+    CoM), by Gauss-Newton steps on the spline coefficients (the torque's Jacobian by finite differences)."""
+    n = len(t)
+    a_rel = legs.ankle_in_sole[side] - pe
+    c_rel = legs.foot_com[side] - pe
+    y = R_world_sole[:, :, 1]
+    m, I_f, arm = legs.foot_mass, legs.foot_inertia, legs.armature
+
+    def rotate(delta, v):
+        c, s_ = np.cos(delta), np.sin(delta)
+        local = np.column_stack([c * v[0] + s_ * v[2], np.full(n, v[1]), -s_ * v[0] + c * v[2]])
+        return np.einsum("nij,nj->ni", R_world_sole, local)
+
+    def d2(x):
+        return np.gradient(np.gradient(x, dt, axis=0), dt, axis=0)
+
+    def torque(coef):
+        delta = B @ coef
+        ankle = toe + rotate(delta, a_rel)
+        com = toe + rotate(delta, c_rel)
+        q_a = _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch0 + delta)
+        f = m * (d2(com) - _GRAVITY)
+        moment = np.einsum("ni,ni->n", np.cross(com - ankle, f), y)
+        return arm * d2(q_a) + I_f * d2(pitch0 + delta) + moment
+
+    sw = np.sqrt(wt)
+    nc = B.shape[1]
+    coef = np.zeros(nc)
+    tau0 = torque(coef)
+    flat = tau0.copy()
+    h = 1e-4
+    for _ in range(max(1, iterations) + 1):
+        J = np.empty((n, nc))
+        for j in range(nc):
+            e = coef.copy()
+            e[j] += h
+            J[:, j] = (torque(e) - tau0) / h
+        Jw = J * sw[:, None]
+        H = Jw.T @ Jw + 1e-9 * np.eye(nc)
+        g = Jw.T @ (sw * (tau0 - J @ coef))
+        res = _SOLVER.solve(QPProblem(H, g, C=B[rows], l=lower[rows], u=upper[rows]))
+        if not res.ok:
+            break
+        coef = res.x
+        tau0 = torque(coef)
+    out = np.column_stack([B @ coef, B1 @ coef, B2 @ coef])
+    return out, flat
+
+
+def about_edge_offset(R_world_sole: np.ndarray, pitch: np.ndarray, where: np.ndarray) -> tuple:
+    """Where a sole turned by delta about its edge at x (`pitch` (n, 4) [delta, delta_dot, delta_ddot, x], the
+    planned rotations R_world_sole (n, 3, 3) taken at rest) moves its origin, on the ticks `where` (n,) (zero
+    elsewhere): the offset R (pe - R_y(delta) pe), pe = (x, 0, 0), and its first and second derivatives, three
+    (n, 3) [m, m/s, m/s^2]."""
+    d, rate, acc, x = pitch[:, 0], pitch[:, 1], pitch[:, 2], np.where(where, pitch[:, 3], 0.0)
+    c, s = np.cos(d), np.sin(d)
+    z = np.zeros_like(d)
+    o = np.column_stack([x * (1.0 - c), z, x * s])
+    do = np.column_stack([x * s * rate, z, x * c * rate])
+    ddo = np.column_stack([x * (c * rate**2 + s * acc), z, x * (-s * rate**2 + c * acc)])
+    R = R_world_sole
+    return tuple(np.einsum("nij,nj->ni", R, w) for w in (o, do, ddo))
