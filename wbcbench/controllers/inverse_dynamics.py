@@ -209,12 +209,31 @@ class InverseDynamicsController(Controller):
 
     def _set_references(self, refs: References) -> None:
         if self.spec.swing_pitch_with_leg and refs.swing_pitch:  # the plan's swing that pitches with the leg
+            # a toe-off's swing (4 values) turns about the ankle pitch joint's axis as the encoders put it: the
+            # ankle roll joint then stays where the flat foot has it (about the foot's own lateral axis, a foot
+            # pitched by a radian under a shank leaning sideways turns the ankle roll by a few tenths)
+            axes = {s: self._ankle_pitch_axis(s) for s in refs.feet if len(refs.swing_pitch.get(s, ())) > 3}
             refs = refs.corrected(refs.com, refs.targets, refs.wrench_targets, refs.contact_poses,
-                                  feet=with_swing_pitch(refs.feet, refs.swing_pitch))
+                                  feet=with_swing_pitch(refs.feet, refs.swing_pitch, axes))
         self.references.apply(refs)
         if refs.contact_poses:
             self.formulation.set_contact_references(refs.contact_poses)
         self.formulation.set_wrench_targets(self._wrench_targets(refs))
+
+    def _ankle_pitch_axis(self, side: Side) -> np.ndarray:
+        """The world axis (3,) of the ankle pitch joint (the joint above the sole's) at the last `update`."""
+        axes = self.__dict__.get("_ankle_axes")
+        if axes is None:
+            m = self.model
+            d = m.createData()
+            pin.computeJointJacobians(m, d, self.robot.q0)
+            axes = self._ankle_axes = {}
+            for s in Side:
+                j = m.parents[m.frames[self.robot.sole_frame_id(s)].parentJoint]
+                local = pin.getJointJacobian(m, d, j, pin.ReferenceFrame.LOCAL)[3:, m.joints[j].idx_v]
+                axes[s] = (j, local / np.linalg.norm(local))
+        j, local = axes[side]
+        return self.formulation.data.oMi[j].rotation @ local
 
     def _set_contact_pitch(self, refs: References) -> None:
         """A foot still in contact with a pitch offered about a sole edge (a toe-off before its lift-off): its
