@@ -46,6 +46,26 @@ def test_edge_contact_rows_hold_the_centre_of_pressure_on_the_edge(talos):
         c.edge_x("side")
 
 
+def test_swing_pitch_about_a_given_axis():
+    """A toe-off's swing turns about the ankle pitch joint's axis: Rot(axis, delta) R, the rate about that axis;
+    with the foot's own lateral axis it is the usual turn."""
+    from wbcbench.controllers.task_references import with_swing_pitch
+    from wbcbench.types import PoseReference
+
+    R = pin.rpy.rpyToMatrix(0.05, -0.02, 0.3)
+    foot = PoseReference.unchecked(np.zeros(3), R, np.zeros(6), np.zeros(6))
+    d = np.array([0.4, 2.0, -5.0, 0.0])
+    own = with_swing_pitch({Side.LEFT: foot}, {Side.LEFT: d})[Side.LEFT]
+    same = with_swing_pitch({Side.LEFT: foot}, {Side.LEFT: d}, {Side.LEFT: R[:, 1]})[Side.LEFT]
+    np.testing.assert_allclose(same.rotation, own.rotation, atol=1e-12)
+    np.testing.assert_allclose(same.velocity, own.velocity, atol=1e-12)
+    axis = np.array([0.0, np.cos(0.15), np.sin(0.15)])  # a shank leaning sideways
+    tilted = with_swing_pitch({Side.LEFT: foot}, {Side.LEFT: d}, {Side.LEFT: axis})[Side.LEFT]
+    np.testing.assert_allclose(tilted.rotation, pin.exp3(axis * 0.4) @ R, atol=1e-12)
+    np.testing.assert_allclose(tilted.velocity[3:], axis * 2.0, atol=1e-12)
+    np.testing.assert_allclose(tilted.acceleration[3:], axis * -5.0, atol=1e-12)
+
+
 def test_toe_off_bad_config_is_one_line_error(talos, tmp_path):
     from wbcbench.errors import PlanningError
 
