@@ -17,8 +17,10 @@ from wbcbench.side import Side
 from wbcbench.sim.model import ActuationMode
 
 
-def _walk(talos, name):
+def _walk(talos, name, toe_off=None):
     scen = load_scenario(name, talos)
+    if toe_off is not None:  # the swing's own pitch (walk-60cm's toe-off: tests/test_toe_off.py)
+        scen.toe_off = toe_off
     q0 = talos.q0
     scen.setup(q0, pin.centerOfMass(talos.model, talos.model.createData(), q0))
     return scen
@@ -32,7 +34,7 @@ def _swings(foot, n):
 
 @pytest.mark.parametrize("name", ["walk-20cm-quick", "walk-60cm-quick"])
 def test_planned_swing_pitch_is_level_at_both_ends_bounded_and_relieves_the_ankle(talos, name):
-    scen = _walk(talos, name)
+    scen = _walk(talos, name, toe_off=0.0)
     w, cfg, legs = scen.walk, scen.swing_pitch, scen.legs
     assert cfg.max_pitch > 0.0
     lever = talos.profile.sole.length / 2
@@ -104,7 +106,7 @@ def test_a_replan_brings_the_swing_pitch_under_way_back_to_level(talos):
     re-plan tick (no jump in the reference) back to level and at rest by the touch-down; no other swing pitches."""
     from wbcbench.planning.swing_pitch import plan_swing_pitch
 
-    scen = _walk(talos, "walk-60cm-quick")
+    scen = _walk(talos, "walk-60cm-quick", toe_off=0.0)
     w, legs, cfg = scen.walk, scen.legs, scen.swing_pitch
     fresh = plan_swing_pitch(w, legs, cfg)
     side = Side.LEFT

@@ -176,7 +176,9 @@ class References:
     swing_pitch: per swinging foot, a (3,) [delta, delta_dot, delta_ddot] [rad, rad/s, rad/s^2]: a pitch about the
         sole's lateral axis the plan offers on top of `feet`' rotation, shaped so that the swing ankle accelerates
         less (`wbcbench.planning.swing_pitch`; zero at lift-off and touch-down); a controller takes it only when its
-        task set asks for it; empty: none offered.
+        task set asks for it; empty: none offered. With a walk's `toe_off`, (4,) [delta, delta_dot, delta_ddot,
+        x]: the pitch is about the sole's edge at x [m] in the sole frame (its toe), and a foot still in contact
+        has one in its roll about that edge before its lift-off.
     """
 
     t: float

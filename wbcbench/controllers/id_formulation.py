@@ -63,6 +63,7 @@ class ContactState:
         self.ramp_to = contact.nominal_max_normal_force
         self.ramp_t0 = 0.0
         self.ramp_T = 0.0
+        self.anchor = None  # the flat reference (R, p) a contact turning about a sole edge turns from
 
     def start_ramp(self, t: float, f_from: float, f_to: float, duration: float) -> None:
         self.ramp_from, self.ramp_to, self.ramp_t0, self.ramp_T = f_from, f_to, t, duration
@@ -251,6 +252,8 @@ class InverseDynamicsFormulation:
                 cs.start_ramp(t, min(f_now, cs.contact.nominal_max_normal_force), 0.0, t_off - t if leaving else T)
             elif want and not leaving and (not cs.active or cs.ramp_to == 0.0):
                 if not cs.active:
+                    cs.contact.set_edge(None)
+                    cs.anchor = None
                     cs.contact.set_reference_to_current(m, d)
                 cs.active = True
                 cs.start_ramp(t, cs.contact.max_normal_force if cs.ramp_to == 0.0 else 0.0,
@@ -267,6 +270,38 @@ class InverseDynamicsFormulation:
             cs = self.contacts[name]
             if cs.active:
                 cs.contact.set_reference(pose)
+
+    def set_contact_pitch(self, pitch: Mapping) -> None:
+        """Active contacts turning about a sole edge (a toe-off): per contact name, (delta, rate, acc, pivot_x)
+        [rad, rad/s, rad/s^2, m], the sole's pitch about its lateral axis through the edge at x = pivot_x in the
+        contact frame (front edge: the toe, delta > 0 lifts the heel). The contact's wrench rows become the edge's
+        (`Contact6D.set_edge`) and its reference the flat reference it had when the turn began, turned about the
+        edge by delta, with the twist and its derivative of that turn; an active contact on an edge that is not in
+        `pitch` goes back to its whole sole and its flat reference."""
+        for name, cs in self.contacts.items():
+            c = cs.contact
+            d = pitch.get(name) if cs.active else None
+            if d is None:
+                if c.edge is not None and cs.active:
+                    c.set_edge(None)
+                    if cs.anchor is not None:
+                        c.set_reference(pin.SE3(*cs.anchor))
+                    cs.anchor = None
+                continue
+            delta, rate, acc, x = (float(v) for v in d)
+            edge = "toe" if x > 0.0 else "heel"
+            if c.edge != edge:
+                if cs.anchor is None:
+                    ref = c.reference
+                    cs.anchor = (ref.rotation.copy(), ref.translation.copy())
+                c.set_edge(edge)
+            R0, p0 = cs.anchor
+            cd, sd = np.cos(delta), np.sin(delta)
+            Ry = np.array([[cd, 0.0, sd], [0.0, 1.0, 0.0], [-sd, 0.0, cd]])
+            pe = np.array([x, 0.0, 0.0])
+            c.set_reference(pin.SE3(R0 @ Ry, p0 + R0 @ (pe - Ry @ pe)),
+                            np.array([0.0, 0.0, rate * x, 0.0, rate, 0.0]),
+                            np.array([0.0, 0.0, acc * x, 0.0, acc, 0.0]))
 
     def set_wrench_targets(self, targets: Mapping | None) -> None:
         """The targets w_c* (6,) of this tick's wrench regularisation, by contact (None or empty: none)."""

@@ -41,6 +41,19 @@ _LEFT, _RIGHT = Side.LEFT, Side.RIGHT  # the enum's members looked up once (log 
 QP_OK, QP_RELAXED, QP_FALLBACK = 0, 1, 2
 
 
+def _ankle_pitch_axes(robot: Robot) -> dict:
+    """Per side, the ankle pitch joint (the joint above the sole's, its index) and its axis (3,) in its own frame."""
+    m = robot.model
+    d = m.createData()
+    pin.computeJointJacobians(m, d, robot.q0)
+    axes = {}
+    for s in Side:
+        j = m.parents[m.frames[robot.sole_frame_id(s)].parentJoint]
+        local = pin.getJointJacobian(m, d, j, pin.ReferenceFrame.LOCAL)[3:, m.joints[j].idx_v]
+        axes[s] = (j, local / np.linalg.norm(local))
+    return axes
+
+
 class InverseDynamicsController(Controller):
     """Inverse dynamics on `InverseDynamicsFormulation` with the policy of the module docstring.
 
@@ -108,6 +121,8 @@ class InverseDynamicsController(Controller):
         # landing foot down)
         self.corrections = PlanCorrections(robot, dt, spec, stabilizer,
                                            integrated_model=mode is not ActuationMode.TORQUE)
+        # the ankle pitch joints' axes (a toe-off's swing turns about them, `_set_references`)
+        self._ankle_axes = _ankle_pitch_axes(robot)
 
     @property
     def stabilizer(self) -> Stabilizer | None:
@@ -182,6 +197,7 @@ class InverseDynamicsController(Controller):
         self._t_pin = perf_counter() - t0
         self._set_references(refs)
         F.set_contacts(meas.t, refs.contacts, refs.lift_off)
+        self._set_contact_pitch(refs)
         solved = self._solve()
         if solved is None:
             return self._fallback(meas, list(F.active))
@@ -195,10 +211,31 @@ class InverseDynamicsController(Controller):
         return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
 
     def _set_references(self, refs: References) -> None:
-        self.references.apply(refs)
+        axes = None
+        if self.references.swing_pitch and refs.swing_pitch:
+            # a toe-off's swing (4 values) turns about the ankle pitch joint's axis as the encoders put it: the
+            # ankle roll joint then stays where the flat foot has it (about the foot's own lateral axis, a foot
+            # pitched by a radian under a shank leaning sideways turns the ankle roll by a few tenths)
+            axes = {s: self._ankle_pitch_axis(s) for s in refs.feet if len(refs.swing_pitch.get(s, ())) > 3}
+        self.references.apply(refs, axes)
         if refs.contact_poses:
             self.formulation.set_contact_references(refs.contact_poses)
         self.formulation.set_wrench_targets(self._wrench_targets(refs))
+
+    def _ankle_pitch_axis(self, side: Side) -> np.ndarray:
+        """The world axis (3,) of the ankle pitch joint (the joint above the sole's) at the last `update`."""
+        j, local = self._ankle_axes[side]
+        return self.formulation.data.oMi[j].rotation @ local
+
+    def _set_contact_pitch(self, refs: References) -> None:
+        """A foot still in contact with a pitch offered about a sole edge (a toe-off before its lift-off): its
+        contact turns about that edge (`InverseDynamicsFormulation.set_contact_pitch`)."""
+        F = self.formulation
+        roll = None
+        if self.references.swing_pitch and refs.swing_pitch:
+            roll = {s: d for s, d in refs.swing_pitch.items() if len(d) > 3 and d[3] != 0.0 and s not in refs.feet}
+        if roll or any(cs.contact.edge is not None for cs in F.contacts.values()):
+            F.set_contact_pitch(roll or {})
 
     def _wrench_targets(self, refs: References) -> dict | None:
         """The wrench targets of this tick (policy hook): the references'."""

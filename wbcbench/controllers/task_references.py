@@ -15,23 +15,31 @@ from ..types import PoseReference, References
 __all__ = ["TaskReferences", "with_swing_pitch"]
 
 
-def with_swing_pitch(feet: Mapping, pitch: Mapping) -> dict:
+def with_swing_pitch(feet: Mapping, pitch: Mapping, axes: Mapping | None = None) -> dict:
     """The swing feet's references with the plan's pitch offsets (`References.swing_pitch`) added: each foot's
     rotation turned about its own lateral (y) axis by delta, the angular velocity and acceleration (world axes)
     with delta's rate and acceleration about that axis (the axis turning with the planned rotation); positions and
-    feet without an offset (or without a rotation) as they are."""
+    feet without an offset (or without a rotation) as they are (an offset of 4 values: the first 3; a toe-off's
+    swing, whose planned positions already carry the turn about the toe). axes: per side, a world axis (3,) to turn
+    about instead of the foot's own lateral one (the rate and acceleration about it as given)."""
     out = dict(feet)
     for side, d in pitch.items():
         foot = feet.get(side)
         if foot is None or foot.rotation is None:
             continue
-        delta, rate, acc = (float(x) for x in d)
+        delta, rate, acc = (float(x) for x in d[:3])
         R = foot.rotation
         c, s = math.cos(delta), math.sin(delta)
-        R_new = R @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        axis = axes.get(side) if axes else None
+        if axis is None:
+            R_new = R @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+            yx, yy, yz = R[:, 1].tolist()
+        else:  # about a given world axis (unit): R_new = Rot(axis, delta) R
+            yx, yy, yz = (float(x) for x in axis)
+            K = np.array([[0.0, -yz, yy], [yz, 0.0, -yx], [-yy, yx, 0.0]])
+            R_new = (np.eye(3) + s * K + (1.0 - c) * (K @ K)) @ R
         # in floats, term by term as numpy would (v_w += y rate, a_w += y acc + (omega x y) rate): a tick's few
         # numbers cost less than numpy's small-array calls
-        yx, yy, yz = R[:, 1].tolist()
         v0, v1, v2, wx, wy, wz = np.asarray(foot.velocity, dtype=float).tolist()
         a0, a1, a2, ax, ay, az = np.asarray(foot.acceleration, dtype=float).tolist()
         v = np.array([v0, v1, v2, wx + yx * rate, wy + yy * rate, wz + yz * rate])
@@ -54,7 +62,9 @@ class TaskReferences:
         self.free_tasks = dict(free_tasks)
         self.swing_pitch = bool(swing_pitch)
 
-    def apply(self, refs: References) -> None:
+    def apply(self, refs: References, pitch_axes: Mapping | None = None) -> None:
+        """Hand this tick's references to the tasks; `pitch_axes`: per side, a world axis to turn a swing foot's
+        pitch about instead of its own lateral one (`with_swing_pitch`)."""
         com = refs.com
         if com is not None:
             for task in self.com_tasks:
@@ -65,6 +75,6 @@ class TaskReferences:
                 task.set_pose(target.position, target.rotation, target.velocity, target.acceleration)
         feet = refs.feet
         if self.swing_pitch and refs.swing_pitch:  # the plan's swing that pitches with the leg
-            feet = with_swing_pitch(feet, refs.swing_pitch)
+            feet = with_swing_pitch(feet, refs.swing_pitch, pitch_axes)
         for side, foot in feet.items():
             self.free_tasks[side].set_pose(foot.position, foot.rotation, foot.velocity, foot.acceleration)

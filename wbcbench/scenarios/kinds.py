@@ -124,7 +124,10 @@ class WalkScenario(Scenario):
     walking, default: the initial one; a lower one is reached by a quintic descent during the initial double
     support, before the ZMP first moves, and the preview controller's cart-table height is set to it),
     swing_pitch_max [rad] (the bound of the swing-foot pitch the references offer, `References.swing_pitch`, see
-    wbcbench.planning.swing_pitch; default 0.3, 0: none offered).
+    wbcbench.planning.swing_pitch; default 0.3, 0: none offered), toe_off [s] (the longest roll of a leaving foot
+    about its toe edge before its lift-off, with the swing's pitch about that edge: `toe_off_offsets`; default 0,
+    none; not with the file's own step_adjustment, an error; a walk whose step adjustment is switched on otherwise
+    plans none).
     step_adjustment: {...} (off when absent): DCM-based step adjustment (wbcbench.planning.step_adjustment); keys
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
@@ -156,7 +159,13 @@ class WalkScenario(Scenario):
         self.preview_horizon = params.float("preview_horizon", 2.5, positive=True)
         self.max_step_length = params.float("max_step_length", 0.65, positive=True)
         self.swing_pitch_max = params.float("swing_pitch_max", 0.3, min=0.0)
+        self.toe_off = params.float("toe_off", 0.0, min=0.0)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
+        if params.has("step_adjustment") and self.toe_off > 0.0:
+            from ..errors import ConfigError
+            raise ConfigError("toe_off and step_adjustment do not go together (a re-plan does not continue a "
+                              "toe-off under way): set toe_off: 0 or remove step_adjustment",
+                              file=self.spec.file, key="params.toe_off")
         if params.has("step_adjustment"):
             self.step_adjustment, self._step_adjustment_given = _parse_step_adjustment(
                 params.section("step_adjustment"), self.robot)
@@ -219,7 +228,9 @@ class WalkScenario(Scenario):
             from ..planning.swing_pitch import LegGeometry, SwingPitchConfig
             try:
                 self.legs = LegGeometry.from_robot(self.robot, q0, com0)
-                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max)
+                # a walk re-planned online (step adjustment, e.g. switched on by --step-adjustment) plans no toe-off
+                toe_off = self.toe_off if self.step_adjustment is None else 0.0
+                self.swing_pitch = SwingPitchConfig(max_pitch=self.swing_pitch_max, toe_off=toe_off)
             except PlanningError:  # a model without an ankle-knee-hip chain: no swing pitch offered
                 self.legs = self.swing_pitch = None
         self.adjuster = None
@@ -329,23 +340,41 @@ class _WalkTable:
         n = walk.n_ticks
         self.com = tuple(_checked_rows(a, (3,), "CoM") for a in (walk.p_world_com, walk.v_world_com, walk.a_world_com))
         self.zmp = _checked_rows(walk.p_world_zmp_ref, (3,), "ZMP")
-        code = np.zeros(n, dtype=np.int64)
-        feet = {}
-        for bit, s in enumerate(Side):
-            f = walk.feet[s]
-            code += np.asarray(f.in_contact[:n], dtype=bool).astype(np.int64) << bit
-            zeros = np.zeros((n, 3))
-            feet[s] = (_checked_rows(f.p_world_sole, (3,), "foot position"),
-                       _checked_rows(f.R_world_sole, (3, 3), "foot rotation"),
-                       _checked_rows(np.hstack([f.v_world_sole[:n], zeros]), (6,), "foot velocity"),
-                       _checked_rows(np.hstack([f.a_world_sole[:n], zeros]), (6,), "foot acceleration"))
-        self.code = code.tolist()
-        self.lift_off = _lift_off_by_tick([walk.feet[s].in_contact[:n] for s in Side], walk.dt)
         pitch = None
         if legs is not None:
             from ..planning.swing_pitch import plan_swing_pitch
             pitch = plan_swing_pitch(walk, legs, pitch_config, previous)
         self.pitch = pitch
+        toe_off = pitch is not None and pitch[Side.LEFT].shape[1] > 3
+        code = np.zeros(n, dtype=np.int64)
+        feet = {}
+        offer = {}
+        roll = np.zeros(n, dtype=bool)
+        for bit, s in enumerate(Side):
+            f = walk.feet[s]
+            contact = np.asarray(f.in_contact[:n], dtype=bool)
+            code += contact.astype(np.int64) << bit
+            zeros = np.zeros((n, 3))
+            p, v, a = f.p_world_sole[:n], f.v_world_sole[:n], f.a_world_sole[:n]
+            if toe_off:
+                # a toe-off's swing turns about the toe: the sole's origin goes where that turn puts it (the swing's
+                # planned path), the turn itself is offered about the origin; in contact, the roll about the toe
+                from ..planning.swing_pitch import about_edge_offset
+                do = about_edge_offset(f.R_world_sole[:n], pitch[s][:n], ~contact)
+                p, v, a = p + do[0], v + do[1], a + do[2]
+                offer[s] = pitch[s][:n].copy()
+                offer[s][~contact, 3] = 0.0
+                roll |= (pitch[s][:n, 3] != 0.0) & contact
+            feet[s] = (_checked_rows(p, (3,), "foot position"),
+                       _checked_rows(f.R_world_sole, (3, 3), "foot rotation"),
+                       _checked_rows(np.hstack([v, zeros]), (6,), "foot velocity"),
+                       _checked_rows(np.hstack([a, zeros]), (6,), "foot acceleration"))
+        self.code = code.tolist()
+        self.lift_off = _lift_off_by_tick([walk.feet[s].in_contact[:n] for s in Side], walk.dt)
+        # what the references offer (a toe-off's: the swings' pitch about the origin, the rolls' about the toe)
+        self.offer = offer if toe_off else pitch
+        # the ticks on which a foot in contact turns about its toe (a toe-off)
+        self.rolling = roll.tolist() if toe_off else [False] * n
         # per contact code: the contact set and the (side, arrays) of the swinging feet
         self.contacts = [frozenset(s for bit, s in enumerate(Side) if c >> bit & 1) for c in range(1 << len(Side))]
         self.swinging = [[(s, feet[s]) for bit, s in enumerate(Side) if not c >> bit & 1]
@@ -373,8 +402,11 @@ class _WalkTable:
         feet = {}
         for s, (p, R, v, a) in self.swinging[code]:
             feet[s] = PoseReference.unchecked(p[k], R[k], v[k], a[k])
-        pitch = self.pitch
-        pitch = {s: pitch[s][k] for s in feet} if pitch is not None and feet else None
+        pitch = self.offer
+        if pitch is not None and self.rolling[k]:  # a toe-off: the leaving foot turns about its toe, in contact
+            pitch = {s: pitch[s][k] for s in Side if s in feet or pitch[s][k, 3] != 0.0}
+        else:
+            pitch = {s: pitch[s][k] for s in feet} if pitch is not None and feet else None
         p, v, a = self.com
         return References.planned(t, self.contacts[code], PointReference.unchecked(p[k], v[k], a[k]), self.zmp[k],
                                   feet, None, self.lift_off[k], pitch)

@@ -142,7 +142,9 @@ class Contact6D(Task):
                 owner, "max_normal_force", f"must be >= min_normal_force ({self._f_min:g} N), got {f_max:g}"
             )
         self._f_max_nominal = f_max
-        self._C = val.frozen(self._wrench_cone_matrix())
+        self._C_surface = self._C = val.frozen(self._wrench_cone_matrix(self._length, self._center))
+        self._edge: str | None = None
+        self._edge_cones: dict = {}
         # the reference placement: its rotation and translation (new arrays at each `set_reference`), and the SE3
         # made from them when asked for (`_M_ref`)
         self._R_ref: FloatArray | None = None
@@ -202,10 +204,45 @@ class Contact6D(Task):
             G[3:, 3 * i : 3 * i + 3] = _skew(p)
         return G
 
-    def _wrench_cone_matrix(self) -> FloatArray:
-        """C (18, 6) acting on the wrench at the frame origin (see the class docstring)."""
+    #: the depth [m] along the sole of the strip an edge contact presses through (`set_edge`)
+    EDGE_DEPTH = 0.005
+
+    @property
+    def edge(self) -> str | None:
+        """The sole edge the contact is on (``"toe"`` or ``"heel"``), None for the whole sole (`set_edge`)."""
+        return self._edge
+
+    def edge_x(self, edge: str) -> float:
+        """The x [m] in the contact frame of the sole's front (``"toe"``) or back (``"heel"``) edge."""
+        if edge not in ("toe", "heel"):
+            raise TaskConfigError(self.owner, "edge", f"must be 'toe', 'heel' or None, got {edge!r}")
+        return float(self._center[0] + (0.5 if edge == "toe" else -0.5) * self._length)
+
+    def set_edge(self, edge: str | None) -> None:
+        """Put the contact on a line of the sole, its front (``"toe"``) or back (``"heel"``) edge, or back on the
+        whole sole (None). On an edge the wrench rows are those of a strip `EDGE_DEPTH` deep along that edge
+        (the centre of pressure on the edge, the friction and yaw rows of the strip): the foot may turn about the
+        edge (its pitch given by the contact's reference, `set_reference` with a velocity and acceleration)."""
+        if edge == self._edge:
+            return
+        if edge is None:
+            self._C = self._C_surface
+        else:
+            C = self._edge_cones.get(edge)
+            if C is None:
+                x = self.edge_x(edge)
+                depth = min(self.EDGE_DEPTH, self._length)
+                cx = x - 0.5 * depth if edge == "toe" else x + 0.5 * depth
+                C = self._edge_cones[edge] = val.frozen(
+                    self._wrench_cone_matrix(depth, np.array([cx, self._center[1]])))
+            self._C = C
+        self._edge = edge
+
+    def _wrench_cone_matrix(self, length: float, center: FloatArray) -> FloatArray:
+        """C (18, 6) acting on the wrench at the frame origin (see the class docstring), for a rectangle of the
+        given length and the sole's width centred at `center`."""
         mu = self.mu_pyramid
-        X, Y = 0.5 * self._length, 0.5 * self._width
+        X, Y = 0.5 * length, 0.5 * self._width
         # Rows on the wrench at the rectangle centre, [fx fy fz tx ty tz].
         rows = [
             [1, 0, -mu, 0, 0, 0],
@@ -229,7 +266,7 @@ class Contact6D(Task):
         C_center = np.array(rows, dtype=np.float64)
         # Wrench at the centre c from the wrench at the origin: [f; tau - c x f].
         T = np.eye(6)
-        T[3:, :3] = -_skew([self._center[0], self._center[1], 0.0])
+        T[3:, :3] = -_skew([center[0], center[1], 0.0])
         return C_center @ T
 
     # ------------------------------------------------------------------------------------ force bounds
@@ -279,10 +316,13 @@ class Contact6D(Task):
         return np.array([-w[4] / w[2], w[3] / w[2]])
 
     # ---------------------------------------------------------------------------------------- references
-    def set_reference(self, pose: Any) -> None:
+    def set_reference(self, pose: Any, velocity: npt.ArrayLike | None = None,
+                      acceleration: npt.ArrayLike | None = None) -> None:
         """Set the contact's reference placement ``T_world_ref`` (where the sole should stay): a `pinocchio.SE3`,
         or a pose with ``position`` (3,) and ``rotation`` (3, 3) (e.g. `wbcbench.types.PoseReference`: a
-        stabilizer's per-tick pose without making an SE3)."""
+        stabilizer's per-tick pose without making an SE3). velocity, acceleration: the reference's twist (6,) in
+        the LOCAL frame and its derivative (a sole turning about an edge, `set_edge`); None: at rest."""
+        derivatives = self._check_derivatives(velocity, acceleration)
         if isinstance(pose, pin.SE3):
             position, rotation = pose.translation, pose.rotation
         else:
@@ -300,6 +340,7 @@ class Contact6D(Task):
         if not val.copy_pose_checked(position, rotation, E, E, p, R, E, E):
             raise TaskConfigError(self.owner, "pose", "expected a finite rigid transform")
         self._R_ref, self._p_ref, self._M_cache = R, p, None  # private (handed out as an SE3 copy)
+        self._store_derivatives(derivatives)
 
     @property
     def _M_ref(self) -> pin.SE3 | None:
