@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import PlanningError
+from ..errors import ConfigError, PlanningError
 from ..recorder import channel
 from ..robots import Side
 from ..types import PointReference, PoseReference, References
@@ -162,7 +162,6 @@ class WalkScenario(Scenario):
         self.toe_off = params.float("toe_off", 0.0, min=0.0)
         self.com_height = params.float("com_height", positive=True) if params.has("com_height") else None
         if params.has("step_adjustment") and self.toe_off > 0.0:
-            from ..errors import ConfigError
             raise ConfigError("toe_off and step_adjustment do not go together (a re-plan does not continue a "
                               "toe-off under way): set toe_off: 0 or remove step_adjustment",
                               file=self.spec.file, key="params.toe_off")
@@ -172,7 +171,6 @@ class WalkScenario(Scenario):
 
     def enable_step_adjustment(self, config=None) -> None:
         """Switch the step adjustment on (before `setup`), with `config` or the defaults and the robot's limits."""
-        from ..errors import ConfigError
         from ..planning.step_adjustment import StepAdjustmentConfig
         if not self.supports_step_adjustment:
             raise ConfigError(f"step adjustment works on flat `walk` scenarios, not kind '{self.kind}'",
@@ -184,7 +182,6 @@ class WalkScenario(Scenario):
         """The controller's own step-adjustment settings (its task set's `step_adjustment:` section, e.g. a
         position-controlled scheme whose stabilizer absorbs part of the DCM error), for every key the scenario
         does not set itself; nothing when the step adjustment is off. Before `setup`."""
-        from ..errors import ConfigError
         if self.step_adjustment is None or not settings:
             return
         kw = {k: v for k, v in settings.items() if k not in self._step_adjustment_given}
@@ -197,7 +194,6 @@ class WalkScenario(Scenario):
     def setup(self, q0, com0):
         import pinocchio as pin
 
-        from ..errors import ConfigError
         from ..planning import (PatternGeneratorConfig, ReachLimits, SoleRectangle, StepTiming, generate_walk,
                                 straight_walk)
         super().setup(q0, com0)
@@ -539,7 +535,6 @@ class TerrainWalkScenario(WalkScenario):
     def setup(self, q0, com0):
         import pinocchio as pin
 
-        from ..errors import ConfigError
         from ..planning import Footstep, SoleRectangle, StepTiming
         from ..planning.centroidal import CentroidalConfig
         from ..planning.contact_planner import ContactPlannerConfig, contacts_from_placements, plan_contacts
@@ -630,7 +625,6 @@ class CommandWalkScenario(WalkScenario):
     def setup(self, q0, com0):
         import pinocchio as pin
 
-        from ..errors import ConfigError
         from ..planning import PatternGeneratorConfig, SoleRectangle, StepTiming, generate_walk
         from ..planning.command import StepLimits, VelocityCommand, plan_from_command, plan_from_path
         from ..planning.geometry import yaw_of
