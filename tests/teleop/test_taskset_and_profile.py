@@ -39,46 +39,16 @@ def test_table_i_is_shipped_as_published(talos):
 def test_profile_repulsors_become_self_collision_tasks(talos):
     rep = talos.profile.repulsors[Side.LEFT]
     assert rep.frame == "gripper_left_base_link" and rep.radius == 0.10 and rep.exponent == 3 and rep.normalized
-    assert rep.offset == (0.0, 0.0, -0.09) and len(rep.points) == 20
+    assert rep.offset == (0.0, 0.0, -0.09) and len(rep.points) == 18
     spec = load_taskset(taskset_path(talos, "teleop"), talos).task("self_collision-left")
     task = build_task(talos, spec)
-    assert isinstance(task, SelfCollisionTask) and task.dim == 20 and task.weight == 700
+    assert isinstance(task, SelfCollisionTask) and task.dim == 18 and task.weight == 700
     assert "thigh_left" in task.axis_names
     # half-sitting leaves the repulsors (nearly) idle
     m, d = talos.model, talos.model.createData()
     update_kinematics(m, d, talos.q0, np.zeros(m.nv))
     assert task.values(m, d).max() < 0.07
     assert set(talos.profile.collision_check) == set(Side)
-
-
-def test_the_knee_housing_and_the_shank_are_inside_their_repulsion_spheres(talos):
-    """The shank's collision hull (`leg_*_4_link`, MuJoCo's convex hull of the URDF mesh) reaches 0.165 m out
-    of the knee joint on the outer side: with the knee's one sphere at the joint (radius 0.10) a fingertip touched
-    that side with the gripper centre outside every repulsor's influence radius (a public squat capture). Every
-    hull point of the knee housing (the top 12 cm) lies within 1 cm of the repulsion spheres on that link of the
-    same side's gripper task, and the shank down to 30 cm below the joint within 6 cm."""
-    import mujoco
-
-    from wbcbench.sim.model import build_self_collision_model, self_collision_geom_name
-
-    mj = build_self_collision_model(talos)
-    for side in Side:
-        link = f"leg_{side.value}_4_link"
-        points = []
-        k = 0
-        while (g := mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_GEOM, self_collision_geom_name(link, k))) >= 0:
-            mesh = mj.geom_dataid[g]
-            v = mj.mesh_vert[mj.mesh_vertadr[mesh]:mj.mesh_vertadr[mesh] + mj.mesh_vertnum[mesh]]
-            rot = np.empty(9)
-            mujoco.mju_quat2Mat(rot, mj.geom_quat[g])
-            points.append(v @ rot.reshape(3, 3).T + mj.geom_pos[g])  # in the link's frame
-            k += 1
-        hull = np.concatenate(points)
-        spheres = [(np.array(p.offset), p.radius) for p in talos.profile.repulsors[side].points if p.frame == link]
-        outside = np.array([min(np.linalg.norm(x - c) - r for c, r in spheres) for x in hull])
-        assert hull[:, 1].max() - hull[:, 1].min() > 0.2  # the housing is there (0.24 m wide)
-        assert outside[hull[:, 2] >= -0.06].max() < 0.01, side
-        assert outside[hull[:, 2] >= -0.30].max() < 0.06, side
 
 
 def test_no_repulsors_drops_the_tasks(talos):
@@ -105,11 +75,11 @@ def test_self_collision_task_errors(talos, g1, tmp_path):
         load_taskset(_write(tmp_path, "b.yaml", bad), talos)
     bad["tasks"][0]["side"] = "left"
     bad["tasks"][0]["mask"] = [1, 0, 1]
-    with pytest.raises(ConfigError, match="20 entries"):
+    with pytest.raises(ConfigError, match="18 entries"):
         load_taskset(_write(tmp_path, "c.yaml", bad), talos)
     bad["tasks"][0].pop("mask")
     bad["tasks"][0]["kp"] = [1.0, 2.0]
-    with pytest.raises(ConfigError, match="20 values"):
+    with pytest.raises(ConfigError, match="18 values"):
         load_taskset(_write(tmp_path, "d.yaml", bad), talos)
     # a robot whose profile has no repulsors
     g1_set = {"tasks": [{"name": "sc", "type": "self_collision", "side": "left", "weight": 1.0, "kp": 1.0}],
