@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -63,7 +64,7 @@ def test_a_push_survived_only_with_step_adjustment(talos, tmp_path):
 
 # TSID position, the same push, `--quick --directions 4 --phases ss-mid`: without adjustment it survives 30 N s
 # backwards, is off its plan at 37.5 and falls at 45 (1.6 s after the push); with it (the task set's threshold 5 cm,
-# deadband 4 cm, re-plan from the DCM) it survives 45 N s and falls at 52.5.
+# deadband 4 cm, re-plan from the DCM) it survived 45 N s and fell at 52.5; with its late descent too, 60 and 67.5.
 POSITION_IMPULSE = 45.0
 
 
@@ -82,13 +83,42 @@ def test_a_position_scheme_survives_a_push_only_with_step_adjustment(talos, tmp_
     assert off.summary["fell"]
 
 
+# TSID position, the same push at 52.5 N s: with its task set's settings but the re-planned swing's height the old
+# profile stretched (late_descent 0) it falls (the pushed step lands short and is dragged); with the task set's
+# late_descent (0.4: the swing at the apex height until 40 % of its remaining time) it stands: `--quick
+# --directions 4 --phases ss-mid --max-impulse 120 --iterations 4`, backwards 45 -> 60 N s.
+LATE_DESCENT_IMPULSE = 52.5
+
+
+def test_a_late_descent_of_the_replanned_swing_keeps_tsid_position_up(talos, tmp_path):
+    scen, t_push = _pushed(talos, adjust=True, impulse=LATE_DESCENT_IMPULSE, after=3.0)
+    res = run(scen, "tsid-position", talos, out=tmp_path / "late")
+    assert scen.step_adjustment.late_descent == 0.4            # the task set's
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    assert scen.adjuster.count >= 1
+
+    yaml = tmp_path / "stretched.yaml"   # the scenario's own setting wins over the task set's
+    yaml.write_text(Path(load_scenario("walk-20cm-quick", talos).spec.file).read_text().replace(
+        "  apex: 0.05", "  apex: 0.05\n  step_adjustment: {late_descent: 0.0}"))
+    stretched = load_scenario(str(yaml), talos)
+    assert stretched.step_adjustment is not None and stretched.step_adjustment.late_descent == 0.0
+    a = math.radians(DIRECTION)
+    f = LATE_DESCENT_IMPULSE / 0.1
+    stretched.spec = replace(stretched.spec, duration=t_push + 3.0, pushes=(
+        Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
+    off = run(stretched, "tsid-position", talos, out=tmp_path / "stretched")
+    assert stretched.step_adjustment.late_descent == 0.0 and stretched.step_adjustment.deadband == 0.04
+    assert off.summary["fell"]
+
+
 def test_a_task_set_sets_what_the_scenario_leaves(talos, tmp_path):
     from wbcbench.errors import ConfigError
     from wbcbench.controllers.taskset import load_taskset, taskset_path
     from wbcbench.scenarios import make_scenario
 
     spec = load_taskset(taskset_path(talos, "tsid-position"), talos)
-    assert dict(spec.step_adjustment) == {"threshold": 0.05, "deadband": 0.04, "replan_from": "dcm"}
+    assert dict(spec.step_adjustment) == {"threshold": 0.05, "deadband": 0.04, "replan_from": "dcm",
+                                          "late_descent": 0.4}
     assert dict(load_taskset(taskset_path(talos, "tsid-torque"), talos).step_adjustment) == {"min_single_support": 0.35}
     params = {"steps": 1, "step_length": 0.2, "single_support": 0.9, "double_support": 0.1,
               "step_adjustment": {"threshold": 0.07}}

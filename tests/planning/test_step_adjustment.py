@@ -226,3 +226,32 @@ def test_a_swing_foot_that_landed_is_not_moved_again():
     # loaded again before its touch-down: it landed early, its step is done
     assert adj.update(k, walk.p_world_dcm[k, :2] + [0.06, 0.0], state, frozenset(Side)) is None
     assert adj.count == 0 and adj.landed == {1}
+
+
+def test_late_descent_holds_the_swing_foot_up_and_lands_it_on_the_foothold():
+    walk, cfg = _walk()
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))     # the swing at its apex
+    dcm = walk.p_world_dcm[k, :2] + [0.06, 0.0]
+    stretched = StepAdjuster(walk, StepAdjustmentConfig(), cfg, SEP)
+    late = StepAdjuster(walk, StepAdjustmentConfig(late_descent=0.4), cfg, SEP)
+    a, b = stretched.update(k, dcm, np.zeros((3, 2))), late.update(k, dcm, np.zeros((3, 2)))
+    assert a is not None and b is not None
+    sol_a, sol_b = stretched.history[0][2], late.history[0][2]
+    np.testing.assert_allclose(sol_b.p_world_foothold, sol_a.p_world_foothold)    # the QP does not change
+    side = walk.plan.steps[1].side
+    fa, fb = a.feet[side], b.feet[side]
+    td = k + int(np.argmax(fb.in_contact[k:]))
+    assert td == k + int(np.argmax(fa.in_contact[k:])) and td - k > 20           # the same (shortened) touch-down
+    for name in ("p_world_sole", "v_world_sole", "a_world_sole"):                 # continuous at the re-plan
+        np.testing.assert_allclose(getattr(fb, name)[k], getattr(walk.feet[side], name)[k], atol=1e-9)
+    z_a, z_b = fa.p_world_sole[k:td + 1, 2], fb.p_world_sole[k:td + 1, 2]
+    k1 = int(round(0.4 * (td - k)))
+    assert z_b[k1] == pytest.approx(cfg.swing_apex_height, abs=1e-3)             # at the apex 40 % in
+    k2 = int(round(0.7 * (td - k)))
+    assert z_b[k2] > z_a[k2] + 0.01                                               # higher than the stretched profile
+    assert np.abs(np.diff(z_b)).max() < 0.005 and z_b.min() > -1e-9               # smooth, never below the ground
+    np.testing.assert_allclose(fb.p_world_sole[td], b.plan.steps[1].p_world_sole, atol=1e-9)   # on the foothold
+    assert b.plan.steps[1].p_world_sole[0] > walk.plan.steps[1].p_world_sole[0] + 0.05
+    for bad in (1.0, -0.1):
+        with pytest.raises(PlanningError, match="late_descent"):
+            StepAdjustmentConfig(late_descent=bad)

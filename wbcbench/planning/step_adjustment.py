@@ -25,13 +25,17 @@ QP keeps u and b only. The solution is unique (H positive definite).
 Once the swing foot's ankle F/T sensor finds it loaded again after it left the ground (it landed, possibly
 before its reference: a position-controlled robot leaning towards it puts it lower than its model does), its step
 is not adjusted again. A controller's task set may carry its own settings (`step_adjustment:`, for the keys the
-scenario leaves; TALOS' IK and TSID position: a threshold of 5 cm, a deadband, re-plans from the DCM).
+scenario leaves; TALOS' IK and TSID position: a threshold of 5 cm, a deadband, re-plans from the DCM; TSID position
+also a late descent of the re-planned swing).
 
 `replan_walk` then re-plans the references from the current tick: the adjusted step and every later footstep
 translated by the foothold's change (the rest of the gait keeps its shape), the remaining single support
 stretched or shortened, the ZMP reference rebuilt from the new footholds, the CoM x-y from ZMP preview control
 started at the measured CoM (the pattern generator's controller, re-run from the current state), and the swing
-foot on a quintic from its current reference position, velocity and acceleration to the new foothold.
+foot on a quintic from its current reference position, velocity and acceleration to the new foothold (its height
+either the old remaining profile stretched to the new time or, with `late_descent`, brought to the apex height
+over a share of the remaining time before it descends: a position-controlled robot leaning towards its swing foot
+otherwise puts that foot on the ground short of the foothold).
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from .footsteps import FootstepPlan
 from .pattern_generator import PatternGeneratorConfig, _moves, _sole_center, _support_height, _zmp_from_moves
 from .pattern_generator import _feet as _plan_feet
 from .preview_control import simulate_preview
+from .swing import quintic_blend
 from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTrajectory, WalkTrajectory
 
 __all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk", "StepAdjuster", "parse_settings"]
@@ -57,7 +62,7 @@ REPLAN_FROM = ("measured", "planned", "dcm")
 #: the settings that must be > 0 and >= 0 (`StepAdjustmentConfig`, `parse_settings`)
 _POSITIVE = ("threshold", "period", "max_forward", "max_backward", "max_lateral", "min_single_support",
              "max_single_support", "min_remaining", "w_step", "w_time", "w_offset")
-_NONNEGATIVE = ("min_clearance", "min_change", "contact_force", "deadband")
+_NONNEGATIVE = ("min_clearance", "min_change", "contact_force", "deadband", "late_descent")
 
 
 @dataclass(frozen=True)
@@ -90,6 +95,12 @@ class StepAdjustmentConfig:
             change, the controller's own feedback handles the error) or "dcm" (the plan's CoM position and
             acceleration, the velocity that puts the plan's DCM on the measured one, less the deadband: the
             position reference does not jump to a measured CoM that lags it).
+        late_descent: the share (< 1) of a re-planned swing's remaining time in which the swing foot goes from its
+            current height (and velocity) to the apex height above the foothold; it descends in the rest (0: the
+            old remaining height profile, stretched to the new time). A position-controlled robot leaning towards
+            its swing foot (after a push) puts that foot lower than its reference: with the stretched profile of a
+            shortened swing it touched down short of the foothold, and the rest of the swing dragged it, loaded,
+            along the ground.
     """
 
     threshold: float = 0.02
@@ -109,6 +120,7 @@ class StepAdjustmentConfig:
     contact_force: float = 50.0
     deadband: float = 0.0
     replan_from: str = "measured"
+    late_descent: float = 0.0
 
     def __post_init__(self) -> None:
         if self.replan_from not in REPLAN_FROM:
@@ -125,6 +137,8 @@ class StepAdjustmentConfig:
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or v < 0.0:
                 raise PlanningError(f"StepAdjustmentConfig.{name} must be >= 0, got {v!r}")
+        if not self.late_descent < 1.0:
+            raise PlanningError(f"StepAdjustmentConfig.late_descent must be below 1, got {self.late_descent!r}")
         if self.min_single_support > self.max_single_support:
             raise PlanningError(f"StepAdjustmentConfig.min_single_support ({self.min_single_support} s) must not "
                                 f"exceed max_single_support ({self.max_single_support} s)")
@@ -261,7 +275,7 @@ def _translated_plan(plan: FootstepPlan, step: int, delta_xy: np.ndarray) -> Foo
 
 
 def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGeneratorConfig, k0: int, step: int,
-                shift_before: int, td_new: int, com_state: np.ndarray) -> WalkTrajectory:
+                shift_before: int, td_new: int, com_state: np.ndarray, late_descent: float = 0.0) -> WalkTrajectory:
     """The walk re-planned from tick k0, inside step `step`'s single support (module docstring).
 
     Args:
@@ -272,6 +286,7 @@ def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGene
         shift_before: ticks by which earlier adjustments moved this step's lift-off (sum of their time changes).
         td_new: the new touch-down tick of this step.
         com_state: the CoM to start from: (position, velocity, acceleration) x-y, shape (3, 2).
+        late_descent: the swing foot's height profile (`StepAdjustmentConfig.late_descent`).
     """
     dt = config.dt
     p_init = np.array([*current.p_world_com[0, :2], current.p_world_zmp_ref[0, 2]])
@@ -306,7 +321,8 @@ def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGene
                for name in ("p_world_sole", "R_world_sole", "v_world_sole", "w_world_sole", "a_world_sole",
                             "dw_world_sole", "in_contact")}
         if s is swing_side:
-            _replan_swing(arr, f, k0, td_new, plan.steps[step].p_world_sole, dt)
+            _replan_swing(arr, f, k0, td_new, plan.steps[step].p_world_sole, dt, late_descent,
+                          config.swing_apex_height)
         feet[s] = FootTrajectory(s, *(arr[n] for n in ("p_world_sole", "R_world_sole", "v_world_sole",
                                                         "w_world_sole", "a_world_sole", "dw_world_sole",
                                                         "in_contact")))
@@ -315,11 +331,14 @@ def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGene
                           feet, schedule, current.sole, plan)
 
 
-def _replan_swing(arr: dict, old: FootTrajectory, k0: int, td_new: int, p_end: np.ndarray, dt: float) -> None:
+def _replan_swing(arr: dict, old: FootTrajectory, k0: int, td_new: int, p_end: np.ndarray, dt: float,
+                  late_descent: float = 0.0, apex: float = 0.0) -> None:
     """The swing foot from tick k0 to td_new: horizontally a quintic from its current reference state to the new
-    foothold; vertically and in rotation the remaining old profile, stretched to the new remaining time (the
-    height with a correction keeping its velocity and acceleration continuous; the rotation, constant on
-    straight walks, is only re-timed)."""
+    foothold; in rotation the remaining old profile, stretched to the new remaining time (constant on straight
+    walks, only re-timed); vertically, without `late_descent`, the old profile stretched as well (with a correction
+    keeping its velocity and acceleration continuous at k0), with `late_descent` (in (0, 1)) a quintic from the
+    current height, velocity and acceleration to `apex` [m] above the foothold, at rest, over that share of the
+    remaining time, then the descent to the foothold in the rest."""
     td_old = k0 + int(np.argmax(old.in_contact[k0:])) if old.in_contact[k0:].any() else len(old.in_contact)
     n_rem = td_new - k0
     if n_rem <= 0:
@@ -332,17 +351,33 @@ def _replan_swing(arr: dict, old: FootTrajectory, k0: int, td_new: int, p_end: n
     # height and rotation: the old remaining profile [k0, td_old) mapped onto [k0, td_new)
     scale = (td_old - k0) / n_rem
     src = np.minimum(k0 + np.round(np.arange(n_rem) * scale).astype(int), max(td_old - 1, k0))
-    # plus a correction that starts with the old profile's velocity and acceleration and vanishes at touch-down,
-    # so that the height stays C2 at the re-plan tick
-    dz, dvz, daz = _quintic_from_state(0.0, old.v_world_sole[k0, 2] * (1.0 - scale),
-                                       old.a_world_sole[k0, 2] * (1.0 - scale**2), 0.0, n_rem * dt, t)
-    arr["p_world_sole"][sl, 2] = old.p_world_sole[src, 2] + dz[:, 0]
-    arr["v_world_sole"][sl, 2] = old.v_world_sole[src, 2] * scale + dvz[:, 0]
-    arr["a_world_sole"][sl, 2] = old.a_world_sole[src, 2] * scale**2 + daz[:, 0]
+    if late_descent > 0.0:
+        z, vz, az = _late_descent(old.p_world_sole[k0, 2], old.v_world_sole[k0, 2], old.a_world_sole[k0, 2],
+                                  p_end[2], apex, late_descent, n_rem * dt, t)
+        arr["p_world_sole"][sl, 2], arr["v_world_sole"][sl, 2], arr["a_world_sole"][sl, 2] = z, vz, az
+    else:
+        # plus a correction that starts with the old profile's velocity and acceleration and vanishes at
+        # touch-down, so that the height stays C2 at the re-plan tick
+        dz, dvz, daz = _quintic_from_state(0.0, old.v_world_sole[k0, 2] * (1.0 - scale),
+                                           old.a_world_sole[k0, 2] * (1.0 - scale**2), 0.0, n_rem * dt, t)
+        arr["p_world_sole"][sl, 2] = old.p_world_sole[src, 2] + dz[:, 0]
+        arr["v_world_sole"][sl, 2] = old.v_world_sole[src, 2] * scale + dvz[:, 0]
+        arr["a_world_sole"][sl, 2] = old.a_world_sole[src, 2] * scale**2 + daz[:, 0]
     arr["R_world_sole"][sl] = old.R_world_sole[src]
     arr["w_world_sole"][sl] = old.w_world_sole[src] * scale
     arr["dw_world_sole"][sl] = old.dw_world_sole[src] * scale**2
     arr["in_contact"][sl] = False
+
+
+def _late_descent(z0: float, v0: float, a0: float, z1: float, apex: float, share: float, T: float,
+                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Height, its velocity and acceleration at the times t in [0, T]: a quintic from (z0, v0, a0) to z1 + apex
+    at rest over the first `share` of T, then a minimum-jerk descent to z1 in the rest."""
+    T1 = max(share * T, min(T, 1e-3))
+    T2 = max(T - T1, 1e-3)
+    z, vz, az = _quintic_from_state(z0, v0, a0, z1 + apex, T1, t)
+    b, db, ddb = quintic_blend((t - T1) / T2)
+    return z[:, 0] - apex * b, vz[:, 0] - apex * db / T2, az[:, 0] - apex * ddb / T2**2
 
 
 def _schedule(feet: dict, dt: float) -> ContactSchedule:
@@ -476,7 +511,8 @@ class StepAdjuster:
             w = self.walk
             v = w.v_world_com[k, :2] + w.omega * (np.asarray(p_world_dcm, float)[:2] - w.p_world_dcm[k, :2])
             com_state = np.vstack([w.p_world_com[k, :2], v, w.a_world_com[k, :2]])
-        self.walk = replan_walk(self.walk, new_plan, self.pg_config, tick, i, before, td_new, com_state)
+        self.walk = replan_walk(self.walk, new_plan, self.pg_config, tick, i, before, td_new, com_state,
+                                cfg.late_descent)
         self.plan = new_plan
         self.step_delta[i] = own + move
         self.delta = self.delta + move

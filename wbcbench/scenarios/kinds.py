@@ -132,8 +132,9 @@ class WalkScenario(Scenario):
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
     `stepping`), w_step, w_time, w_offset, min_change [m], contact_force [N], deadband [m], replan_from
-    (measured|planned|dcm). Keys the file leaves come from the controller's task set (`step_adjustment:`, see
-    `adopt_step_adjustment`), else the defaults. Each tick the scenario gets the Measurement (`observe`), and the
+    (measured|planned|dcm), late_descent (a share of a re-planned swing's remaining time, < 1). Keys the file
+    leaves come from the controller's task set (`step_adjustment:`, see `adopt_step_adjustment`), else the
+    defaults. Each tick the scenario gets the Measurement (`observe`), and the
     re-planned references replace the walk's.
     The scenario's duration is the plan's unless the file or --duration sets one (a shorter duration cuts the
     walk; metrics then compare with where the plan is at that time).
