@@ -34,7 +34,8 @@ leaves (TSID's removeRigidContact unloads the contact before removing it). Per t
     sol = F.accept(x)                 # accelerations, wrenches and torques of the solution kept
 
 `acceleration_caps` (None by default) scales named frame tasks' commanded accelerations down while their position
-error is large (tsid-teleop's out-of-reach caps: `_kernels.cap_task_accelerations`, one compiled call a tick).
+error is large and their reference moves (tsid-teleop's out-of-reach caps: `_kernels.cap_task_accelerations`, one
+compiled call a tick).
 
 Solving, and what to do when a solve fails, is the controller's policy. The problems' arrays are reused tick
 after tick (refilled in place): a `QPProblem` from here is valid until the next call that assembles.
