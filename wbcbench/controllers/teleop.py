@@ -21,10 +21,11 @@ It is `InverseDynamicsController` (inverse_dynamics.py) with its own policy:
 * out-of-reach caps: while a hand's or the head's position error exceeds `REACH_CAP` ``error[0]`` (10 cm; the
   arm at its joint limits, or far behind a target it cannot follow) and its reference moves (from 0.2 m/s), its
   task's commanded acceleration is scaled down to `REACH_CAP` ``linear`` / ``angular`` (20 m/s^2, 60 rad/s^2),
-  fully from ``error[1]`` and ``speed[1]`` on (`InverseDynamicsFormulation.acceleration_caps`). With kp 8000, an arm that cannot follow its target asked
-  for hundreds of m/s^2 and the weighted QP took them from the torso, the pelvis and the legs: on public
-  dance, jump and spin captures the model bent over its straightened legs until the pelvis tilted 0.7 rad, with
-  the feet flat on the ground. The cap leaves a tracked target (errors of a few cm) and a still one untouched;
+  fully from ``error[1]`` and ``speed[1]`` on (`InverseDynamicsFormulation.acceleration_caps`). With kp 8000,
+  an arm that cannot follow its target asked for hundreds of m/s^2 and the weighted QP took them from the torso,
+  the pelvis and the legs: on public dance, jump and spin captures the model bent over its straightened legs
+  until the pelvis tilted 0.7 rad, with the feet flat on the ground. The cap leaves a tracked target (errors of
+  a few cm) and a still one untouched;
 * SPD and position modes, the task set's `arm_damping_injection` c > 0: the arms' velocity references are
   ``v_int + c (v_int - v)`` (v the encoders' velocities, `inject_damping`), so that the joint servos, whose
   damping is only 0.01 of their stiffness, damp the arm's tracking error (1 + c) times as much.
