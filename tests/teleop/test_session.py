@@ -192,8 +192,10 @@ def test_stabilizer_keeps_the_robot_standing_where_it_falls_without_it_at_twice_
     less amplitude (45-48 deg instead of 50) it stays up at x2 (soles 4-6 deg), with 10 % more (55 deg) it also
     falls at x1. Nothing in the Table II recordings falls at x2 or x3 (benchmarks/teleop_table2.py --speed 3
     --stabilizer both)."""
-    off = run_session("push_pull", speed=2.0, stabilizer=False, out=tmp_path / "off")
-    on = run_session("push_pull", speed=2.0, stabilizer=True, out=tmp_path / "on")
+    # the paper's controller: without the out-of-reach caps (with them, the arms that cannot follow the x2
+    # targets no longer swing the pelvis, and the robot stands without the stabilizer too)
+    off = run_session("push_pull", speed=2.0, stabilizer=False, reach_cap=False, out=tmp_path / "off")
+    on = run_session("push_pull", speed=2.0, stabilizer=True, reach_cap=False, out=tmp_path / "on")
     assert off.summary["fell"], "without the stabilizer the robot should fall"
     assert not on.summary["fell"], on.summary["fall_reason"]
     assert on.summary["sim_time_s"] == pytest.approx(6.5)

@@ -121,3 +121,59 @@ def ik_bounds(q_lim, v_max, q_joints, dt, lower, upper):
         lower[6 + i] = min(lo, hi)
     for i in range(6):
         lower[i] = min(lower[i], upper[i])
+
+
+@njit
+def cap_task_accelerations(b, drift, e, v_ref, rows, p):
+    """Out-of-reach caps on frame tasks' commanded accelerations, in place on the stacked task rows ``b`` (= a* -
+    drift; ``drift``, the errors ``e`` and the reference velocities ``v_ref`` the stack's): per task k, ``rows[k]``
+    (6,) the stack rows of its axes x y z roll pitch yaw (-1: not selected). ``p`` = [e0, e1, a_lin, a_ang, v0,
+    v1]. Where the task's position error ``|e_xyz|`` exceeds ``e0`` [m] while its reference moves faster than
+    ``v0`` [m/s], its commanded linear and angular accelerations ``a* = b + drift`` are scaled towards the norms
+    ``a_lin``, ``a_ang`` (only where larger), fully from ``e1`` and ``v1`` on (min-jerk blends in between, so that
+    the rows stay continuous). A still target out of reach is left to the task. Returns how many tasks were
+    capped."""
+    e0, e1, a_lin, a_ang, v0, v1 = p[0], p[1], p[2], p[3], p[4], p[5]
+    n_capped = 0
+    for k in range(rows.shape[0]):
+        en = 0.0
+        vn = 0.0
+        for i in range(3):
+            r = rows[k, i]
+            if r >= 0:
+                en += e[r] * e[r]
+                vn += v_ref[r] * v_ref[r]
+        en = np.sqrt(en)
+        if en <= e0:
+            continue
+        s = _smoothstep((en - e0) / (e1 - e0)) * _smoothstep((np.sqrt(vn) - v0) / (v1 - v0))
+        if s <= 0.0:
+            continue
+        capped = False
+        for part in range(2):
+            limit = a_lin if part == 0 else a_ang
+            norm = 0.0
+            for i in range(3 * part, 3 * part + 3):
+                r = rows[k, i]
+                if r >= 0:
+                    a = b[r] + drift[r]
+                    norm += a * a
+            norm = np.sqrt(norm)
+            if norm <= limit:
+                continue
+            f = (1.0 - s) + s * limit / norm
+            for i in range(3 * part, 3 * part + 3):
+                r = rows[k, i]
+                if r >= 0:
+                    b[r] = (b[r] + drift[r]) * f - drift[r]
+            capped = True
+        if capped:
+            n_capped += 1
+    return n_capped
+
+
+@njit
+def _smoothstep(u):
+    """The min-jerk blend of u clipped to [0, 1]."""
+    u = min(1.0, max(0.0, u))
+    return u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)

@@ -33,6 +33,10 @@ leaves (TSID's removeRigidContact unloads the contact before removing it). Per t
     P = F.problem_with_torque_limits()   /   F.problem_relaxed()   (no joint or torque limits)
     sol = F.accept(x)                 # accelerations, wrenches and torques of the solution kept
 
+`acceleration_caps` (None by default) scales named frame tasks' commanded accelerations down while their position
+error is large and their reference moves (tsid-teleop's out-of-reach caps: `_kernels.cap_task_accelerations`, one
+compiled call a tick).
+
 Solving, and what to do when a solve fails, is the controller's policy. The problems' arrays are reused tick
 after tick (refilled in place): a `QPProblem` from here is valid until the next call that assembles.
 """
@@ -95,7 +99,8 @@ class _Layout:
     layout, made once, so that a tick only computes. The QPProblem objects are built once too: their arrays are
     refilled in place."""
 
-    __slots__ = ("slices", "k", "kb", "barriers", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv", "H_diag_w", "g_w",
+    __slots__ = ("slices", "k", "kb", "barriers", "cap_rows", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv",
+                 "H_diag_w", "g_w",
                  "A_hard", "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks",
                  "u_blocks", "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque",
                  "problem_relaxed", "targets_set", "rows", "buffers")
@@ -112,6 +117,16 @@ class _Layout:
             if getattr(task, "barrier", None) is not None and any(task is t for t in F.tasks):
                 self.barriers.append((task, rows, slice(18 * nc + nb, 18 * nc + nb + (rows.stop - rows.start))))
                 nb += rows.stop - rows.start
+        # the stack rows (x y z roll pitch yaw, -1: not selected) of the tasks with out-of-reach caps
+        caps = F.acceleration_caps
+        cap_rows = []
+        if caps is not None:
+            for task, rows in zip(stack.tasks, stack.slices):
+                if task.name in caps[0]:
+                    r = np.full(6, -1, dtype=np.int64)
+                    r[np.asarray(task.rows)] = np.arange(rows.start, rows.stop)
+                    cap_rows.append(r)
+        self.cap_rows = np.array(cap_rows, dtype=np.int64).reshape(-1, 6)
         H = np.zeros((n, n))
         diag = H.reshape(-1)[::n + 1]
         diag[nv:] = np.tile(F.wrench_regularization_diagonal, nc)
@@ -197,6 +212,12 @@ class InverseDynamicsFormulation:
         self.wrench_regularization_diagonal = regularization_wrench * a**2
         self.wrench_target_weight = wrench_target_weight
         self.joint_limit_horizon = joint_limit_horizon
+        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1]): the named frame tasks' commanded
+        #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0
+        #: (`_kernels.cap_task_accelerations`); set before the first `problem`. `n_capped_ticks` counts the ticks
+        #: with a task capped
+        self.acceleration_caps: tuple | None = None
+        self.n_capped_ticks = 0
         self.transition_time = transition_time
         self.unload_before_lift_off = unload_before_lift_off
         self.dt = dt
@@ -349,6 +370,9 @@ class InverseDynamicsFormulation:
         if L is None or L.slices is not stack.slices:  # first time, or the stack's layout changed
             L = self._layouts[active] = _Layout(self, len(active), stack, n_hard, A, b)
         self._layout = L
+        if L.cap_rows.shape[0]:
+            self.n_capped_ticks += _kernels.cap_task_accelerations(stack._b, stack._drift, stack._e, stack._v_ref,
+                                                                   L.cap_rows, self.acceleration_caps[1]) > 0
         # wrench cones: copy the rows a contact replaced (force ramps)
         cones = L.cones
         for i, name in enumerate(active):

@@ -2,8 +2,9 @@
 UDP stream.
 
     wbcbench teleop --mocap FILE|NAME|udp://127.0.0.1:PORT [--controller tsid-teleop] [--mode spd|position|torque]
-                    [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--anchor rest|absolute|offset]
-                    [--duration S] [--out DIR] [--net SPEC] [--predict none|velocity|spline]
+                    [--speed FACTOR] [--no-repulsors] [--no-stabilizer] [--no-reach-cap]
+                    [--anchor rest|absolute|offset] [--duration S] [--out DIR] [--net SPEC]
+                    [--predict none|velocity|spline]
     wbcbench teleop --list
 
 `--net SPEC` impairs the operator's stream (wbcbench/teleop/network.py): a recording is replayed through the
@@ -46,6 +47,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", type=float, default=1.0, help="replay speed factor for recordings (default 1)")
     p.add_argument("--no-repulsors", action="store_true", help="drop the self-collision repulsor tasks")
     p.add_argument("--no-stabilizer", action="store_true", help="disable the force-based stabilizer (Eq. 2-7)")
+    p.add_argument("--no-reach-cap", action="store_true",
+                   help="tsid-teleop: do not cap the hands' and head's commanded accelerations while their targets "
+                        "are out of reach and moving (the paper's controller)")
     p.add_argument("--duration", "-d", type=float, default=None,
                    help="seconds to simulate (default: the recording's length / speed; required for udp://)")
     p.add_argument("--self-collision", choices=["detect", "physical", "off"], default="detect",
@@ -113,7 +117,8 @@ def _check_controller(name: str) -> None:
 
 
 def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, mode: str | None = None,
-                speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, duration: float | None = None,
+                speed: float = 1.0, repulsors: bool = True, stabilizer: bool = True, reach_cap: bool = True,
+                duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
                 quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, view=None,
                 **params):
@@ -122,6 +127,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
     `view`: a live view (`wbcbench.viz.live.LiveView`) to show the robot and the retargeted targets in, or None.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
+    `reach_cap`: False turns tsid-teleop's out-of-reach caps off.
     Other keyword arguments are `teleop` scenario params (e.g. `proportion`, `engage_time`, `feedforward`).
 
     Raises:
@@ -152,7 +158,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
                           key="--mode") from None
     scen = TeleopScenario.from_source(robot, mocap, duration=duration or 0.0, speed=speed, on_loss=on_loss,
                                       name=f"teleop-{_label(mocap)}", **params)
-    ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer)
+    ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer, reach_cap=reach_cap)
     probes = [SelfCollisionProbe()] if self_collision != "off" else []
     if view is not None:
         probes.append(view)
@@ -193,7 +199,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.mocap is None:
         raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
     kwargs = dict(robot=args.robot, controller=args.controller, mode=args.mode, speed=args.speed,
-                  repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer, duration=args.duration,
+                  repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer,
+                  reach_cap=not args.no_reach_cap, duration=args.duration,
                   out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
                   overwrite=args.overwrite, realtime=args.realtime)
     if args.no_filter:
