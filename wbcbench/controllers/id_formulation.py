@@ -216,6 +216,8 @@ class InverseDynamicsFormulation:
         #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0
         #: (`_kernels.cap_task_accelerations`); set before the first `problem`. `n_capped_ticks` counts the ticks
         #: with a task capped
+        #: whether an active contact was left on a sole edge by the last `set_contact_pitch` (a toe-off under way)
+        self.on_edge = False
         self.acceleration_caps: tuple | None = None
         self.n_capped_ticks = 0
         self.transition_time = transition_time
@@ -244,6 +246,8 @@ class InverseDynamicsFormulation:
         for t in (*self.hard_tasks, *self.tasks):
             t.reset_reference(m, d, q_reference)
         for name, cs in self.contacts.items():
+            cs.contact.set_edge(None)  # on the whole sole (a toe-off of a previous run ended)
+            cs.anchor = None
             cs.contact.set_reference_to_current(m, d)
             cs.active = name in active
             f = cs.contact.nominal_max_normal_force
@@ -251,6 +255,7 @@ class InverseDynamicsFormulation:
         for t in self.free_tasks.values():
             t.set_reference_to_current(m, d)
         self.active = tuple(n for n in self.names if self.contacts[n].active)
+        self.on_edge = False
 
     def set_contacts(self, t: float, wanted: Collection, lift_off: Mapping | None = None) -> tuple:
         """The contact schedule at time t [s]: a contact no longer wanted ramps its maximum force from its
@@ -323,6 +328,7 @@ class InverseDynamicsFormulation:
             c.set_reference(pin.SE3(R0 @ Ry, p0 + R0 @ (pe - Ry @ pe)),
                             np.array([0.0, 0.0, rate * x, 0.0, rate, 0.0]),
                             np.array([0.0, 0.0, acc * x, 0.0, acc, 0.0]))
+        self.on_edge = any(cs.active and cs.contact.edge is not None for cs in self.contacts.values())
 
     def set_wrench_targets(self, targets: Mapping | None) -> None:
         """The targets w_c* (6,) of this tick's wrench regularisation, by contact (None or empty: none)."""

@@ -234,7 +234,7 @@ class InverseDynamicsController(Controller):
         roll = None
         if self.references.swing_pitch and refs.swing_pitch:
             roll = {s: d for s, d in refs.swing_pitch.items() if len(d) > 3 and d[3] != 0.0 and s not in refs.feet}
-        if roll or any(cs.contact.edge is not None for cs in F.contacts.values()):
+        if roll or F.on_edge:
             F.set_contact_pitch(roll or {})
 
     def _wrench_targets(self, refs: References) -> dict | None:
