@@ -181,20 +181,8 @@ def swing_pitch_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray,
     if n < 8 or T <= 0.0:
         z = np.zeros((n, 3))
         return z, np.zeros(n)
-    c, s_ = np.cos(yaw), np.sin(yaw)
-    h = legs.hip_offset[side]
-    hip = p_world_com + np.column_stack([c * h[0] - s_ * h[1], s_ * h[0] + c * h[1], np.full(n, h[2])])
     ankle = p_world_sole + R_world_sole @ legs.ankle_in_sole[side]
-    fwd = R_world_sole[:, :, 0].copy()
-    fwd[:, 2] = 0.0
-    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
-    d = ankle - hip
-    dx, dz = np.einsum("ij,ij->i", d, fwd), d[:, 2]
-    l1, l2 = legs.thigh[side], legs.shank[side]
-    r = np.clip(np.hypot(dx, dz), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
-    psi = np.arctan2(dx, -dz)
-    beta = np.arccos(np.clip((l2 * l2 + r * r - l1 * l1) / (2.0 * l2 * r), -1.0, 1.0))
-    q_ankle = _pitch(R_world_sole) + (psi - beta)  # foot pitch - shank pitch (shank pitch = -(psi - beta))
+    q_ankle = _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, _pitch(R_world_sole))
     dt = T / (n - 1)
     acc = np.gradient(np.gradient(q_ankle, dt), dt)
     # the foot pitches while its sole is `clearance` above the swing's lower end, |delta| bounded by max_pitch and
@@ -334,7 +322,7 @@ def _spline_basis(t: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray, np.n
 
 def _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch_foot):
     """The predicted ankle pitch (n,) [rad]: foot pitch `pitch_foot` minus the shank's (the two-link leg from the
-    hip, at its start offset from the CoM, to `ankle` (n, 3))."""
+    hip, at its start offset from the CoM, to `ankle` (n, 3); the shank's pitch is -(psi - beta))."""
     n = len(yaw)
     c, s_ = np.cos(yaw), np.sin(yaw)
     h = legs.hip_offset[side]
