@@ -212,12 +212,12 @@ class InverseDynamicsFormulation:
         self.wrench_regularization_diagonal = regularization_wrench * a**2
         self.wrench_target_weight = wrench_target_weight
         self.joint_limit_horizon = joint_limit_horizon
-        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1]): the named frame tasks' commanded
-        #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0
-        #: (`_kernels.cap_task_accelerations`); set before the first `problem`. `n_capped_ticks` counts the ticks
-        #: with a task capped
         #: whether an active contact was left on a sole edge by the last `set_contact_pitch` (a toe-off under way)
         self.on_edge = False
+        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1]): the named frame tasks' commanded
+        #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0
+        #: (`_kernels.cap_task_accelerations`; `set_acceleration_caps`). `n_capped_ticks` counts the ticks with a
+        #: task capped
         self.acceleration_caps: tuple | None = None
         self.n_capped_ticks = 0
         self.transition_time = transition_time
@@ -329,6 +329,12 @@ class InverseDynamicsFormulation:
                             np.array([0.0, 0.0, rate * x, 0.0, rate, 0.0]),
                             np.array([0.0, 0.0, acc * x, 0.0, acc, 0.0]))
         self.on_edge = any(cs.active and cs.contact.edge is not None for cs in self.contacts.values())
+
+    def set_acceleration_caps(self, names: Collection[str], params: np.ndarray) -> None:
+        """Cap the named frame tasks' commanded accelerations (`acceleration_caps`; params [e0, e1, a_lin, a_ang, v0,
+        v1]); the problems' layouts are made again with the tasks' rows."""
+        self.acceleration_caps = (tuple(names), np.asarray(params, dtype=float))
+        self._layouts.clear()
 
     def set_wrench_targets(self, targets: Mapping | None) -> None:
         """The targets w_c* (6,) of this tick's wrench regularisation, by contact (None or empty: none)."""

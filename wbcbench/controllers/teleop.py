@@ -196,8 +196,7 @@ class TSIDTeleop(InverseDynamicsController):
             c = self.REACH_CAP
             names = tuple(t.name for t in self.tasks if t.name in c["tasks"])
             params = np.array([*c["error"], c["linear"], c["angular"], *c["speed"]], dtype=float)
-            self.formulation.acceleration_caps = (names, params)
-            self.formulation._layouts.clear()
+            self.formulation.set_acceleration_caps(names, params)
         self.n_torque_rows_dropped = 0
         # SPD and position modes: the arms' joints (velocity indices), whose accelerations `_solve` bounds
         share = self.ARM_TORQUE_SHARE if arm_torque_share is None else float(arm_torque_share)
