@@ -99,3 +99,29 @@ def test_arms_swung_behind_the_back_fell_without_the_cap_and_stand_with_it(talos
     assert not out[True][0] and out[True][1] == pytest.approx(2.5, abs=2e-3) and out[True][3] > 500
     assert out[True][2] < 0.3
 
+
+
+def test_the_caps_come_from_the_task_set_and_bad_ones_are_one_line(talos, tmp_path):
+    """TALOS' teleop task set carries the caps (`reach_cap:`), `reach_cap=False` leaves them off, and a task set
+    whose caps name a task it does not have or give a range backwards is a ConfigError naming the file and key."""
+    import yaml
+
+    from wbcbench.controllers.taskset import load_taskset, taskset_path
+    from wbcbench.controllers.teleop import TSIDTeleop
+    from wbcbench.errors import ConfigError
+    from wbcbench.types import ActuationMode
+
+    on = TSIDTeleop(talos, ActuationMode.SPD, 1e-3)
+    names, params = on.formulation.acceleration_caps
+    assert on.reach_cap and set(names) == {"left_hand", "right_hand", "head"}
+    np.testing.assert_array_equal(params, P)
+    off = TSIDTeleop(talos, ActuationMode.SPD, 1e-3, reach_cap=False)
+    assert not off.reach_cap and off.formulation.acceleration_caps is None
+    data = yaml.safe_load(taskset_path(talos, "teleop").read_text())
+    for change, key in (({"tasks": ["left_hand", "left_wrist"]}, r"reach_cap\.tasks\[1\]"),
+                        ({"error": [0.15, 0.10]}, r"reach_cap\.error"), ({"linear": 0.0}, r"reach_cap\.linear")):
+        bad = tmp_path / "teleop.yaml"
+        bad.write_text(yaml.safe_dump({**data, "reach_cap": {**data["reach_cap"], **change}}))
+        with pytest.raises(ConfigError, match=key) as exc:
+            load_taskset(bad, talos)
+        assert "teleop.yaml" in str(exc.value) and "\n" not in str(exc.value)

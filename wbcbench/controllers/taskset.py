@@ -31,8 +31,8 @@ if TYPE_CHECKING:
     from ..estimation.base_feedback import BaseFeedbackConfig
     from ..stabilizers.base import StabilizerConfig
 
-__all__ = ["ContactSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame", "taskset_path",
-           "taskset_variant_path"]
+__all__ = ["ContactSpec", "ReachCapSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame",
+           "taskset_path", "taskset_variant_path"]
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
 
@@ -58,6 +58,24 @@ class ContactSpec:
 
 
 @dataclass(frozen=True)
+class ReachCapSpec:
+    """Out-of-reach caps (YAML `reach_cap:`, tsid-teleop): while a named frame task's position error exceeds
+    `error[0]` [m] and its reference moves faster than `speed[0]` [m/s], its commanded linear and angular
+    accelerations are scaled towards the norms `linear` [m/s^2] and `angular` [rad/s^2], fully from `error[1]`
+    and `speed[1]` on (`InverseDynamicsFormulation.set_acceleration_caps`)."""
+
+    tasks: tuple[str, ...]
+    error: tuple[float, float] = (0.10, 0.15)
+    linear: float = 20.0
+    angular: float = 60.0
+    speed: tuple[float, float] = (0.2, 0.5)
+
+    def params(self) -> np.ndarray:
+        """[e0, e1, a_lin, a_ang, v0, v1], as `_kernels.cap_task_accelerations` takes them."""
+        return np.array([*self.error, self.linear, self.angular, *self.speed], dtype=float)
+
+
+@dataclass(frozen=True)
 class TaskSetSpec:
     """A controller's task set. `regularization_dv`, `regularization_wrench`: weights of ||dv||^2 and ||a * w||^2,
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
@@ -68,7 +86,8 @@ class TaskSetSpec:
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
     scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
-    (`References.swing_pitch`) to its swing feet's references (`TaskReferences`)."""
+    (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
+    out-of-reach caps (`ReachCapSpec`)."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -85,6 +104,7 @@ class TaskSetSpec:
     touchdown_search: "TouchdownSearchConfig | None" = None
     step_adjustment: tuple[tuple[str, object], ...] | None = None
     swing_pitch_with_leg: bool = False
+    reach_cap: ReachCapSpec | None = None
     file: str = field(default="", compare=False)
 
     def task(self, name: str) -> TaskSpec:
@@ -239,6 +259,22 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
         except PlanningError as exc:
             raise sa.error(None, str(exc)) from None
         step_adjustment = tuple(sorted(settings.items()))
+    reach_cap = None
+    if root.has("reach_cap"):
+        rc = root.section("reach_cap")
+        cap_tasks = rc.list("tasks")
+        for i, n in enumerate(cap_tasks):
+            if not isinstance(n, str) or n not in names:
+                raise rc.error(f"tasks[{i}]", f"{n!r} is not a task of this set; its tasks: {', '.join(sorted(names))}")
+        pairs = {}
+        for k, default in (("error", (0.10, 0.15)), ("speed", (0.2, 0.5))):
+            v = rc.vector(k, list(default), length=2, nonnegative=True)
+            if not v[0] < v[1]:
+                raise rc.error(k, f"must be [start, full] with start < full, got {v.tolist()}")
+            pairs[k] = (float(v[0]), float(v[1]))
+        reach_cap = ReachCapSpec(tuple(cap_tasks), pairs["error"], rc.float("linear", 20.0, positive=True),
+                                 rc.float("angular", 60.0, positive=True), pairs["speed"])
+        rc.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),
                        regularization_wrench=reg.float("wrench", 1e-5, positive=True),
@@ -249,7 +285,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
-                       swing_pitch_with_leg=pitch_with_leg, file=file)
+                       swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)
     reg.finish()
     root.finish()
     return spec

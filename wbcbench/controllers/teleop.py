@@ -18,13 +18,13 @@ It is `InverseDynamicsController` (inverse_dynamics.py) with its own policy:
 * SPD and position modes: each arm joint's acceleration is bounded by what a share of its torque limit gives it
   (`_solve`, `arm_acceleration_bounds`), so that the integrated arm, which the joint servos follow, moves only as
   fast as the arm's actuators can follow it;
-* out-of-reach caps: while a hand's or the head's position error exceeds `REACH_CAP` ``error[0]`` (10 cm; the
-  arm at its joint limits, or far behind a target it cannot follow) and its reference moves (from 0.2 m/s), its
-  task's commanded acceleration is scaled down to `REACH_CAP` ``linear`` / ``angular`` (20 m/s^2, 60 rad/s^2),
-  fully from ``error[1]`` and ``speed[1]`` on (`InverseDynamicsFormulation.acceleration_caps`). With kp 8000,
-  an arm that cannot follow its target asked for hundreds of m/s^2 and the weighted QP took them from the torso,
-  the pelvis and the legs: on public dance, jump and spin captures the model bent over its straightened legs
-  until the pelvis tilted 0.7 rad, with the feet flat on the ground. The cap leaves a tracked target (errors of
+* out-of-reach caps: while a hand's or the head's position error exceeds the task set's `reach_cap.error[0]` (TALOS:
+  10 cm; the arm at its joint limits, or far behind a target it cannot follow) and its reference moves (from
+  `speed[0]`, 0.2 m/s), its task's commanded acceleration is scaled down to `reach_cap.linear` / `angular` (20
+  m/s^2, 60 rad/s^2), fully from `error[1]` and `speed[1]` on (`InverseDynamicsFormulation.set_acceleration_caps`).
+  With kp 8000, an arm that cannot follow its target asked for hundreds of m/s^2 and the weighted QP took them from
+  the torso, the pelvis and the legs: on public dance, jump and spin captures the model bent over its straightened
+  legs until the pelvis tilted 0.7 rad, with the feet flat on the ground. The cap leaves a tracked target (errors of
   a few cm) and a still one untouched;
 * SPD and position modes, the task set's `arm_damping_injection` c > 0: the arms' velocity references are
   ``v_int + c (v_int - v)`` (v the encoders' velocities, `inject_damping`), so that the joint servos, whose
@@ -154,8 +154,8 @@ class TSIDTeleop(InverseDynamicsController):
         stabilizer: apply the task set's `teleop_stabilizer` (paper Eq. 2-7) when it has one.
         arm_torque_share: SPD and position modes: bound each arm joint's acceleration by what this share of its
             torque limit gives it (default `ARM_TORQUE_SHARE`; 0: no bound, the integrated arm unbounded).
-        reach_cap: cap the hands' and head's commanded accelerations while their targets are out of reach
-            (`REACH_CAP`; default True).
+        reach_cap: apply the task set's out-of-reach caps (`reach_cap:`, `ReachCapSpec`) when it has them: the
+            hands' and head's commanded accelerations capped while their targets are out of reach (default True).
     """
 
     name = "tsid-teleop"
@@ -168,12 +168,6 @@ class TSIDTeleop(InverseDynamicsController):
     #: (`_solve`); the rest is headroom for what the per-joint bound leaves out (the other joints' accelerations
     #: through the mass matrix, the servo's error-driven torques, the measured arm's own state)
     ARM_TORQUE_SHARE = 0.7
-    #: out-of-reach caps (`__init__`'s `reach_cap`): the tasks, the position error [m] from which the cap starts
-    #: and from which it is full, the capped norms of the commanded linear [m/s^2] and angular [rad/s^2]
-    #: accelerations, and the reference speeds [m/s] from which the cap starts and is full (a still target out of
-    #: reach, e.g. one the repulsors hold the hand off, is left to the task)
-    REACH_CAP = {"tasks": ("left_hand", "right_hand", "head"), "error": (0.10, 0.15), "linear": 20.0,
-                 "angular": 60.0, "speed": (0.2, 0.5)}
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
                  repulsors: bool = True, stabilizer: bool = True, arm_torque_share: float | None = None,
@@ -191,12 +185,10 @@ class TSIDTeleop(InverseDynamicsController):
             self.torque_solver = ActiveSetGuessSolver(make_solver("daqp", iter_limit=self.TORQUE_QP_ITERATIONS))
         self.repulsors = any(t.type == "self_collision" for t in spec.tasks)
         self.collision_tasks = [t for t in self.tasks if isinstance(t, SelfCollisionTask)]
-        self.reach_cap = bool(reach_cap)
+        # the task set's out-of-reach caps (`reach_cap:`), unless switched off
+        self.reach_cap = bool(reach_cap) and spec.reach_cap is not None
         if self.reach_cap:
-            c = self.REACH_CAP
-            names = tuple(t.name for t in self.tasks if t.name in c["tasks"])
-            params = np.array([*c["error"], c["linear"], c["angular"], *c["speed"]], dtype=float)
-            self.formulation.set_acceleration_caps(names, params)
+            self.formulation.set_acceleration_caps(spec.reach_cap.tasks, spec.reach_cap.params())
         self.n_torque_rows_dropped = 0
         # SPD and position modes: the arms' joints (velocity indices), whose accelerations `_solve` bounds
         share = self.ARM_TORQUE_SHARE if arm_torque_share is None else float(arm_torque_share)
