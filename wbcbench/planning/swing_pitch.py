@@ -339,6 +339,14 @@ def _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch_foot):
     return pitch_foot + (psi - beta)
 
 
+def _turned(R_world_sole: np.ndarray, delta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A point v (3,) of the sole frame, relative to the pivot edge, turned by delta (n,) about the sole's lateral
+    axis, in world axes (n, 3) (the planned rotations R_world_sole (n, 3, 3))."""
+    c, s_ = np.cos(delta), np.sin(delta)
+    local = np.column_stack([c * v[0] + s_ * v[2], np.full(len(delta), v[1]), -s_ * v[0] + c * v[2]])
+    return np.einsum("nij,nj->ni", R_world_sole, local)
+
+
 def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_world_sole: np.ndarray,
                     R_world_sole: np.ndarray, side: Side, legs: LegGeometry, toe_x: float, length: float,
                     config: SwingPitchConfig = SwingPitchConfig(), iterations: int = 3, n_roll: int = 0,
@@ -374,16 +382,14 @@ def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_w
     rows = slice(1, n - 1)
     wt = np.full(n, dt)
     wt[:n_roll] *= roll_weight  # the roll's ankle acceleration weighs less: the foot still carries (a little)
-    H = (B2.T * wt) @ B2 + 1e-9 * np.eye(B.shape[1])
     if legs.foot_com is not None and legs.foot_mass > 0.0:  # minimise the ankle's torque, its rotor and its foot
         return _toe_off_by_torque(t, dt, p_world_com, yaw, toe, R_world_sole, side, legs, pe, pitch0, B, B1, B2, wt,
                                   lower, upper, rows, iterations)
+    H = (B2.T * wt) @ B2 + 1e-9 * np.eye(B.shape[1])
     delta = np.zeros(n)
     acc_flat = None
     for _ in range(max(1, iterations)):
-        c, s_ = np.cos(delta), np.sin(delta)
-        turned = np.column_stack([c * a_rel[0] + s_ * a_rel[2], np.full(n, a_rel[1]), -s_ * a_rel[0] + c * a_rel[2]])
-        ankle = toe + np.einsum("nij,nj->ni", R_world_sole, turned)
+        ankle = toe + _turned(R_world_sole, delta, a_rel)
         q_a = _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch0)  # without delta's own
         acc = np.gradient(np.gradient(q_a, dt), dt)
         if acc_flat is None:
@@ -410,18 +416,13 @@ def _toe_off_by_torque(t, dt, p_world_com, yaw, toe, R_world_sole, side, legs, p
     y = R_world_sole[:, :, 1]
     m, I_f, arm = legs.foot_mass, legs.foot_inertia, legs.armature
 
-    def rotate(delta, v):
-        c, s_ = np.cos(delta), np.sin(delta)
-        local = np.column_stack([c * v[0] + s_ * v[2], np.full(n, v[1]), -s_ * v[0] + c * v[2]])
-        return np.einsum("nij,nj->ni", R_world_sole, local)
-
     def d2(x):
         return np.gradient(np.gradient(x, dt, axis=0), dt, axis=0)
 
     def torque(coef):
         delta = B @ coef
-        ankle = toe + rotate(delta, a_rel)
-        com = toe + rotate(delta, c_rel)
+        ankle = toe + _turned(R_world_sole, delta, a_rel)
+        com = toe + _turned(R_world_sole, delta, c_rel)
         q_a = _ankle_pitch(p_world_com, yaw, ankle, R_world_sole, side, legs, pitch0 + delta)
         f = m * (d2(com) - _GRAVITY)
         moment = np.einsum("ni,ni->n", np.cross(com - ankle, f), y)
