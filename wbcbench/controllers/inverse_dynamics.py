@@ -121,8 +121,9 @@ class InverseDynamicsController(Controller):
         # landing foot down)
         self.corrections = PlanCorrections(robot, dt, spec, stabilizer,
                                            integrated_model=mode is not ActuationMode.TORQUE)
-        # the ankle pitch joints' axes (a toe-off's swing turns about them, `_set_references`)
-        self._ankle_axes = _ankle_pitch_axes(robot)
+        # the ankle pitch joints' axes (a toe-off's swing turns about them, `_set_references`), for a task set that
+        # takes the plan's swing pitch
+        self._ankle_axes = _ankle_pitch_axes(robot) if spec.swing_pitch_with_leg else {}
 
     @property
     def stabilizer(self) -> Stabilizer | None:
