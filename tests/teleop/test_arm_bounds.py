@@ -66,9 +66,22 @@ def test_the_measured_arm_follows_the_integrated_arm_on_a_fast_motion(talos, tmp
     assert lags[None] < 0.16
 
 
-def test_a_bad_arm_torque_share_is_a_config_error(talos):
+def test_a_bad_arm_torque_share_is_a_config_error(talos, tmp_path):
+    """The share comes from the task set (`arm_torque_share:`, TALOS' 0.7); a negative one, given to the controller
+    or in a task-set file, is a one-line ConfigError naming the key (and the file)."""
+    import yaml
+
+    from wbcbench.controllers.taskset import load_taskset, taskset_path
+
+    assert TSIDTeleop(talos, ActuationMode.SPD, 1e-3).arm_torque_share == 0.7
     with pytest.raises(ConfigError, match="arm_torque_share"):
         TSIDTeleop(talos, ActuationMode.SPD, 1e-3, arm_torque_share=-0.1)
+    bad = tmp_path / "teleop.yaml"
+    bad.write_text(yaml.safe_dump({**yaml.safe_load(taskset_path(talos, "teleop").read_text()),
+                                   "arm_torque_share": -0.1}))
+    with pytest.raises(ConfigError, match="arm_torque_share") as exc:
+        load_taskset(bad, talos)
+    assert "teleop.yaml" in str(exc.value) and "\n" not in str(exc.value)
 
 
 def test_inject_damping_adds_c_times_the_tracking_velocity_error():

@@ -81,7 +81,8 @@ class TaskSetSpec:
     `regularization_wrench_axes` = a (6,) per wrench axis fx fy fz tx ty tz (YAML `regularization.wrench_axes`);
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
-    the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
+    the arms' tracking velocity error (0: off; `TSIDTeleop`); `arm_torque_share`: tsid-teleop's share of an arm
+    joint's torque limit its acceleration bound leaves it (0: no bound; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
     configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
     `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
     scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
@@ -97,6 +98,7 @@ class TaskSetSpec:
     regularization_wrench_axes: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     joint_limit_horizon: float = 0.01
     arm_damping_injection: float = 0.0
+    arm_torque_share: float = 0.0
     regularization_wrench_target: float = 0.0
     solver: str = "daqp"
     stabilizer: "StabilizerConfig | None" = None
@@ -283,6 +285,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        regularization_wrench_target=reg.float("wrench_target", 0.0, min=0.0),
                        joint_limit_horizon=root.float("joint_limit_horizon", 0.01, positive=True),
                        arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
+                       arm_torque_share=root.float("arm_torque_share", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
                        swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)

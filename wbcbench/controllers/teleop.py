@@ -153,7 +153,8 @@ class TSIDTeleop(InverseDynamicsController):
         repulsors: keep the task set's self_collision tasks (ignored when `taskset` is given).
         stabilizer: apply the task set's `teleop_stabilizer` (paper Eq. 2-7) when it has one.
         arm_torque_share: SPD and position modes: bound each arm joint's acceleration by what this share of its
-            torque limit gives it (default `ARM_TORQUE_SHARE`; 0: no bound, the integrated arm unbounded).
+            torque limit gives it (default: the task set's `arm_torque_share`; 0: no bound, the integrated arm
+            unbounded).
         reach_cap: apply the task set's out-of-reach caps (`reach_cap:`, `ReachCapSpec`) when it has them: the
             hands' and head's commanded accelerations capped while their targets are out of reach (default True).
     """
@@ -164,10 +165,6 @@ class TSIDTeleop(InverseDynamicsController):
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
     #: daqp's iteration limit on the torque-limited QP in SPD and position modes (see `__init__`)
     TORQUE_QP_ITERATIONS = 60
-    #: SPD and position modes: the share of an arm joint's torque limit its acceleration bound leaves it on its own
-    #: (`_solve`); the rest is headroom for what the per-joint bound leaves out (the other joints' accelerations
-    #: through the mass matrix, the servo's error-driven torques, the measured arm's own state)
-    ARM_TORQUE_SHARE = 0.7
 
     def __init__(self, robot: Robot, mode: ActuationMode, dt: float, taskset: TaskSetSpec | None = None, *,
                  repulsors: bool = True, stabilizer: bool = True, arm_torque_share: float | None = None,
@@ -191,7 +188,7 @@ class TSIDTeleop(InverseDynamicsController):
             self.formulation.set_acceleration_caps(spec.reach_cap.tasks, spec.reach_cap.params())
         self.n_torque_rows_dropped = 0
         # SPD and position modes: the arms' joints (velocity indices), whose accelerations `_solve` bounds
-        share = self.ARM_TORQUE_SHARE if arm_torque_share is None else float(arm_torque_share)
+        share = spec.arm_torque_share if arm_torque_share is None else float(arm_torque_share)
         if not (np.isfinite(share) and 0.0 <= share):
             raise ConfigError(f"arm_torque_share must be a finite number >= 0, got {arm_torque_share!r}",
                               key="arm_torque_share")
