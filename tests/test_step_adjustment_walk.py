@@ -1,6 +1,7 @@
 """Step adjustment in physics: a backward push in the middle of a single support of the 20 cm walk that TSID torque
 does not survive on its plan, survived when the next foothold and step time are re-planned from the measured DCM;
-the same for TSID position with its task set's own settings; off by default (the walk's references do not change)."""
+the same for TSID position with its task set's own settings, and IK's backward push with the late descent of a swing
+sent back; off by default (the walk's references do not change)."""
 
 from __future__ import annotations
 

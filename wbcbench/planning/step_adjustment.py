@@ -26,7 +26,7 @@ Once the swing foot's ankle F/T sensor finds it loaded again after it left the g
 before its reference: a position-controlled robot leaning towards it puts it lower than its model does), its step
 is not adjusted again. A controller's task set may carry its own settings (`step_adjustment:`, for the keys the
 scenario leaves; TALOS' IK and TSID position: a threshold of 5 cm, a deadband, re-plans from the DCM; TSID position
-also a late descent of the re-planned swing).
+also a late descent of the re-planned swing, IK one of a swing sent back behind its foot).
 
 `replan_walk` then re-plans the references from the current tick: the adjusted step and every later footstep
 translated by the foothold's change (the rest of the gait keeps its shape), the remaining single support
@@ -35,7 +35,8 @@ started at the measured CoM (the pattern generator's controller, re-run from the
 foot on a quintic from its current reference position, velocity and acceleration to the new foothold (its height
 either the old remaining profile stretched to the new time or, with `late_descent`, brought to the apex height
 over a share of the remaining time before it descends: a position-controlled robot leaning towards its swing foot
-otherwise puts that foot on the ground short of the foothold).
+otherwise puts that foot on the ground short of the foothold; with `late_descent_back`, only for a swing foot
+whose new foothold lies behind it along its travel).
 """
 
 from __future__ import annotations
