@@ -1,6 +1,7 @@
 """Step adjustment in physics: a backward push in the middle of a single support of the 20 cm walk that TSID torque
 does not survive on its plan, survived when the next foothold and step time are re-planned from the measured DCM;
-the same for TSID position with its task set's own settings; off by default (the walk's references do not change)."""
+the same for TSID position with its task set's own settings, and IK's backward push with the late descent of a swing
+sent back; off by default (the walk's references do not change)."""
 
 from __future__ import annotations
 
@@ -108,6 +109,35 @@ def test_a_late_descent_of_the_replanned_swing_keeps_tsid_position_up(talos, tmp
         Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
     off = run(stretched, "tsid-position", talos, out=tmp_path / "stretched")
     assert stretched.step_adjustment.late_descent == 0.0 and stretched.step_adjustment.deadband == 0.04
+    assert off.summary["fell"]
+
+
+# IK, backwards at 60 N s: with its task set's settings but every re-planned swing's height the old profile
+# stretched (late_descent 0) it falls (the left foot, sent 17 cm behind the stance foot, lands short and is dragged
+# back, loaded); with the task set's late descent of a swing sent back (0.6, `late_descent_back`) it stands:
+# `--quick --directions 4 --phases ss-mid --max-impulse 120 --iterations 4`, backwards 45 -> 60 N s.
+IK_BACK_IMPULSE = 60.0
+
+
+def test_ik_survives_a_backward_push_with_the_late_descent_of_a_swing_sent_back(talos, tmp_path):
+    scen, t_push = _pushed(talos, adjust=True, impulse=IK_BACK_IMPULSE, after=3.0)
+    res = run(scen, "ik", talos, out=tmp_path / "late")
+    cfg = scen.step_adjustment
+    assert (cfg.late_descent, cfg.late_descent_back) == (0.6, True)              # the task set's
+    assert not res.summary["fell"], res.summary["fall_reason"]
+    step = scen.adjuster.history[0][1]
+    assert scen.walk.plan.steps[step].p_world_sole[0] < scen.adjuster.nominal.plan.steps[step].p_world_sole[0] - 0.1
+
+    yaml = tmp_path / "stretched.yaml"
+    yaml.write_text(Path(load_scenario("walk-20cm-quick", talos).spec.file).read_text().replace(
+        "  apex: 0.05", "  apex: 0.05\n  step_adjustment: {late_descent: 0.0}"))
+    stretched = load_scenario(str(yaml), talos)
+    a = math.radians(DIRECTION)
+    f = IK_BACK_IMPULSE / 0.1
+    stretched.spec = replace(stretched.spec, duration=t_push + 3.0, pushes=(
+        Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
+    off = run(stretched, "ik", talos, out=tmp_path / "stretched")
+    assert stretched.step_adjustment.late_descent == 0.0 and stretched.step_adjustment.deadband == 0.01
     assert off.summary["fell"]
 
 

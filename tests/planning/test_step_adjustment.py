@@ -255,3 +255,26 @@ def test_late_descent_holds_the_swing_foot_up_and_lands_it_on_the_foothold():
     for bad in (1.0, -0.1):
         with pytest.raises(PlanningError, match="late_descent"):
             StepAdjustmentConfig(late_descent=bad)
+
+
+def test_late_descent_back_only_for_a_swing_foot_sent_back():
+    walk, cfg = _walk()
+    k = 10 * int(round((walk.plan.lift_off_time(1) + 0.45) / walk.dt / 10))     # the swing at its apex
+    side = walk.plan.steps[1].side
+
+    def height(dcm_error, **kw):
+        adj = StepAdjuster(walk, StepAdjustmentConfig(**kw), cfg, SEP)
+        new = adj.update(k, walk.p_world_dcm[k, :2] + dcm_error, np.zeros((3, 2)))
+        assert new is not None
+        return new.feet[side].p_world_sole[k:, 2], new.plan.steps[1].p_world_sole[0] - walk.feet[side].p_world_sole[k, 0]
+
+    # pushed forwards: the foothold ahead of the foot, which keeps its travel: the stretched profile
+    z_back, ahead = height([0.06, 0.0], late_descent=0.6, late_descent_back=True)
+    assert ahead > 0.0
+    np.testing.assert_allclose(z_back, height([0.06, 0.0])[0], atol=1e-12)
+    assert np.abs(z_back - height([0.06, 0.0], late_descent=0.6)[0]).max() > 0.01
+    # pushed backwards: the foothold behind the foot, which turns back: the late descent
+    z_back, behind = height([-0.08, 0.0], late_descent=0.6, late_descent_back=True)
+    assert behind < 0.0
+    np.testing.assert_allclose(z_back, height([-0.08, 0.0], late_descent=0.6)[0], atol=1e-12)
+    assert np.abs(z_back - height([-0.08, 0.0])[0]).max() > 0.01

@@ -26,7 +26,7 @@ Once the swing foot's ankle F/T sensor finds it loaded again after it left the g
 before its reference: a position-controlled robot leaning towards it puts it lower than its model does), its step
 is not adjusted again. A controller's task set may carry its own settings (`step_adjustment:`, for the keys the
 scenario leaves; TALOS' IK and TSID position: a threshold of 5 cm, a deadband, re-plans from the DCM; TSID position
-also a late descent of the re-planned swing).
+also a late descent of the re-planned swing, IK one of a swing sent back behind its foot).
 
 `replan_walk` then re-plans the references from the current tick: the adjusted step and every later footstep
 translated by the foothold's change (the rest of the gait keeps its shape), the remaining single support
@@ -35,7 +35,8 @@ started at the measured CoM (the pattern generator's controller, re-run from the
 foot on a quintic from its current reference position, velocity and acceleration to the new foothold (its height
 either the old remaining profile stretched to the new time or, with `late_descent`, brought to the apex height
 over a share of the remaining time before it descends: a position-controlled robot leaning towards its swing foot
-otherwise puts that foot on the ground short of the foothold).
+otherwise puts that foot on the ground short of the foothold; with `late_descent_back`, only for a swing foot
+whose new foothold lies behind it along its travel).
 """
 
 from __future__ import annotations
@@ -101,6 +102,9 @@ class StepAdjustmentConfig:
             its swing foot (after a push) puts that foot lower than its reference: with the stretched profile of a
             shortened swing it touched down short of the foothold, and the rest of the swing dragged it, loaded,
             along the ground.
+        late_descent_back: the late descent only for a swing whose new foothold lies behind the swing foot's
+            reference along its travel (the foot turns back: pushed backwards), every other re-planned swing with
+            the stretched old profile.
     """
 
     threshold: float = 0.02
@@ -121,6 +125,7 @@ class StepAdjustmentConfig:
     deadband: float = 0.0
     replan_from: str = "measured"
     late_descent: float = 0.0
+    late_descent_back: bool = False
 
     def __post_init__(self) -> None:
         if self.replan_from not in REPLAN_FROM:
@@ -160,8 +165,9 @@ def parse_settings(sec, defaults: StepAdjustmentConfig | None = None) -> dict:
         for name in names:
             if defaults is not None or sec.has(name):
                 kw[name] = sec.float(name, getattr(defaults, name, None), **check)
-    if defaults is not None or sec.has("adapt_timing"):
-        kw["adapt_timing"] = sec.bool("adapt_timing", getattr(defaults, "adapt_timing", None))
+    for name in ("adapt_timing", "late_descent_back"):
+        if defaults is not None or sec.has(name):
+            kw[name] = sec.bool(name, getattr(defaults, name, None))
     if defaults is not None or sec.has("replan_from"):
         kw["replan_from"] = sec.str("replan_from", getattr(defaults, "replan_from", None), choices=list(REPLAN_FROM))
     return kw
@@ -275,7 +281,8 @@ def _translated_plan(plan: FootstepPlan, step: int, delta_xy: np.ndarray) -> Foo
 
 
 def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGeneratorConfig, k0: int, step: int,
-                shift_before: int, td_new: int, com_state: np.ndarray, late_descent: float = 0.0) -> WalkTrajectory:
+                shift_before: int, td_new: int, com_state: np.ndarray, late_descent: float = 0.0,
+                late_descent_back: bool = False) -> WalkTrajectory:
     """The walk re-planned from tick k0, inside step `step`'s single support (module docstring).
 
     Args:
@@ -286,7 +293,7 @@ def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGene
         shift_before: ticks by which earlier adjustments moved this step's lift-off (sum of their time changes).
         td_new: the new touch-down tick of this step.
         com_state: the CoM to start from: (position, velocity, acceleration) x-y, shape (3, 2).
-        late_descent: the swing foot's height profile (`StepAdjustmentConfig.late_descent`).
+        late_descent, late_descent_back: the swing foot's height profile (`StepAdjustmentConfig`).
     """
     dt = config.dt
     p_init = np.array([*current.p_world_com[0, :2], current.p_world_zmp_ref[0, 2]])
@@ -321,6 +328,9 @@ def replan_walk(current: WalkTrajectory, plan: FootstepPlan, config: PatternGene
                for name in ("p_world_sole", "R_world_sole", "v_world_sole", "w_world_sole", "a_world_sole",
                             "dw_world_sole", "in_contact")}
         if s is swing_side:
+            if late_descent_back and float(np.dot(plan.steps[step].p_world_sole[:2] - f.p_world_sole[k0, :2],
+                                                  f.v_world_sole[k0, :2])) >= 0.0:
+                late_descent = 0.0     # the foot is not turned back: the stretched profile
             _replan_swing(arr, f, k0, td_new, plan.steps[step].p_world_sole, dt, late_descent,
                           config.swing_apex_height)
         feet[s] = FootTrajectory(s, *(arr[n] for n in ("p_world_sole", "R_world_sole", "v_world_sole",
@@ -512,7 +522,7 @@ class StepAdjuster:
             v = w.v_world_com[k, :2] + w.omega * (np.asarray(p_world_dcm, float)[:2] - w.p_world_dcm[k, :2])
             com_state = np.vstack([w.p_world_com[k, :2], v, w.a_world_com[k, :2]])
         self.walk = replan_walk(self.walk, new_plan, self.pg_config, tick, i, before, td_new, com_state,
-                                cfg.late_descent)
+                                cfg.late_descent, cfg.late_descent_back)
         self.plan = new_plan
         self.step_delta[i] = own + move
         self.delta = self.delta + move

@@ -132,7 +132,8 @@ class WalkScenario(Scenario):
     enabled (default true), threshold [m], period [s], adapt_timing, min_single_support / max_single_support /
     min_remaining [s], max_forward / max_backward / max_lateral / min_clearance [m] (default: the robot profile's
     `stepping`), w_step, w_time, w_offset, min_change [m], contact_force [N], deadband [m], replan_from
-    (measured|planned|dcm), late_descent (a share of a re-planned swing's remaining time, < 1). Keys the file
+    (measured|planned|dcm), late_descent (a share of a re-planned swing's remaining time, < 1), late_descent_back
+    (true: the late descent only for a swing foot sent back behind itself). Keys the file
     leaves come from the controller's task set (`step_adjustment:`, see `adopt_step_adjustment`), else the
     defaults. Each tick the scenario gets the Measurement (`observe`), and the
     re-planned references replace the walk's.
