@@ -51,7 +51,7 @@ from .footsteps import FootstepPlan
 from .pattern_generator import PatternGeneratorConfig, _moves, _sole_center, _support_height, _zmp_from_moves
 from .pattern_generator import _feet as _plan_feet
 from .preview_control import simulate_preview
-from .swing import quintic_blend
+from .swing import quintic_blend, quintic_from_state
 from .trajectory import ContactEvent, ContactEventKind, ContactSchedule, FootTrajectory, WalkTrajectory
 
 __all__ = ["StepAdjustmentConfig", "StepAdjustment", "adjust_step", "replan_walk", "StepAdjuster", "parse_settings"]
@@ -256,22 +256,6 @@ def adjust_step(p_world_dcm: np.ndarray, p_world_stance: np.ndarray, stance_yaw:
 # ---- re-planning the references ---------------------------------------------------------------------------
 
 
-def _quintic_from_state(p0, v0, a0, p1, T: float, t: np.ndarray):
-    """Per axis: p(t) on [0, T] from (p0, v0, a0) to (p1, 0, 0); returns p, v, a at the times t (n, d)."""
-    p0, v0, a0, p1 = (np.atleast_1d(np.asarray(x, float)) for x in (p0, v0, a0, p1))
-    c0, c1, c2 = p0, v0, a0 / 2.0
-    d = p1 - c0 - c1 * T - c2 * T**2
-    dv = -c1 - 2.0 * c2 * T
-    da = -2.0 * c2
-    M = np.array([[T**3, T**4, T**5], [3 * T**2, 4 * T**3, 5 * T**4], [6 * T, 12 * T**2, 20 * T**3]])
-    c3, c4, c5 = np.linalg.solve(M, np.vstack([d, dv, da]))
-    t = np.clip(np.asarray(t, float), 0.0, T)[:, None]
-    p = c0 + c1 * t + c2 * t**2 + c3 * t**3 + c4 * t**4 + c5 * t**5
-    v = c1 + 2 * c2 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4
-    a = 2 * c2 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3
-    return p, v, a
-
-
 def _translated_plan(plan: FootstepPlan, step: int, delta_xy: np.ndarray) -> FootstepPlan:
     """The plan with footstep `step` and every later one moved by delta_xy [m] (the gait keeps its shape)."""
     d = np.array([delta_xy[0], delta_xy[1], 0.0])
@@ -354,7 +338,7 @@ def _replan_swing(arr: dict, old: FootTrajectory, k0: int, td_new: int, p_end: n
     if n_rem <= 0:
         return
     t = np.arange(n_rem) * dt
-    p, v, a = _quintic_from_state(old.p_world_sole[k0, :2], old.v_world_sole[k0, :2], old.a_world_sole[k0, :2],
+    p, v, a = quintic_from_state(old.p_world_sole[k0, :2], old.v_world_sole[k0, :2], old.a_world_sole[k0, :2],
                                   p_end[:2], n_rem * dt, t)
     sl = slice(k0, td_new)
     arr["p_world_sole"][sl, :2], arr["v_world_sole"][sl, :2], arr["a_world_sole"][sl, :2] = p, v, a
@@ -368,7 +352,7 @@ def _replan_swing(arr: dict, old: FootTrajectory, k0: int, td_new: int, p_end: n
     else:
         # plus a correction that starts with the old profile's velocity and acceleration and vanishes at
         # touch-down, so that the height stays C2 at the re-plan tick
-        dz, dvz, daz = _quintic_from_state(0.0, old.v_world_sole[k0, 2] * (1.0 - scale),
+        dz, dvz, daz = quintic_from_state(0.0, old.v_world_sole[k0, 2] * (1.0 - scale),
                                            old.a_world_sole[k0, 2] * (1.0 - scale**2), 0.0, n_rem * dt, t)
         arr["p_world_sole"][sl, 2] = old.p_world_sole[src, 2] + dz[:, 0]
         arr["v_world_sole"][sl, 2] = old.v_world_sole[src, 2] * scale + dvz[:, 0]
@@ -385,7 +369,7 @@ def _late_descent(z0: float, v0: float, a0: float, z1: float, apex: float, share
     at rest over the first `share` of T, then a minimum-jerk descent to z1 in the rest."""
     T1 = max(share * T, min(T, 1e-3))
     T2 = max(T - T1, 1e-3)
-    z, vz, az = _quintic_from_state(z0, v0, a0, z1 + apex, T1, t)
+    z, vz, az = quintic_from_state(z0, v0, a0, z1 + apex, T1, t)
     b, db, ddb = quintic_blend((t - T1) / T2)
     return z[:, 0] - apex * b, vz[:, 0] - apex * db / T2, az[:, 0] - apex * ddb / T2**2
 

@@ -23,7 +23,7 @@ from ..errors import PlanningError
 from .footsteps import Footstep
 from .geometry import so3_log
 
-__all__ = ["quintic_blend", "SwingSample", "SwingTrajectory", "foot_arrays", "write_swing"]
+__all__ = ["quintic_blend", "quintic_from_state", "SwingSample", "SwingTrajectory", "foot_arrays", "write_swing"]
 
 
 def quintic_blend(u: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -50,6 +50,24 @@ def _exp_along(phi: np.ndarray, s: np.ndarray) -> np.ndarray:
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     ang = s * theta
     return np.eye(3) + np.sin(ang)[:, None, None] * K + (1.0 - np.cos(ang))[:, None, None] * (K @ K)
+
+
+
+def quintic_from_state(p0, v0, a0, p1, T: float, t: np.ndarray):
+    """Per axis: the quintic p(t) on [0, T] from (p0, v0, a0) to (p1, 0, 0) (a re-planned swing's remaining path, a
+    planned pitch brought to rest); returns p, v, a at the times t (n,), each (n, d), t clipped to [0, T]."""
+    p0, v0, a0, p1 = (np.atleast_1d(np.asarray(x, float)) for x in (p0, v0, a0, p1))
+    c0, c1, c2 = p0, v0, a0 / 2.0
+    d = p1 - c0 - c1 * T - c2 * T**2
+    dv = -c1 - 2.0 * c2 * T
+    da = -2.0 * c2
+    M = np.array([[T**3, T**4, T**5], [3 * T**2, 4 * T**3, 5 * T**4], [6 * T, 12 * T**2, 20 * T**3]])
+    c3, c4, c5 = np.linalg.solve(M, np.vstack([d, dv, da]))
+    t = np.clip(np.asarray(t, float), 0.0, T)[:, None]
+    p = c0 + c1 * t + c2 * t**2 + c3 * t**3 + c4 * t**4 + c5 * t**5
+    v = c1 + 2 * c2 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4
+    a = 2 * c2 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3
+    return p, v, a
 
 
 @dataclass(frozen=True, eq=False)

@@ -41,6 +41,7 @@ from ..errors import PlanningError
 from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
 from ..side import Side
+from .swing import quintic_from_state
 
 __all__ = ["LegGeometry", "SwingPitchConfig", "swing_pitch_offsets", "plan_swing_pitch"]
 
@@ -214,16 +215,6 @@ def swing_pitch_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray,
     return out, acc
 
 
-def _to_rest(state: np.ndarray, T: float, s: np.ndarray) -> np.ndarray:
-    """(len(s), 3): the quintic from `state` [delta, delta_dot, delta_ddot] at s = 0 to rest at s = 1, over T [s]."""
-    h = sum(x * T**j * q for j, (x, q) in enumerate(zip(state, _TO_REST)))
-    return np.column_stack([h(s), h.deriv(1)(s) / T, h.deriv(2)(s) / T**2])
-
-
-_TO_REST = (Polynomial([1.0, 0.0, 0.0, -10.0, 15.0, -6.0]), Polynomial([0.0, 1.0, 0.0, -6.0, 8.0, -3.0]),
-            Polynomial([0.0, 0.0, 0.5, -1.5, 1.5, -0.5]))
-
-
 def plan_swing_pitch(walk, legs: LegGeometry, config: SwingPitchConfig = SwingPitchConfig(),
                      previous: tuple[int, Mapping] | None = None) -> dict:
     """Per side, (n_ticks, 3) [delta, delta_dot, delta_ddot] over the walk (`WalkTrajectory`): each swing's
@@ -255,7 +246,8 @@ def plan_swing_pitch(walk, legs: LegGeometry, config: SwingPitchConfig = SwingPi
                 if old is not None and lo < k <= hi and k < len(old):
                     offs[lo:k] = old[lo:k]
                     if hi > k:
-                        offs[k:hi + 1] = _to_rest(old[k], (hi - k) * dt, np.arange(hi + 1 - k) / (hi - k))
+                        offs[k:hi + 1, :3] = np.hstack(quintic_from_state(*old[k, :3], 0.0, (hi - k) * dt,
+                                                                          np.arange(hi + 1 - k) * dt))
                 continue
             if toe_off:
                 r0 = _roll_start(walk, side, lo, int(round(config.toe_off / dt)), legs.toe)
