@@ -195,3 +195,75 @@ def test_interleaved_interventions_are_one_event_each(talos, start):
     assert events == [("speed", 0.0, pytest.approx(29 * DT)), ("acceleration", DT, pytest.approx(29 * DT)),
                       ("speed", 0.5, 0.5)]
     assert flt.counts["speed"]["left_hand"] == 31 and flt.counts["acceleration"]["left_hand"] == 15
+
+
+def _crouched(robot, knee: float = 1.6) -> np.ndarray:
+    """The reference posture with the knees bent by `knee` [rad] (hips and ankles by half of it each way, the base
+    lowered so that the soles stay where they were, roughly)."""
+    q = robot.q0.copy()
+    model = robot.model
+    for side in ("left", "right"):
+        for joint, bend in ((3, -0.5), (4, 1.0), (5, -0.5)):
+            q[model.joints[model.getJointId(f"leg_{side}_{joint}_joint")].idx_q] += bend * knee
+    q[2] -= 0.6 * (1.0 - np.cos(0.5 * knee)) * 2.0
+    return q
+
+
+def test_the_body_spheres_follow_a_crouch(talos, start):
+    """Given the measured configuration, the spheres move with the legs and the pelvis (where a filter made at that
+    posture puts them); a hand reference at a crouched sphere's centre, which the standing spheres let through, is
+    then pushed out, on the general path and on the compiled row path alike."""
+    q = _crouched(talos)
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    standing = {e: c.copy() for e, (_, c, _) in flt._body.items()}
+    offset, centres, radii = flt._body["left_hand"]
+    at_crouch = CommandFilter(talos, q, SafetyConfig(), DT)._body
+    crouched = at_crouch["left_hand"][1]
+    pelvis = np.argmax(radii)  # the largest sphere: the pelvis (0.15 m)
+    assert standing["left_hand"][pelvis][2] - crouched[pelvis][2] > 0.1  # the crouch lowers it by more than 10 cm
+    # the crouched sphere farthest out of the standing ones (a knee, moved forwards and down)
+    clear = [np.min(np.linalg.norm(c - standing["left_hand"], axis=1) - (radii + 0.03)) for c in crouched]
+    x = crouched[int(np.argmax(clear))]
+    assert max(clear) > 0.0
+    M = pin.SE3(start["left_hand"].rotation, x - start["left_hand"].rotation @ offset)
+    ref = {"left_hand": (M, np.zeros(6), np.zeros(6))}
+    assert flt(0.0, ref)["left_hand"][0] is M and not flt.counts["body"]  # outside the standing spheres
+    flt.follow(0.0, q)
+    data = talos.model.createData()
+    pin.framesForwardKinematics(talos.model, data, q)
+    spec = talos.profile.repulsors[Side.LEFT]
+    points = np.array([data.oMf[talos.model.getFrameId(p.frame)].act(np.asarray(p.offset, float)) for p in spec.points])
+    for e, (_, c, _) in flt._body.items():
+        np.testing.assert_allclose(c, at_crouch[e][1], atol=1e-12)
+    # each a repulsion point of the profile at the crouch, by pinocchio's frame kinematics
+    assert all(np.linalg.norm(points - x, axis=1).min() < 1e-9 for x in flt._body["left_hand"][1])
+    # a posture reached at once (a real one moves the spheres by millimetres a period): the output leaves the body
+    # as the speed and re-join limits allow, and stays on the surface
+    out = _feed(flt, lambda k: {"left_hand": M}, 500, t0=DT)
+    gaps = np.linalg.norm(out[-1]["left_hand"][0].act(offset) - centres, axis=1) - (radii + 0.03)
+    assert gaps.min() >= -1e-9 and gaps.min() < 1e-6 and flt.counts["body"] == {"left_hand": 500}
+    # the same on the row path: the stacked spheres moved too, the reference is no longer passed untouched
+    rows = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    rows.bind_rows(("left_hand",))
+    P, R = M.translation[None, None].copy(), M.rotation[None, None].copy()
+    V = A = np.zeros((1, 1, 6))
+    rows(0.0, ref)
+    assert rows.pass_rows(DT, 0, P, R, V, A)
+    rows.follow(2 * DT, q)
+    assert not rows.pass_rows(3 * DT, 0, P, R, V, A)
+    assert rows(3 * DT, ref)["left_hand"][0] is not M and rows.counts["body"] == {"left_hand": 1}
+
+
+def test_the_body_spheres_follow_at_their_period(talos):
+    """`follow` moves the spheres when `body_period` has passed since it last did, and not in between; a filter
+    with the body check off has nothing to move."""
+    q = _crouched(talos)
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(body_period=0.005), DT)
+    c = flt._body["left_hand"][1]
+    before = c.copy()
+    flt.follow(0.0, talos.q0)
+    flt.follow(0.004, q)
+    np.testing.assert_array_equal(c, before)
+    flt.follow(0.005, q)
+    assert np.abs(c - before).max() > 0.1
+    CommandFilter(talos, talos.q0, SafetyConfig(body=False), DT).follow(0.0, q)

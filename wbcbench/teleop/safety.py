@@ -10,7 +10,10 @@ and acceleration (6,) each, in this order:
    r_rep + `body_margin` to a repulsion point on a link that does not move with the arms (torso, pelvis, legs; at
    the reference posture, the robot standing) is pushed out radially, so a reference never asks the gripper
    into the hips or the chest. Counted as `body`. Off with the paper's `absolute` anchor, where such references
-   are the repulsors' study (scenario param).
+   are the repulsors' study (scenario param). The spheres are placed at the reference posture (the robot
+   standing) and, when the filter is given the robot's measured configuration (`follow`: encoders and base
+   estimate, what the controller gets), moved with it every `body_period` [s], so that they crouch with the
+   robot.
 3. Jumps: a reference more than `jump_distance` [m] or `jump_angle` [rad] from the last one in one tick
    (a teleport: a stream that resumes after a loss, a recalibration, a corrupt frame) is re-joined with a min-jerk
    blend from the last output to the moving reference over max(`min_rejoin_time`, distance / `rejoin_speed`,
@@ -63,6 +66,7 @@ class SafetyConfig:
     min_rejoin_time: float = 0.3
     body: bool = True
     body_margin: float = 0.03
+    body_period: float = 0.005
 
 
 @njit
@@ -180,7 +184,8 @@ class CommandFilter:
         self._t_prev: float | None = None
         self._raw_last: dict[str, pin.SE3] = {}
         self._rejoin: dict[str, _Rejoin] = {}
-        self._body = self._body_spheres(robot, q_reference) if config.body else {}
+        self._body, self._follow = self._body_spheres(robot, q_reference) if config.body else ({}, None)
+        self._t_follow: float | None = None
         # the compiled screen's inputs: the spheres' reach (radius + margin), the limits, the last poses as arrays
         self._body_arrays = {e: (off, c, r + config.body_margin) for e, (off, c, r) in self._body.items()}
         self._no_body = (np.zeros(3), np.zeros((0, 3)), np.zeros(0))
@@ -195,41 +200,42 @@ class CommandFilter:
         self._dicts_stale = False
 
     @staticmethod
-    def _body_spheres(robot, q: np.ndarray) -> dict:
+    def _body_spheres(robot, q: np.ndarray) -> tuple[dict, _SphereKinematics | None]:
         """Per hand: (protected-point offset in the hand frame, centres (k, 3), radii (k,)) of the repulsion points
-        on links that do not move with the arms, at configuration q."""
+        on links that do not move with the arms, at configuration q; and their kinematics (`follow`)."""
         model = robot.model
         data = model.createData()
         pin.framesForwardKinematics(model, data, q)
-        # the arms' own joints: those that carry one gripper and not the other
-        chains = {}
-        for side in Side:
-            spec = robot.profile.repulsors.get(side)
-            if spec is not None:
-                chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
-        arm_joints = set()
-        if len(chains) == 2:
-            arm_joints = chains[Side.LEFT] ^ chains[Side.RIGHT]
+        kin = _SphereKinematics(robot)
+        kin.place(q)
         out = {}
         for hand, side in (("left_hand", Side.LEFT), ("right_hand", Side.RIGHT)):
             spec = robot.profile.repulsors.get(side)
-            if spec is None:
+            if spec is None or hand not in kin.index:
                 continue
             hand_frame = model.getFrameId(robot.profile.hands[side])
             gripper = model.getFrameId(spec.frame)
             # the protected point in the hand frame (the hand frame and the gripper frame are rigidly attached)
             point = data.oMf[gripper].act(np.asarray(spec.offset, float))
             offset = data.oMf[hand_frame].actInv(point)
-            centres, radii = [], []
-            for p in spec.points:
-                fid = model.getFrameId(p.frame)
-                if _moves_with_arms(model, model.frames[fid].parentJoint, arm_joints):
-                    continue
-                centres.append(data.oMf[fid].act(np.asarray(p.offset, float)))
-                radii.append(p.radius)
-            if centres:
-                out[hand] = (offset, np.array(centres), np.array(radii))
-        return out
+            out[hand] = (offset, kin.centres[kin.index[hand]], kin.radii[hand])
+        return out, (kin if out else None)
+
+    def follow(self, t: float, q: np.ndarray) -> None:
+        """The body spheres moved to the robot's configuration q (pinocchio's: the base estimate and the encoders,
+        as measured) when `body_period` has passed since they last were (every call when it is 0). In place: the
+        per-effector arrays and the row path's stacked ones see it."""
+        if self._follow is None:
+            return
+        last = self._t_follow
+        if last is not None and last <= t < last + self.config.body_period - 1e-9:
+            return
+        self._t_follow = t
+        self._follow.place(q)
+        for e, (_, c, _) in self._body.items():
+            np.take(self._follow.centres, self._follow.index[e], axis=0, out=c)
+        if self._row_effectors is not None:
+            np.take(self._follow.centres, self._row_index, axis=0, out=self._row_body[1])
 
     def _push_out(self, effector: str, M: pin.SE3) -> tuple[pin.SE3, bool]:
         spheres = self._body.get(effector)
@@ -273,14 +279,18 @@ class CommandFilter:
         self._row_effectors = eff
         self._row_last = (np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)))
         offsets, centres, reach, starts = np.zeros((n, 3)), [], [], [0]
+        index = []  # the stacked spheres' rows of the followed centres (`follow`)
         for i, e in enumerate(eff):
             off, c, r = self._body_arrays.get(e, self._no_body)
+            if self._follow is not None and e in self._follow.index:
+                index.append(self._follow.index[e])
             offsets[i] = off
             centres.append(np.asarray(c, float).reshape(-1, 3))
             reach.append(np.asarray(r, float).reshape(-1))
             starts.append(starts[-1] + len(reach[-1]))
         self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
                           np.array(starts, dtype=np.int64))
+        self._row_index = np.concatenate(index) if index else np.zeros(0, dtype=np.int64)
         self._row_args = (*self._row_last, *self._row_body, self._limits)
         # the kernel loaded now, not at the first tick it serves (a paced run's clock is running by then)
         _screen_rows(0, np.zeros((1, n, 3)), np.zeros((1, n, 3, 3)), np.zeros((1, n, 6)), np.zeros((1, n, 6)),
@@ -435,6 +445,71 @@ class CommandFilter:
         """Counts per kind and effector, their total, and the first events ({t, t_last, effector, kind})."""
         return {"counts": self.counts, "total": int(sum(sum(c.values()) for c in self.counts.values())),
                 "events": self.events}
+
+
+class _SphereKinematics:
+    """The body spheres of `CommandFilter._body_spheres`: each distinct (parent joint, point in the joint's frame)
+    once, their centres at the configuration last `place`d ((k, 3)), per hand the rows of its spheres (`index`)
+    and their radii (`radii`)."""
+
+    def __init__(self, robot):
+        model = robot.model
+        self.model, self.data = model, model.createData()
+        arm_joints = _arm_joints(model, robot.profile.repulsors)
+        self.joints: list[int] = []
+        self.points: list[np.ndarray] = []
+        self.index: dict[str, np.ndarray] = {}
+        self.radii: dict[str, np.ndarray] = {}
+        keys: dict = {}
+        for hand, side in (("left_hand", Side.LEFT), ("right_hand", Side.RIGHT)):
+            spec = robot.profile.repulsors.get(side)
+            if spec is None:
+                continue
+            rows, radii = [], []
+            for p in spec.points:
+                frame = model.frames[model.getFrameId(p.frame)]
+                if _moves_with_arms(model, frame.parentJoint, arm_joints):
+                    continue
+                point = frame.placement.act(np.asarray(p.offset, float))
+                key = (frame.parentJoint, *point.tolist())
+                if key not in keys:
+                    keys[key] = len(self.joints)
+                    self.joints.append(frame.parentJoint)
+                    self.points.append(point)
+                rows.append(keys[key])
+                radii.append(p.radius)
+            if rows:
+                self.index[hand] = np.array(rows, dtype=np.int64)
+                self.radii[hand] = np.array(radii)
+        self.centres = np.zeros((len(self.joints), 3))
+        self._distinct = sorted(set(self.joints))
+        self._which = np.array([self._distinct.index(j) for j in self.joints], dtype=np.int64)
+        self._points = np.array(self.points, dtype=float).reshape(-1, 3)
+
+    def place(self, q: np.ndarray) -> None:
+        """The centres at configuration q (the joints' placements only: one forward kinematics pass)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        oMi = self.data.oMi
+        _place(np.array([oMi[j].homogeneous for j in self._distinct]), self._which, self._points, self.centres)
+
+
+@njit
+def _place(H, which, points, out):
+    """out[i] = the point points[i] placed by the homogeneous transform H[which[i]]."""
+    for i in range(points.shape[0]):
+        h = H[which[i]]
+        for r in range(3):
+            out[i, r] = h[r, 0] * points[i, 0] + h[r, 1] * points[i, 1] + h[r, 2] * points[i, 2] + h[r, 3]
+
+
+def _arm_joints(model, repulsors: dict) -> set:
+    """The arms' own joints: those that carry one gripper and not the other."""
+    chains = {}
+    for side in Side:
+        spec = repulsors.get(side)
+        if spec is not None:
+            chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
+    return chains[Side.LEFT] ^ chains[Side.RIGHT] if len(chains) == 2 else set()
 
 
 def _moves_with_arms(model, joint: int, arm_joints: set) -> bool:
