@@ -267,3 +267,20 @@ def test_the_body_spheres_follow_at_their_period(talos):
     flt.follow(0.005, q)
     assert np.abs(c - before).max() > 0.1
     CommandFilter(talos, talos.q0, SafetyConfig(body=False), DT).follow(0.0, q)
+
+
+def test_a_reference_passing_through_the_body_is_led_round_it(talos, start):
+    """A hand reference swept through the pelvis from one side to the other at 2 m/s: pushed out radially it flips
+    sides at the centre, a jump the filter re-joins along a straight line; the output stays out of the spheres all
+    the way (the re-join and the speed clamp pushed out again)."""
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(), DT)
+    offset, centres, radii = flt._body["left_hand"]
+    pelvis = centres[np.argmax(radii)]
+    Rh = start["left_hand"].rotation
+    outs = []
+    for k in range(600):
+        x = pelvis + np.array([0.0, 0.4 - 2.0 * k * DT, 0.0])  # the protected point from 0.4 m left to 0.8 m right
+        raw = {"left_hand": (pin.SE3(Rh, x - Rh @ offset), np.array([0.0, -2.0, 0.0, 0.0, 0.0, 0.0]), np.zeros(6))}
+        outs.append(flt(k * DT, raw)["left_hand"][0])
+    depth = max(float((radii + 0.03 - np.linalg.norm(M.act(offset) - centres, axis=1)).max()) for M in outs)
+    assert depth < 1e-9 and flt.counts["jump"] and flt.counts["body"]

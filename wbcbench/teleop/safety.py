@@ -13,7 +13,8 @@ and acceleration (6,) each, in this order:
    are the repulsors' study (scenario param). The spheres are placed at the reference posture (the robot
    standing) and, when the filter is given the robot's measured configuration (`follow`: encoders and base
    estimate, what the controller gets), moved with it every `body_period` [s], so that they crouch with the
-   robot.
+   robot. A re-join (3.) or a speed clamp (4.) moves the output along a straight line, through the body when the
+   reference went round it: their output is pushed out again.
 3. Jumps: a reference more than `jump_distance` [m] or `jump_angle` [rad] from the last one in one tick
    (a teleport: a stream that resumes after a loss, a recalibration, a corrupt frame) is re-joined with a min-jerk
    blend from the last output to the moving reference over max(`min_rejoin_time`, distance / `rejoin_speed`,
@@ -419,6 +420,7 @@ class CommandFilter:
                     vel[:3] += ds * dp
                     vel[3:] += ds * dr
                     acc = s * acc
+            fast = spin = False
             if last is not None:
                 step = M.translation - last.translation
                 step_c, fast = _clip_norm(step, cfg.max_speed * dt)
@@ -436,6 +438,12 @@ class CommandFilter:
             if f3 or f4:
                 self._count(t, e, "acceleration")
             vel, acc = np.concatenate([v_lin, v_ang]), np.concatenate([a_lin, a_ang])
+            if pushed or rj is not None or fast or spin:
+                # a re-join or a clamped step goes along a straight line from the last output, through the body
+                # when the pushed reference went round it (a hand passing in front of the hips): out again
+                M, again = self._push_out(e, M)
+                if again and not pushed:
+                    self._count(t, e, "body")
             self._last[e] = M
             self._arrays[e] = (M.translation, M.rotation, self._raw_last[e].translation, self._raw_last[e].rotation)
             out[e] = (M, vel, acc)
