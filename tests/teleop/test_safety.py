@@ -284,3 +284,42 @@ def test_a_reference_passing_through_the_body_is_led_round_it(talos, start):
         outs.append(flt(k * DT, raw)["left_hand"][0])
     depth = max(float((radii + 0.03 - np.linalg.norm(M.act(offset) - centres, axis=1)).max()) for M in outs)
     assert depth < 1e-9 and flt.counts["jump"] and flt.counts["body"]
+
+
+def test_in_a_run_the_body_spheres_crouch_with_the_robot(talos, tmp_path):
+    """An operator squats (hips 45, knees 80 deg, arms hanging; a fixture of our own, written as BVH) and TALOS
+    crouches with him (the base 10 cm and more lower): the filter's spheres were moved with the measured posture
+    (the runner hands the scenario each tick's measurement), to within the 5 ms of motion since their last update,
+    no reference handed to the controller is inside them, and the robot stands."""
+    from wbcbench.controllers.teleop import TSIDTeleop
+    from wbcbench.runner import run
+    from wbcbench.teleop import load_recording, write_bvh
+    from wbcbench.teleop.synthetic import SyntheticMotion, _both, _keyframes, motion_configurations
+    from wbcbench.types import ActuationMode
+
+    squat = _both({"right_hip_Z": 45.0, "right_knee_Z": 80.0, "right_ankle_Z": 35.0})
+    frames = [(0.3, {}), (1.8, squat), (2.5, squat)]
+    motion = SyntheticMotion("squat", "a squat, arms hanging", "A", 2.5, 50.0, lambda t: _keyframes(t, frames))
+    human, _, qs = motion_configurations(motion)
+    path = write_bvh(tmp_path / "squat.bvh", human.bvh_skeleton(0.01), human.bvh_motion(qs, 0.01), 1 / 50.0)
+    scen = TeleopScenario.from_source(talos, load_recording(path), duration=2.5, name="squat")
+    ctrl = TSIDTeleop(talos, ActuationMode.SPD, scen.spec.control_dt)
+    res = run(scen, ctrl, robot=talos, out=tmp_path / "run")
+    log = res.log
+    assert not res.summary["fell"]
+    assert log["q.z"][0] - log["q.z"].min() > 0.10
+    names = ["x", "y", "z", "qx", "qy", "qz", "qw"] + talos.joint_names
+    q_end = np.array([log[f"q.{c}"][-1] for c in names])
+    flt = scen.reference_source.command_filter
+    now = CommandFilter(talos, q_end, SafetyConfig(), DT)._body
+    standing = CommandFilter(talos, talos.q0, SafetyConfig(), DT)._body
+    for e, (offset, centres, radii) in flt._body.items():
+        assert np.abs(centres - now[e][1]).max() < 0.005, e  # moved with the robot (< 1 m/s for 5 ms)
+        assert np.abs(centres - standing[e][1]).max() > 0.10, e
+    Q = np.column_stack([log[f"q.{c}"] for c in names])
+    for k in range(0, len(Q), 25):
+        at = CommandFilter(talos, Q[k], SafetyConfig(), DT)._body
+        for e, (offset, centres, radii) in at.items():
+            R = np.array([log[f"target_{e}.r{i}{j}"][k] for i in range(3) for j in range(3)]).reshape(3, 3)
+            x = np.array([log[f"target_{e}.{c}"][k] for c in "xyz"]) + R @ offset
+            assert (np.linalg.norm(x - centres, axis=1) - radii).min() > 0.0, (k, e)
