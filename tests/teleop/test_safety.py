@@ -269,6 +269,43 @@ def test_the_body_spheres_follow_at_their_period(talos):
     CommandFilter(talos, talos.q0, SafetyConfig(body=False), DT).follow(0.0, q)
 
 
+def test_the_hands_turn_at_most_at_the_wrists_speed(talos, start):
+    """With `hand_angular_speed: wrist`, TALOS' hands turn at up to what the wrist (arm_*_5/6/7_joint: 1.95, 1.76,
+    1.76 rad/s) does, the norm of those limits: a hand reference turning at 6 rad/s is output turning at that speed
+    (its feed-forward clipped too), the head's at 6 rad/s is not held (`max_angular_speed` 10). A number sets the
+    hands' limit; by default there is none besides `max_angular_speed`; anything else is a one-line error."""
+    from wbcbench.errors import ConfigError
+    from wbcbench.teleop.safety import wrist_speed
+
+    w = wrist_speed(talos)
+    assert w == pytest.approx(np.linalg.norm([1.95, 1.76, 1.76]))
+    flt = CommandFilter(talos, talos.q0, SafetyConfig(hand_angular_speed="wrist"), DT)
+    assert flt.angular_speed == {"left_hand": w, "right_hand": w, "head": 10.0}
+    spin = np.array([0.0, 0.0, 6.0])
+    vel = np.concatenate([np.zeros(3), spin])
+
+    def turned(M, k):
+        return pin.SE3(pin.exp3(spin * k * DT) @ M.rotation, M.translation)
+
+    outs = []
+    for k in range(200):
+        raw = {e: (turned(start[e], k), vel, np.zeros(6)) for e in ("left_hand", "head")}
+        outs.append(flt(k * DT, raw))
+    for e, speed in (("left_hand", w), ("head", 6.0)):
+        R = [o[e][0].rotation for o in outs]
+        rates = [np.linalg.norm(pin.log3(a.T @ b)) / DT for a, b in zip(R[1:], R[2:])]
+        assert max(rates) == pytest.approx(speed, rel=1e-6), e
+        assert np.linalg.norm(outs[-1][e][1][3:]) == pytest.approx(speed), e
+    assert "head" not in flt.counts["speed"] and flt.counts["speed"]["left_hand"] > 0
+    assert CommandFilter(talos, talos.q0, SafetyConfig(hand_angular_speed=5.0), DT).angular_speed["left_hand"] == 5.0
+    assert CommandFilter(talos, talos.q0, SafetyConfig(), DT).angular_speed["left_hand"] == 10.0
+    sc = TeleopScenario.from_source(talos, "arms_down", duration=1.0, safety={"hand_angular_speed": "wrist"})
+    assert sc.safety.hand_angular_speed == "wrist"
+    with pytest.raises(ConfigError, match="hand_angular_speed") as err:
+        TeleopScenario.from_source(talos, "arms_down", duration=1.0, safety={"hand_angular_speed": "elbow"})
+    assert "wrist" in str(err.value) and "\n" not in str(err.value)
+
+
 def test_a_reference_passing_through_the_body_is_led_round_it(talos, start):
     """A hand reference swept through the pelvis from one side to the other at 2 m/s: pushed out radially it flips
     sides at the centre, a jump the filter re-joins along a straight line; the output stays out of the spheres all

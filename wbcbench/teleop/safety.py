@@ -23,11 +23,15 @@ and acceleration (6,) each, in this order:
    reference, along the straight line / the geodesic); counted as `speed`. The feed-forward velocity and
    acceleration are clipped to `max_speed`, `max_angular_speed`, `max_acceleration` [m/s^2] and
    `max_angular_acceleration` [rad/s^2] (norms); counted as `acceleration` when the acceleration is clipped.
+   A hand's angular speed can also be held to `hand_angular_speed` [rad/s], or to what the robot's wrist can do
+   with "wrist" (`wrist_speed`: the norm of the velocity limits of the last three joints that carry the hand and
+   not the other one, TALOS' 3.16 rad/s; a reference that turns the hand faster is followed with the shoulder and
+   the elbow, swinging the gripper about its position reference); off by default (README, "Real recordings").
 
 Every intervention is counted per kind and effector (`counts`), the first ones kept with their time
 (`events`), and the tick's flags are logged (`teleop_filter` channel). The defaults let the shipped recordings
 through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad/s, 135 m/s^2, 470 rad/s^2 at
-x2; a test checks that nothing is filtered) and stop teleports and garbage.
+x2; a test checks it) and stop teleports and garbage.
 
 The usual tick needs none of this: `_screen` decides it per effector in one compiled call, and `pass_rows` for all
 the effectors of a recording's stacked rows at once (wbcbench/teleop/source.py), leaving the same state as
@@ -44,11 +48,13 @@ import pinocchio as pin
 from ..jit import njit
 from ..side import Side
 
-__all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig"]
+__all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig", "wrist_speed"]
 
 #: The intervention kinds, in the order of the log channel's components.
 FILTER_KINDS = ("non_finite", "body", "jump", "speed", "acceleration")
 _MAX_EVENTS = 100
+_HANDS = ("left_hand", "right_hand")
+_EFFECTORS = ("left_hand", "right_hand", "head")
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,7 @@ class SafetyConfig:
     body: bool = True
     body_margin: float = 0.03
     body_period: float = 0.005
+    hand_angular_speed: float | str | None = None
 
 
 @njit
@@ -108,14 +115,17 @@ def _screen(p, R, vel, acc, has_last, last_p, last_R, raw_p, raw_R, offset, cent
 
 
 @njit
-def _screen_rows(k, P, R, V, A, last_p, last_R, raw_p, raw_R, offsets, centres, reach, starts, lim):
+def _screen_rows(k, P, R, V, A, last_p, last_R, raw_p, raw_R, offsets, centres, reach, starts, angular, lim):
     """`_screen` of row k of every effector (P (n, e, 3), R (n, e, 3, 3), V, A (n, e, 6)) against its last
     output and raw reference (``last_p`` (e, 3), ...; every effector has them); the body spheres of effector i are
-    ``centres[starts[i]:starts[i + 1]]``. True when all pass; their rows are then copied into the last states (what
-    the filter keeps after a tick it passes untouched), which are left alone otherwise."""
+    ``centres[starts[i]:starts[i + 1]]``, its angular speed limit ``angular[i]`` (lim[3] and lim[5] are set from it,
+    lim[8] being the tick's dt). True when all pass; their rows are then copied into the last states (what the
+    filter keeps after a tick it passes untouched), which are left alone otherwise."""
     n = P.shape[1]
     for e in range(n):
         c0, c1 = starts[e], starts[e + 1]
+        lim[3] = angular[e] * lim[8]
+        lim[5] = angular[e]
         if not _screen(P[k, e], R[k, e], V[k, e], A[k, e], True, last_p[e], last_R[e], raw_p[e], raw_R[e],
                        offsets[e], centres[c0:c1], reach[c0:c1], lim):
             return False
@@ -190,9 +200,14 @@ class CommandFilter:
         # the compiled screen's inputs: the spheres' reach (radius + margin), the limits, the last poses as arrays
         self._body_arrays = {e: (off, c, r + config.body_margin) for e, (off, c, r) in self._body.items()}
         self._no_body = (np.zeros(3), np.zeros((0, 3)), np.zeros(0))
-        self._limits = np.zeros(8)
-        self._limits[4:] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
-                            config.max_angular_acceleration)
+        # the angular speed limit per effector: the hands' also held to the wrist's speed
+        hand = config.hand_angular_speed
+        hand = np.inf if hand is None else wrist_speed(robot) if hand == "wrist" else float(hand)
+        self.angular_speed = {e: min(config.max_angular_speed, hand) if e in _HANDS else config.max_angular_speed
+                              for e in _EFFECTORS}
+        self._limits = np.zeros(9)
+        self._limits[4:8] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
+                             config.max_angular_acceleration)
         self._arrays: dict[str, tuple] = {}
         # the row path (`bind_rows`, `pass_rows`): the last states of its effectors stacked, and whether they are
         # those of the dicts above (`_rows_ready`) or newer (`_dicts_stale`: the dicts are rebuilt before use)
@@ -280,6 +295,7 @@ class CommandFilter:
         self._row_effectors = eff
         self._row_last = (np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)))
         offsets, centres, reach, starts = np.zeros((n, 3)), [], [], [0]
+        self._row_angular = np.array([self._angular(e) for e in eff])
         index = []  # the stacked spheres' rows of the followed centres (`follow`)
         for i, e in enumerate(eff):
             off, c, r = self._body_arrays.get(e, self._no_body)
@@ -292,7 +308,7 @@ class CommandFilter:
         self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
                           np.array(starts, dtype=np.int64))
         self._row_index = np.concatenate(index) if index else np.zeros(0, dtype=np.int64)
-        self._row_args = (*self._row_last, *self._row_body, self._limits)
+        self._row_args = (*self._row_last, *self._row_body, self._row_angular, self._limits)
         # the kernel loaded now, not at the first tick it serves (a paced run's clock is running by then)
         _screen_rows(0, np.zeros((1, n, 3)), np.zeros((1, n, 3, 3)), np.zeros((1, n, 6)), np.zeros((1, n, 6)),
                      *(a.copy() for a in self._row_args))
@@ -315,7 +331,7 @@ class CommandFilter:
         cfg = self.config
         scale = max(1.0, dt / self.dt)
         lim = self._limits
-        lim[2], lim[3] = cfg.max_speed * dt, cfg.max_angular_speed * dt
+        lim[2], lim[8] = cfg.max_speed * dt, dt
         lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
         if not _screen_rows(k, P, R, V, A, *self._row_args):
             return False
@@ -323,6 +339,10 @@ class CommandFilter:
         self._t_prev = t
         self._dicts_stale = True
         return True
+
+    def _angular(self, effector: str) -> float:
+        """The effector's angular speed limit [rad/s] (`angular_speed`; `max_angular_speed` for another name)."""
+        return self.angular_speed.get(effector, self.config.max_angular_speed)
 
     def _sync_dicts(self) -> None:
         """After `pass_rows`: the last outputs as the poses `__call__` keeps (each the raw reference too)."""
@@ -367,12 +387,14 @@ class CommandFilter:
         self._t_prev = t
         scale = 1.0 if dt is None else max(1.0, dt / self.dt)
         lim = self._limits
-        lim[2], lim[3] = cfg.max_speed * (dt or 0.0), cfg.max_angular_speed * (dt or 0.0)
+        lim[2] = cfg.max_speed * (dt or 0.0)
         lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
         out = {}
         for e, (M, vel, acc) in targets.items():
             last = self._last.get(e) if dt is not None else None
             R = M.rotation
+            w_max = self._angular(e)
+            lim[3], lim[5] = w_max * (dt or 0.0), w_max
             if e not in self._rejoin:
                 p = M.translation
                 arrays = self._arrays.get(e)
@@ -425,12 +447,12 @@ class CommandFilter:
                 step = M.translation - last.translation
                 step_c, fast = _clip_norm(step, cfg.max_speed * dt)
                 rot = pin.log3(M.rotation @ last.rotation.T)
-                rot_c, spin = _clip_norm(rot, cfg.max_angular_speed * dt)
+                rot_c, spin = _clip_norm(rot, w_max * dt)
                 if fast or spin:
                     M = pin.SE3(pin.exp3(rot_c) @ last.rotation, last.translation + step_c)
                     self._count(t, e, "speed")
             v_lin, f1 = _clip_norm(vel[:3], cfg.max_speed)
-            v_ang, f2 = _clip_norm(vel[3:], cfg.max_angular_speed)
+            v_ang, f2 = _clip_norm(vel[3:], w_max)
             a_lin, f3 = _clip_norm(acc[:3], cfg.max_acceleration)
             a_ang, f4 = _clip_norm(acc[3:], cfg.max_angular_acceleration)
             if f1 or f2:
@@ -508,6 +530,23 @@ def _place(H, which, points, out):
         h = H[which[i]]
         for r in range(3):
             out[i, r] = h[r, 0] * points[i, 0] + h[r, 1] * points[i, 1] + h[r, 2] * points[i, 2] + h[r, 3]
+
+
+def wrist_speed(robot) -> float:
+    """The fastest a robot's wrist turns its hand [rad/s]: the norm of the velocity limits of the last three joints
+    that carry a hand and not the other one (the wrist's joints at their limits about orthogonal axes; the smaller
+    over the two hands)."""
+    model = robot.model
+    limit = dict(zip(robot.joint_names, robot.velocity_limit))
+    chains = {side: list(model.supports[model.frames[model.getFrameId(frame)].parentJoint])
+              for side, frame in robot.profile.hands.items()}
+    speeds = []
+    for side, chain in chains.items():
+        others = set().union(*(set(c) for s, c in chains.items() if s != side))
+        own = [model.names[j] for j in chain if j not in others and model.names[j] in limit]
+        v = [float(limit[name]) for name in own[-3:]]
+        speeds.append(float(np.linalg.norm(v)) if v else np.inf)
+    return float(min(speeds)) if speeds else np.inf
 
 
 def _arm_joints(model, repulsors: dict) -> set:
