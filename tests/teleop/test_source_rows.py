@@ -105,3 +105,34 @@ def test_without_the_filter_and_without_engagement(talos, enabled):
     _same_state(fast, slow)
     assert served == 1500 if not enabled else served == 1499
 
+
+
+def test_body_spheres_following_the_measured_posture(talos):
+    """The measured torso leans forward (torso_2_joint +0.5 rad over 2 s, the spheres following every 5 ms) onto
+    crossing_arms' crossed forearms: the references the moving chest pushes out are the same on both paths."""
+    fast, slow = _pair(talos, "crossing_arms", duration=4.0)
+    model = talos.model
+    q0, q1 = talos.q0, talos.q0.copy()
+    q1[model.joints[model.getJointId("torso_2_joint")].idx_q] += 0.5
+    rows = fast.reference_source._row_targets
+    served = [0]
+
+    def spy(t):
+        out = rows(t)
+        served[0] += out is not None
+        return out
+
+    fast.reference_source._row_targets = spy
+    for k in range(4000):
+        t = k * DT
+        s = min(t / 2.0, 1.0)
+        q = q0 + s * (q1 - q0)
+        for sc in (fast, slow):
+            sc.reference_source.follow(t, q)
+        a, b = fast.references(t).targets, slow.references(t).targets
+        for name in a:
+            for f in ("position", "rotation", "velocity", "acceleration"):
+                assert np.array_equal(getattr(a[name], f), getattr(b[name], f)), (t, name, f)
+    _same_state(fast, slow)
+    counts = fast.reference_source.command_filter.summary()["counts"]
+    assert counts["body"] and 0 < served[0] < 4000

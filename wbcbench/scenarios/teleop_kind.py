@@ -58,7 +58,10 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     enabled (default true), max_speed [m/s] (4), max_angular_speed [rad/s] (10), max_acceleration [m/s^2] (150),
     max_angular_acceleration [rad/s^2] (500), jump_distance [m] (0.05 per tick), jump_angle [rad] (0.3),
     rejoin_speed [m/s] (0.5), rejoin_angular_speed [rad/s] (1.5), min_rejoin_time [s] (0.3), body (default:
-    on, off with anchor absolute), body_margin [m] (0.03). Interventions: the `teleop_filter` log channel and
+    on, off with anchor absolute), body_margin [m] (0.03), body_period [s] (0.005: how often the body spheres
+    follow the measured posture; 0 every tick), hand_angular_speed [rad/s] (default none: the hands' turning held
+    to max_angular_speed only; `wrist`: to what the robot's wrist can do, the norm of the velocity limits of the
+    hand's last three joints, TALOS' 3.16). Interventions: the `teleop_filter` log channel and
     `teleop.filter` in the summary.
   network: an impaired link between the operator and the robot (wbcbench/teleop/network.py), e.g.
     "latency=50ms,jitter=5ms,loss=5%,burst=3,reorder=2%,duplicate=1%,corrupt=1%,stall=0.5s@3s,seed=1". A recording
@@ -255,6 +258,11 @@ class TeleopScenario(Scenario):
         self.reference_source = TeleopReferenceSource(self.robot, self.source, self.live, self._source_config())
         self.reference_source.setup(q0)
 
+    def observe(self, t: float, meas) -> None:
+        """The tick's measurement, before `references`: the command filter's body spheres follow the measured
+        posture."""
+        self.reference_source.follow(t, meas.q)
+
     def references(self, t: float) -> References:
         """Both feet down, the CoM held, the operator's hands and head as the named frame tasks' references
         (`TeleopReferenceSource`, wbcbench/teleop/source.py)."""
@@ -370,8 +378,10 @@ def _parse_safety(sec, anchor: str):
             continue
         if f.type in ("bool", bool):
             values[f.name] = sec.bool(f.name)
+        elif f.name == "hand_angular_speed" and isinstance(sec.raw(f.name), str):
+            values[f.name] = sec.str(f.name, choices=("wrist",))
         else:
-            values[f.name] = (sec.float(f.name, min=0.0) if f.name == "body_margin"
+            values[f.name] = (sec.float(f.name, min=0.0) if f.name in ("body_margin", "body_period")
                               else sec.float(f.name, positive=True))
     values.setdefault("body", anchor != "absolute")
     sec.finish()

@@ -10,7 +10,11 @@ and acceleration (6,) each, in this order:
    r_rep + `body_margin` to a repulsion point on a link that does not move with the arms (torso, pelvis, legs; at
    the reference posture, the robot standing) is pushed out radially, so a reference never asks the gripper
    into the hips or the chest. Counted as `body`. Off with the paper's `absolute` anchor, where such references
-   are the repulsors' study (scenario param).
+   are the repulsors' study (scenario param). The spheres are placed at the reference posture (the robot
+   standing) and, when the filter is given the robot's measured configuration (`follow`: encoders and base
+   estimate, what the controller gets), moved with it every `body_period` [s], so that they crouch with the
+   robot. A re-join (3.) or a speed clamp (4.) moves the output along a straight line, through the body when the
+   reference went round it: their output is pushed out again.
 3. Jumps: a reference more than `jump_distance` [m] or `jump_angle` [rad] from the last one in one tick
    (a teleport: a stream that resumes after a loss, a recalibration, a corrupt frame) is re-joined with a min-jerk
    blend from the last output to the moving reference over max(`min_rejoin_time`, distance / `rejoin_speed`,
@@ -19,11 +23,15 @@ and acceleration (6,) each, in this order:
    reference, along the straight line / the geodesic); counted as `speed`. The feed-forward velocity and
    acceleration are clipped to `max_speed`, `max_angular_speed`, `max_acceleration` [m/s^2] and
    `max_angular_acceleration` [rad/s^2] (norms); counted as `acceleration` when the acceleration is clipped.
+   A hand's angular speed can also be held to `hand_angular_speed` [rad/s], or to what the robot's wrist can do
+   with "wrist" (`wrist_speed`: the norm of the velocity limits of the last three joints that carry the hand and
+   not the other one, TALOS' 3.16 rad/s; a reference that turns the hand faster is followed with the shoulder and
+   the elbow, swinging the gripper about its position reference); off by default (README, "Real recordings").
 
 Every intervention is counted per kind and effector (`counts`), the first ones kept with their time
 (`events`), and the tick's flags are logged (`teleop_filter` channel). The defaults let the shipped recordings
 through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad/s, 135 m/s^2, 470 rad/s^2 at
-x2; a test checks that nothing is filtered) and stop teleports and garbage.
+x2; a test checks it) and stop teleports and garbage.
 
 The usual tick needs none of this: `_screen` decides it per effector in one compiled call, and `pass_rows` for all
 the effectors of a recording's stacked rows at once (wbcbench/teleop/source.py), leaving the same state as
@@ -40,11 +48,13 @@ import pinocchio as pin
 from ..jit import njit
 from ..side import Side
 
-__all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig"]
+__all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig", "wrist_speed"]
 
 #: The intervention kinds, in the order of the log channel's components.
 FILTER_KINDS = ("non_finite", "body", "jump", "speed", "acceleration")
 _MAX_EVENTS = 100
+_HANDS = ("left_hand", "right_hand")
+_EFFECTORS = ("left_hand", "right_hand", "head")
 
 
 @dataclass(frozen=True)
@@ -63,6 +73,8 @@ class SafetyConfig:
     min_rejoin_time: float = 0.3
     body: bool = True
     body_margin: float = 0.03
+    body_period: float = 0.005
+    hand_angular_speed: float | str | None = None
 
 
 @njit
@@ -103,14 +115,17 @@ def _screen(p, R, vel, acc, has_last, last_p, last_R, raw_p, raw_R, offset, cent
 
 
 @njit
-def _screen_rows(k, P, R, V, A, last_p, last_R, raw_p, raw_R, offsets, centres, reach, starts, lim):
+def _screen_rows(k, P, R, V, A, last_p, last_R, raw_p, raw_R, offsets, centres, reach, starts, angular, lim):
     """`_screen` of row k of every effector (P (n, e, 3), R (n, e, 3, 3), V, A (n, e, 6)) against its last
     output and raw reference (``last_p`` (e, 3), ...; every effector has them); the body spheres of effector i are
-    ``centres[starts[i]:starts[i + 1]]``. True when all pass; their rows are then copied into the last states (what
-    the filter keeps after a tick it passes untouched), which are left alone otherwise."""
+    ``centres[starts[i]:starts[i + 1]]``, its angular speed limit ``angular[i]`` (lim[3] and lim[5] are set from it,
+    lim[8] being the tick's dt). True when all pass; their rows are then copied into the last states (what the
+    filter keeps after a tick it passes untouched), which are left alone otherwise."""
     n = P.shape[1]
     for e in range(n):
         c0, c1 = starts[e], starts[e + 1]
+        lim[3] = angular[e] * lim[8]
+        lim[5] = angular[e]
         if not _screen(P[k, e], R[k, e], V[k, e], A[k, e], True, last_p[e], last_R[e], raw_p[e], raw_R[e],
                        offsets[e], centres[c0:c1], reach[c0:c1], lim):
             return False
@@ -180,13 +195,19 @@ class CommandFilter:
         self._t_prev: float | None = None
         self._raw_last: dict[str, pin.SE3] = {}
         self._rejoin: dict[str, _Rejoin] = {}
-        self._body = self._body_spheres(robot, q_reference) if config.body else {}
+        self._body, self._follow = self._body_spheres(robot, q_reference) if config.body else ({}, None)
+        self._t_follow: float | None = None
         # the compiled screen's inputs: the spheres' reach (radius + margin), the limits, the last poses as arrays
         self._body_arrays = {e: (off, c, r + config.body_margin) for e, (off, c, r) in self._body.items()}
         self._no_body = (np.zeros(3), np.zeros((0, 3)), np.zeros(0))
-        self._limits = np.zeros(8)
-        self._limits[4:] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
-                            config.max_angular_acceleration)
+        # the angular speed limit per effector: the hands' also held to the wrist's speed
+        hand = config.hand_angular_speed
+        hand = np.inf if hand is None else wrist_speed(robot) if hand == "wrist" else float(hand)
+        self.angular_speed = {e: min(config.max_angular_speed, hand) if e in _HANDS else config.max_angular_speed
+                              for e in _EFFECTORS}
+        self._limits = np.zeros(9)
+        self._limits[4:8] = (config.max_speed, config.max_angular_speed, config.max_acceleration,
+                             config.max_angular_acceleration)
         self._arrays: dict[str, tuple] = {}
         # the row path (`bind_rows`, `pass_rows`): the last states of its effectors stacked, and whether they are
         # those of the dicts above (`_rows_ready`) or newer (`_dicts_stale`: the dicts are rebuilt before use)
@@ -195,41 +216,42 @@ class CommandFilter:
         self._dicts_stale = False
 
     @staticmethod
-    def _body_spheres(robot, q: np.ndarray) -> dict:
+    def _body_spheres(robot, q: np.ndarray) -> tuple[dict, _SphereKinematics | None]:
         """Per hand: (protected-point offset in the hand frame, centres (k, 3), radii (k,)) of the repulsion points
-        on links that do not move with the arms, at configuration q."""
+        on links that do not move with the arms, at configuration q; and their kinematics (`follow`)."""
         model = robot.model
         data = model.createData()
         pin.framesForwardKinematics(model, data, q)
-        # the arms' own joints: those that carry one gripper and not the other
-        chains = {}
-        for side in Side:
-            spec = robot.profile.repulsors.get(side)
-            if spec is not None:
-                chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
-        arm_joints = set()
-        if len(chains) == 2:
-            arm_joints = chains[Side.LEFT] ^ chains[Side.RIGHT]
+        kin = _SphereKinematics(robot)
+        kin.place(q)
         out = {}
         for hand, side in (("left_hand", Side.LEFT), ("right_hand", Side.RIGHT)):
             spec = robot.profile.repulsors.get(side)
-            if spec is None:
+            if spec is None or hand not in kin.index:
                 continue
             hand_frame = model.getFrameId(robot.profile.hands[side])
             gripper = model.getFrameId(spec.frame)
             # the protected point in the hand frame (the hand frame and the gripper frame are rigidly attached)
             point = data.oMf[gripper].act(np.asarray(spec.offset, float))
             offset = data.oMf[hand_frame].actInv(point)
-            centres, radii = [], []
-            for p in spec.points:
-                fid = model.getFrameId(p.frame)
-                if _moves_with_arms(model, model.frames[fid].parentJoint, arm_joints):
-                    continue
-                centres.append(data.oMf[fid].act(np.asarray(p.offset, float)))
-                radii.append(p.radius)
-            if centres:
-                out[hand] = (offset, np.array(centres), np.array(radii))
-        return out
+            out[hand] = (offset, kin.centres[kin.index[hand]], kin.radii[hand])
+        return out, (kin if out else None)
+
+    def follow(self, t: float, q: np.ndarray) -> None:
+        """The body spheres moved to the robot's configuration q (pinocchio's: the base estimate and the encoders,
+        as measured) when `body_period` has passed since they last were (every call when it is 0). In place: the
+        per-effector arrays and the row path's stacked ones see it."""
+        if self._follow is None:
+            return
+        last = self._t_follow
+        if last is not None and last <= t < last + self.config.body_period - 1e-9:
+            return
+        self._t_follow = t
+        self._follow.place(q)
+        for e, (_, c, _) in self._body.items():
+            np.take(self._follow.centres, self._follow.index[e], axis=0, out=c)
+        if self._row_effectors is not None:
+            np.take(self._follow.centres, self._row_index, axis=0, out=self._row_body[1])
 
     def _push_out(self, effector: str, M: pin.SE3) -> tuple[pin.SE3, bool]:
         spheres = self._body.get(effector)
@@ -273,15 +295,20 @@ class CommandFilter:
         self._row_effectors = eff
         self._row_last = (np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)))
         offsets, centres, reach, starts = np.zeros((n, 3)), [], [], [0]
+        self._row_angular = np.array([self._angular(e) for e in eff])
+        index = []  # the stacked spheres' rows of the followed centres (`follow`)
         for i, e in enumerate(eff):
             off, c, r = self._body_arrays.get(e, self._no_body)
+            if self._follow is not None and e in self._follow.index:
+                index.append(self._follow.index[e])
             offsets[i] = off
             centres.append(np.asarray(c, float).reshape(-1, 3))
             reach.append(np.asarray(r, float).reshape(-1))
             starts.append(starts[-1] + len(reach[-1]))
         self._row_body = (offsets, np.ascontiguousarray(np.concatenate(centres)), np.concatenate(reach),
                           np.array(starts, dtype=np.int64))
-        self._row_args = (*self._row_last, *self._row_body, self._limits)
+        self._row_index = np.concatenate(index) if index else np.zeros(0, dtype=np.int64)
+        self._row_args = (*self._row_last, *self._row_body, self._row_angular, self._limits)
         # the kernel loaded now, not at the first tick it serves (a paced run's clock is running by then)
         _screen_rows(0, np.zeros((1, n, 3)), np.zeros((1, n, 3, 3)), np.zeros((1, n, 6)), np.zeros((1, n, 6)),
                      *(a.copy() for a in self._row_args))
@@ -304,7 +331,7 @@ class CommandFilter:
         cfg = self.config
         scale = max(1.0, dt / self.dt)
         lim = self._limits
-        lim[2], lim[3] = cfg.max_speed * dt, cfg.max_angular_speed * dt
+        lim[2], lim[8] = cfg.max_speed * dt, dt
         lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
         if not _screen_rows(k, P, R, V, A, *self._row_args):
             return False
@@ -312,6 +339,10 @@ class CommandFilter:
         self._t_prev = t
         self._dicts_stale = True
         return True
+
+    def _angular(self, effector: str) -> float:
+        """The effector's angular speed limit [rad/s] (`angular_speed`; `max_angular_speed` for another name)."""
+        return self.angular_speed.get(effector, self.config.max_angular_speed)
 
     def _sync_dicts(self) -> None:
         """After `pass_rows`: the last outputs as the poses `__call__` keeps (each the raw reference too)."""
@@ -356,12 +387,14 @@ class CommandFilter:
         self._t_prev = t
         scale = 1.0 if dt is None else max(1.0, dt / self.dt)
         lim = self._limits
-        lim[2], lim[3] = cfg.max_speed * (dt or 0.0), cfg.max_angular_speed * (dt or 0.0)
+        lim[2] = cfg.max_speed * (dt or 0.0)
         lim[0], lim[1] = cfg.jump_distance * scale, cfg.jump_angle * scale
         out = {}
         for e, (M, vel, acc) in targets.items():
             last = self._last.get(e) if dt is not None else None
             R = M.rotation
+            w_max = self._angular(e)
+            lim[3], lim[5] = w_max * (dt or 0.0), w_max
             if e not in self._rejoin:
                 p = M.translation
                 arrays = self._arrays.get(e)
@@ -409,16 +442,17 @@ class CommandFilter:
                     vel[:3] += ds * dp
                     vel[3:] += ds * dr
                     acc = s * acc
+            fast = spin = False
             if last is not None:
                 step = M.translation - last.translation
                 step_c, fast = _clip_norm(step, cfg.max_speed * dt)
                 rot = pin.log3(M.rotation @ last.rotation.T)
-                rot_c, spin = _clip_norm(rot, cfg.max_angular_speed * dt)
+                rot_c, spin = _clip_norm(rot, w_max * dt)
                 if fast or spin:
                     M = pin.SE3(pin.exp3(rot_c) @ last.rotation, last.translation + step_c)
                     self._count(t, e, "speed")
             v_lin, f1 = _clip_norm(vel[:3], cfg.max_speed)
-            v_ang, f2 = _clip_norm(vel[3:], cfg.max_angular_speed)
+            v_ang, f2 = _clip_norm(vel[3:], w_max)
             a_lin, f3 = _clip_norm(acc[:3], cfg.max_acceleration)
             a_ang, f4 = _clip_norm(acc[3:], cfg.max_angular_acceleration)
             if f1 or f2:
@@ -426,6 +460,12 @@ class CommandFilter:
             if f3 or f4:
                 self._count(t, e, "acceleration")
             vel, acc = np.concatenate([v_lin, v_ang]), np.concatenate([a_lin, a_ang])
+            if pushed or rj is not None or fast or spin:
+                # a re-join or a clamped step goes along a straight line from the last output, through the body
+                # when the pushed reference went round it (a hand passing in front of the hips): out again
+                M, again = self._push_out(e, M)
+                if again and not pushed:
+                    self._count(t, e, "body")
             self._last[e] = M
             self._arrays[e] = (M.translation, M.rotation, self._raw_last[e].translation, self._raw_last[e].rotation)
             out[e] = (M, vel, acc)
@@ -435,6 +475,88 @@ class CommandFilter:
         """Counts per kind and effector, their total, and the first events ({t, t_last, effector, kind})."""
         return {"counts": self.counts, "total": int(sum(sum(c.values()) for c in self.counts.values())),
                 "events": self.events}
+
+
+class _SphereKinematics:
+    """The body spheres of `CommandFilter._body_spheres`: each distinct (parent joint, point in the joint's frame)
+    once, their centres at the configuration last `place`d ((k, 3)), per hand the rows of its spheres (`index`)
+    and their radii (`radii`)."""
+
+    def __init__(self, robot):
+        model = robot.model
+        self.model, self.data = model, model.createData()
+        arm_joints = _arm_joints(model, robot.profile.repulsors)
+        self.joints: list[int] = []
+        self.points: list[np.ndarray] = []
+        self.index: dict[str, np.ndarray] = {}
+        self.radii: dict[str, np.ndarray] = {}
+        keys: dict = {}
+        for hand, side in (("left_hand", Side.LEFT), ("right_hand", Side.RIGHT)):
+            spec = robot.profile.repulsors.get(side)
+            if spec is None:
+                continue
+            rows, radii = [], []
+            for p in spec.points:
+                frame = model.frames[model.getFrameId(p.frame)]
+                if _moves_with_arms(model, frame.parentJoint, arm_joints):
+                    continue
+                point = frame.placement.act(np.asarray(p.offset, float))
+                key = (frame.parentJoint, *point.tolist())
+                if key not in keys:
+                    keys[key] = len(self.joints)
+                    self.joints.append(frame.parentJoint)
+                    self.points.append(point)
+                rows.append(keys[key])
+                radii.append(p.radius)
+            if rows:
+                self.index[hand] = np.array(rows, dtype=np.int64)
+                self.radii[hand] = np.array(radii)
+        self.centres = np.zeros((len(self.joints), 3))
+        self._distinct = sorted(set(self.joints))
+        self._which = np.array([self._distinct.index(j) for j in self.joints], dtype=np.int64)
+        self._points = np.array(self.points, dtype=float).reshape(-1, 3)
+
+    def place(self, q: np.ndarray) -> None:
+        """The centres at configuration q (the joints' placements only: one forward kinematics pass)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        oMi = self.data.oMi
+        _place(np.array([oMi[j].homogeneous for j in self._distinct]), self._which, self._points, self.centres)
+
+
+@njit
+def _place(H, which, points, out):
+    """out[i] = the point points[i] placed by the homogeneous transform H[which[i]]."""
+    for i in range(points.shape[0]):
+        h = H[which[i]]
+        for r in range(3):
+            out[i, r] = h[r, 0] * points[i, 0] + h[r, 1] * points[i, 1] + h[r, 2] * points[i, 2] + h[r, 3]
+
+
+def wrist_speed(robot) -> float:
+    """The fastest a robot's wrist turns its hand [rad/s]: the norm of the velocity limits of the last three joints
+    that carry a hand and not the other one (the wrist's joints at their limits about orthogonal axes; the smaller
+    over the two hands)."""
+    model = robot.model
+    limit = dict(zip(robot.joint_names, robot.velocity_limit))
+    chains = {side: list(model.supports[model.frames[model.getFrameId(frame)].parentJoint])
+              for side, frame in robot.profile.hands.items()}
+    speeds = []
+    for side, chain in chains.items():
+        others = set().union(*(set(c) for s, c in chains.items() if s != side))
+        own = [model.names[j] for j in chain if j not in others and model.names[j] in limit]
+        v = [float(limit[name]) for name in own[-3:]]
+        speeds.append(float(np.linalg.norm(v)) if v else np.inf)
+    return float(min(speeds)) if speeds else np.inf
+
+
+def _arm_joints(model, repulsors: dict) -> set:
+    """The arms' own joints: those that carry one gripper and not the other."""
+    chains = {}
+    for side in Side:
+        spec = repulsors.get(side)
+        if spec is not None:
+            chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
+    return chains[Side.LEFT] ^ chains[Side.RIGHT] if len(chains) == 2 else set()
 
 
 def _moves_with_arms(model, joint: int, arm_joints: set) -> bool:

@@ -452,6 +452,11 @@ class TeleopReferenceSource:
             out[e] = (F, v if sample.valid else np.zeros(6), np.zeros(6))
         return out, bool(sample.valid), clamped
 
+    def follow(self, t: float, q: np.ndarray) -> None:
+        """The robot's measured configuration q at t (base estimate and encoders): the command filter's body
+        spheres follow it."""
+        self.command_filter.follow(t, q)
+
     def targets(self, t: float) -> dict:
         """The named frame-task references at time t [s] (effector targets through the anchor, spline or filter,
         signal-loss policy and engagement blend), with the health bookkeeping."""
