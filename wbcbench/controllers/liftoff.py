@@ -4,7 +4,7 @@ swing then starts from the plan's lift-off and catches up with the plan's clock 
 
 A position-controlled robot lags the plan's weight transfer: the model's CoM is over the stance foot at the planned
 lift-off (the leaving contact unloaded in the model), while the real joints yield under load and the real leaving
-foot still carries a large share of the weight (TALOS' TSID position on the platforms: about 47 % at the planned
+foot still carries a large share of the weight (TALOS' TSID position on the stairs: 33-52 % at the planned
 lift-off). Lifting it then moves the weight onto the stance foot in a few tens of milliseconds, which kicks the
 single-support ZMP swing (README, Uneven terrain). Here the contact is held (in the references: the foot stays in
 `contacts`, with its lift-off set to the planned one, so that a controller unloading its leaving contacts keeps it
