@@ -1,5 +1,7 @@
 """The corrections a controller makes to the plan's references before its solve, in their order:
 
+0. the plan lead (`plan_lead.PlanLead`, task-set key `plan_lead`): the horizontal CoM and ZMP references taken a
+   little ahead along the plan, for a robot that lags its integrated model;
 1. the event-based lift-off (`liftoff.LiftOffWait`, task-set key `lift_off_wait`): a foot still loaded at its
    planned lift-off stays in contact until its F/T sensor reads it unloaded (bounded), then its swing catches up
    with the plan;
@@ -9,7 +11,7 @@
    mapped into the integrated model's world, so that a position-controlled scheme does not drift from it;
 4. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
 
-The first three exist only for a controller that integrates its own model (`integrated_model`: IK, the
+The first four exist only for a controller that integrates its own model (`integrated_model`: IK, the
 inverse-dynamics controllers in position and SPD modes); in torque mode the contact forces press a foot down and
 the model is the measured state. Each is built from the task set when it has the section, and is absent otherwise.
 """
@@ -26,20 +28,21 @@ from ..stabilizers.base import Stabilizer, make_stabilizer
 from ..types import Measurement, ModelFeedback, References
 from .taskset import TaskSetSpec
 from .liftoff import LiftOffWait
+from .plan_lead import PlanLead
 from .touchdown import TouchdownSearch
 
 __all__ = ["PlanCorrections"]
 
 
 class PlanCorrections:
-    """The lift-off wait, touch-down search, base feedback and stabilizer of a controller (module docstring).
+    """The plan lead, lift-off wait, touch-down search, base feedback and stabilizer of a controller (module docstring).
 
     Args:
         robot, dt: the controller's.
-        spec: its task set (sections `lift_off_wait`, `touchdown_search`, `base_feedback`, `stabilizer`).
+        spec: its task set (sections `plan_lead`, `lift_off_wait`, `touchdown_search`, `base_feedback`, `stabilizer`).
         stabilizer: a stabilizer to use instead of the task set's (None: the task set's, if any).
-        integrated_model: whether the controller integrates its own model (the lift-off wait, the touch-down
-            search and the base feedback are built only then).
+        integrated_model: whether the controller integrates its own model (the plan lead, the lift-off wait,
+            the touch-down search and the base feedback are built only then).
     """
 
     def __init__(self, robot: Robot, dt: float, spec: TaskSetSpec, stabilizer: Stabilizer | None = None,
@@ -47,6 +50,7 @@ class PlanCorrections:
         if stabilizer is None and spec.stabilizer is not None:
             stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
         self.stabilizer = stabilizer
+        self.lead = PlanLead(spec.plan_lead, dt) if spec.plan_lead is not None and integrated_model else None
         self.lift_off = (LiftOffWait(spec.lift_off_wait)
                          if spec.lift_off_wait is not None and integrated_model else None)
         self.touchdown = (TouchdownSearch(spec.touchdown_search)
@@ -58,6 +62,8 @@ class PlanCorrections:
         """At the controller's reset; `feedback()` is the stabilizer's model feedback at reset (called only when
         there is a stabilizer). Raises the stabilizer's `MissingReferenceError` when the references lack one it
         needs."""
+        if self.lead is not None:
+            self.lead.reset()
         if self.lift_off is not None:
             self.lift_off.reset()
         if self.touchdown is not None:
@@ -73,6 +79,8 @@ class PlanCorrections:
         """This tick's references with the corrections applied in order. `q_model`: the integrated model's
         configuration (for the base feedback); `feedback(refs)`: the stabilizer's model feedback for the references
         corrected so far (called only when there is a stabilizer)."""
+        if self.lead is not None:
+            refs = self.lead.apply(refs)
         if self.lift_off is not None:
             refs = self.lift_off.apply(meas, refs)
         if self.touchdown is not None:
