@@ -113,4 +113,5 @@ def test_tsid_position_waits_for_the_leaving_foot_on_the_stairs(talos, tmp_path)
     held = np.flatnonzero(~model[k:])[0]                           # the model's contact goes this many ticks later
     assert 30 <= held <= 52
     assert share[k + held - 2] > 0.2 or held >= 50                 # held while loaded, at most 50 ms
-    assert s["metrics"]["zmp_error_m"]["x"]["mean"] < 0.0135       # 0.0139 without the wait on this run
+    # x mean 0.0121 m; without the wait 0.0128 (the plan lead alone), with neither 0.0139
+    assert s["metrics"]["zmp_error_m"]["x"]["mean"] < 0.0125

@@ -75,7 +75,8 @@ class _Swing:
 
 def _blend(u: float) -> tuple[float, float, float]:
     """Quintic blend b(u) on [0, 1] and its first two derivatives in u."""
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u), 30.0 * u * u * (1.0 - u) ** 2, 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u)
+    return (u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u), 30.0 * u * u * (1.0 - u) ** 2,
+            60.0 * u * (1.0 - u) * (1.0 - 2.0 * u))
 
 
 class LiftOffWait:

@@ -1,15 +1,15 @@
 """The corrections a controller makes to the plan's references before its solve, in their order:
 
-0. the plan lead (`plan_lead.PlanLead`, task-set key `plan_lead`): the horizontal CoM and ZMP references taken a
-   little ahead along the plan, for a robot that lags its integrated model;
-1. the event-based lift-off (`liftoff.LiftOffWait`, task-set key `lift_off_wait`): a foot still loaded at its
+1. the plan lead (`plan_lead.PlanLead`, task-set key `plan_lead`): the CoM and the horizontal ZMP references taken
+   a little ahead along the plan, for a robot that lags its integrated model;
+2. the event-based lift-off (`liftoff.LiftOffWait`, task-set key `lift_off_wait`): a foot still loaded at its
    planned lift-off stays in contact until its F/T sensor reads it unloaded (bounded), then its swing catches up
    with the plan;
-2. the touch-down search (`touchdown.TouchdownSearch`, task-set key `touchdown_search`): a foot unloaded at its
+3. the touch-down search (`touchdown.TouchdownSearch`, task-set key `touchdown_search`): a foot unloaded at its
    planned touch-down keeps descending until its F/T sensor reads a load;
-3. the base feedback (`wbcbench.estimation.base_feedback.BaseFeedback`, task-set key `base_feedback`): the plan
+4. the base feedback (`wbcbench.estimation.base_feedback.BaseFeedback`, task-set key `base_feedback`): the plan
    mapped into the integrated model's world, so that a position-controlled scheme does not drift from it;
-4. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
+5. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
 
 The first four exist only for a controller that integrates its own model (`integrated_model`: IK, the
 inverse-dynamics controllers in position and SPD modes); in torque mode the contact forces press a foot down and
@@ -26,16 +26,17 @@ from ..estimation.base_feedback import BaseFeedback
 from ..robots import Robot
 from ..stabilizers.base import Stabilizer, make_stabilizer
 from ..types import Measurement, ModelFeedback, References
-from .taskset import TaskSetSpec
 from .liftoff import LiftOffWait
 from .plan_lead import PlanLead
+from .taskset import TaskSetSpec
 from .touchdown import TouchdownSearch
 
 __all__ = ["PlanCorrections"]
 
 
 class PlanCorrections:
-    """The plan lead, lift-off wait, touch-down search, base feedback and stabilizer of a controller (module docstring).
+    """The plan lead, lift-off wait, touch-down search, base feedback and stabilizer of a controller (module
+    docstring).
 
     Args:
         robot, dt: the controller's.

@@ -82,9 +82,9 @@ class TaskSetSpec:
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
     the arms' tracking velocity error (0: off; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
-    configured one; `base_feedback`, `touchdown_search`, `lift_off_wait`, `plan_lead`: None or their settings (position-controlled schemes);
-    `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
-    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
+    configured one; `base_feedback`, `touchdown_search`, `lift_off_wait`, `plan_lead`: None or their settings
+    (position-controlled schemes); `step_adjustment`: the controller's own settings (key, value) of a walk's step
+    adjustment, for the keys the scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
     (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
     out-of-reach caps (`ReachCapSpec`)."""
