@@ -1,12 +1,17 @@
 """The corrections a controller makes to the plan's references before its solve, in their order:
 
-1. the touch-down search (`touchdown.TouchdownSearch`, task-set key `touchdown_search`): a foot unloaded at its
+1. the plan lead (`plan_lead.PlanLead`, task-set key `plan_lead`): the CoM and the horizontal ZMP references taken
+   a little ahead along the plan, for a robot that lags its integrated model;
+2. the event-based lift-off (`liftoff.LiftOffWait`, task-set key `lift_off_wait`): a foot still loaded at its
+   planned lift-off stays in contact until its F/T sensor reads it unloaded (bounded), then its swing catches up
+   with the plan;
+3. the touch-down search (`touchdown.TouchdownSearch`, task-set key `touchdown_search`): a foot unloaded at its
    planned touch-down keeps descending until its F/T sensor reads a load;
-2. the base feedback (`wbcbench.estimation.base_feedback.BaseFeedback`, task-set key `base_feedback`): the plan
+4. the base feedback (`wbcbench.estimation.base_feedback.BaseFeedback`, task-set key `base_feedback`): the plan
    mapped into the integrated model's world, so that a position-controlled scheme does not drift from it;
-3. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
+5. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
 
-The first two exist only for a controller that integrates its own model (`integrated_model`: IK, the
+The first four exist only for a controller that integrates its own model (`integrated_model`: IK, the
 inverse-dynamics controllers in position and SPD modes); in torque mode the contact forces press a foot down and
 the model is the measured state. Each is built from the task set when it has the section, and is absent otherwise.
 """
@@ -21,6 +26,8 @@ from ..estimation.base_feedback import BaseFeedback
 from ..robots import Robot
 from ..stabilizers.base import Stabilizer, make_stabilizer
 from ..types import Measurement, ModelFeedback, References
+from .liftoff import LiftOffWait
+from .plan_lead import PlanLead
 from .taskset import TaskSetSpec
 from .touchdown import TouchdownSearch
 
@@ -28,14 +35,15 @@ __all__ = ["PlanCorrections"]
 
 
 class PlanCorrections:
-    """The touch-down search, base feedback and stabilizer of a controller (module docstring).
+    """The plan lead, lift-off wait, touch-down search, base feedback and stabilizer of a controller (module
+    docstring).
 
     Args:
         robot, dt: the controller's.
-        spec: its task set (sections `touchdown_search`, `base_feedback`, `stabilizer`).
+        spec: its task set (sections `plan_lead`, `lift_off_wait`, `touchdown_search`, `base_feedback`, `stabilizer`).
         stabilizer: a stabilizer to use instead of the task set's (None: the task set's, if any).
-        integrated_model: whether the controller integrates its own model (the touch-down search and the base
-            feedback are built only then).
+        integrated_model: whether the controller integrates its own model (the plan lead, the lift-off wait,
+            the touch-down search and the base feedback are built only then).
     """
 
     def __init__(self, robot: Robot, dt: float, spec: TaskSetSpec, stabilizer: Stabilizer | None = None,
@@ -43,6 +51,9 @@ class PlanCorrections:
         if stabilizer is None and spec.stabilizer is not None:
             stabilizer = make_stabilizer(spec.stabilizer, robot, dt)
         self.stabilizer = stabilizer
+        self.lead = PlanLead(spec.plan_lead, dt) if spec.plan_lead is not None and integrated_model else None
+        self.lift_off = (LiftOffWait(spec.lift_off_wait)
+                         if spec.lift_off_wait is not None and integrated_model else None)
         self.touchdown = (TouchdownSearch(spec.touchdown_search)
                           if spec.touchdown_search is not None and integrated_model else None)
         self.base_feedback = (BaseFeedback(robot, dt, spec.base_feedback)
@@ -52,6 +63,10 @@ class PlanCorrections:
         """At the controller's reset; `feedback()` is the stabilizer's model feedback at reset (called only when
         there is a stabilizer). Raises the stabilizer's `MissingReferenceError` when the references lack one it
         needs."""
+        if self.lead is not None:
+            self.lead.reset()
+        if self.lift_off is not None:
+            self.lift_off.reset()
         if self.touchdown is not None:
             self.touchdown.reset()
         if self.base_feedback is not None:
@@ -65,6 +80,10 @@ class PlanCorrections:
         """This tick's references with the corrections applied in order. `q_model`: the integrated model's
         configuration (for the base feedback); `feedback(refs)`: the stabilizer's model feedback for the references
         corrected so far (called only when there is a stabilizer)."""
+        if self.lead is not None:
+            refs = self.lead.apply(refs)
+        if self.lift_off is not None:
+            refs = self.lift_off.apply(meas, refs)
         if self.touchdown is not None:
             refs = self.touchdown.apply(meas, refs)
         if self.base_feedback is not None:
@@ -74,7 +93,11 @@ class PlanCorrections:
         return refs
 
     def status(self, out: dict) -> dict:
-        """`out` with the corrections' counters added (the touch-down searches made)."""
+        """`out` with the corrections' counters added (the lift-offs delayed and their summed delay [s], the
+        touch-down searches made)."""
+        if self.lift_off is not None:
+            out["lift_off_waits"] = self.lift_off.n_waits
+            out["lift_off_wait_s"] = round(self.lift_off.total_wait, 4)
         if self.touchdown is not None:
             out["touchdown_searches"] = self.touchdown.n_searches
         return out

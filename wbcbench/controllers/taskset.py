@@ -82,10 +82,11 @@ class TaskSetSpec:
     `regularization_wrench_target`: weight [1/N^2] of ||w_c - w_c*||^2 towards the references' wrench targets
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
     the arms' tracking velocity error (0: off; `TSIDTeleop`); `arm_torque_share`: tsid-teleop's share of an arm
-    joint's torque limit its acceleration bound leaves it (0: no bound; `TSIDTeleop`); `solver`: the QP backend; `stabilizer`: None or the
-    configured one; `base_feedback`, `touchdown_search`: None or their settings (position-controlled schemes);
-    `step_adjustment`: the controller's own settings (key, value) of a walk's step adjustment, for the keys the
-    scenario does not set (`WalkScenario.adopt_step_adjustment`), None: the defaults;
+    joint's torque limit its acceleration bound leaves it (0: no bound; `TSIDTeleop`); `solver`: the QP backend;
+    `stabilizer`: None or the configured one; `base_feedback`, `touchdown_search`, `lift_off_wait`, `plan_lead`: None
+    or their settings (position-controlled schemes); `step_adjustment`: the controller's own settings (key, value) of
+    a walk's step adjustment, for the keys the scenario does not set (`WalkScenario.adopt_step_adjustment`), None:
+    the defaults;
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
     (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
     out-of-reach caps (`ReachCapSpec`)."""
@@ -104,6 +105,8 @@ class TaskSetSpec:
     stabilizer: "StabilizerConfig | None" = None
     base_feedback: "BaseFeedbackConfig | None" = None
     touchdown_search: "TouchdownSearchConfig | None" = None
+    lift_off_wait: "LiftOffWaitConfig | None" = None
+    plan_lead: "PlanLeadConfig | None" = None
     step_adjustment: tuple[tuple[str, object], ...] | None = None
     swing_pitch_with_leg: bool = False
     reach_cap: ReachCapSpec | None = None
@@ -248,6 +251,24 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                                           max_depth=ts.float("max_depth", 0.02, positive=True),
                                           min_force=ts.float("min_force", 100.0, positive=True))
         ts.finish()
+    lift_off_wait = None
+    if root.has("lift_off_wait"):
+        from .liftoff import LiftOffWaitConfig
+
+        lw = root.section("lift_off_wait")
+        max_load = lw.float("max_load", 0.2, positive=True)
+        if max_load >= 1.0:
+            raise lw.error("max_load", f"is a share of the feet's summed load: must be in (0, 1), got {max_load}")
+        lift_off_wait = LiftOffWaitConfig(max_load=max_load, max_wait=lw.float("max_wait", 0.1, positive=True),
+                                          catch_up=lw.float("catch_up", 0.5, positive=True))
+        lw.finish()
+    plan_lead = None
+    if root.has("plan_lead"):
+        from .plan_lead import PlanLeadConfig
+
+        pl = root.section("plan_lead")
+        plan_lead = PlanLeadConfig(time=pl.float("time", positive=True))
+        pl.finish()
     step_adjustment = None
     if root.has("step_adjustment"):  # the controller's own settings of a walk's step adjustment (when it is on)
         from ..errors import PlanningError
@@ -287,7 +308,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
                        arm_torque_share=root.float("arm_torque_share", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       base_feedback=base_feedback, touchdown_search=touchdown, step_adjustment=step_adjustment,
+                       base_feedback=base_feedback, touchdown_search=touchdown, lift_off_wait=lift_off_wait,
+                       plan_lead=plan_lead, step_adjustment=step_adjustment,
                        swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)
     reg.finish()
     root.finish()
