@@ -214,9 +214,10 @@ class InverseDynamicsFormulation:
         self.joint_limit_horizon = joint_limit_horizon
         #: whether an active contact was left on a sole edge by the last `set_contact_pitch` (a toe-off under way)
         self.on_edge = False
-        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1, r0, r1]): the named frame tasks' commanded
-        #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0,
-        #: the angular ones also while their rotation error exceeds r0 (`_kernels.cap_task_accelerations`;
+        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1, r0, r1, p0, p1]): the named frame tasks'
+        #: commanded accelerations capped while their position error exceeds e0 and their reference moves faster
+        #: than v0, the angular ones also while their rotation error exceeds r0 and the position error is under p0
+        #: (`_kernels.cap_task_accelerations`;
         #: `set_acceleration_caps`). `n_capped_ticks` counts the ticks with a task capped
         self.acceleration_caps: tuple | None = None
         self.n_capped_ticks = 0
@@ -332,7 +333,7 @@ class InverseDynamicsFormulation:
 
     def set_acceleration_caps(self, names: Collection[str], params: np.ndarray) -> None:
         """Cap the named frame tasks' commanded accelerations (`acceleration_caps`; params [e0, e1, a_lin, a_ang, v0,
-        v1, r0, r1], r0 = r1 = inf: no angular trigger); the problems' layouts are made again with the tasks'
+        v1, r0, r1, p0, p1], r0 = r1 = inf: no angular trigger); the problems' layouts are made again with the tasks'
         rows."""
         self.acceleration_caps = (tuple(names), np.asarray(params, dtype=float))
         self._layouts.clear()
