@@ -10,7 +10,8 @@ from wbcbench.controllers._kernels import cap_task_accelerations
 
 # e0, e1 [m], a_lin [m/s^2], a_ang [rad/s^2], v0, v1 [m/s], r0, r1 [rad], p0, p1 [m]: the position trigger only
 P = np.array([0.10, 0.15, 20.0, 60.0, 0.2, 0.5, np.inf, np.inf, 0.20, 0.30])
-P_ROT = np.array([0.10, 0.15, 20.0, 60.0, 0.2, 0.5, 0.15, 0.30, 0.20, 0.30])  # with the angular trigger (TALOS')
+P_ROT = np.array([0.10, 0.15, 20.0, 60.0, 0.2, 0.5, 0.15, 0.30, 0.20, 0.30])  # with the angular trigger
+TALOS = np.array([0.10, 0.15, 20.0, 60.0, 0.2, 0.5, 0.10, 0.20, 0.20, 0.30])  # TALOS' teleop task set
 ROWS = np.arange(6).reshape(1, 6)
 
 
@@ -180,7 +181,9 @@ def test_the_caps_come_from_the_task_set_and_bad_ones_are_one_line(talos, tmp_pa
     on = TSIDTeleop(talos, ActuationMode.SPD, 1e-3)
     names, params = on.formulation.acceleration_caps
     assert on.reach_cap and set(names) == {"left_hand", "right_hand", "head"}
-    np.testing.assert_array_equal(params, P_ROT)
+    np.testing.assert_array_equal(params, TALOS)
+    with pytest.raises(ValueError, match="10 params"):  # the compiled kernel would read past a shorter array
+        on.formulation.set_acceleration_caps(names, params[:6])
     off = TSIDTeleop(talos, ActuationMode.SPD, 1e-3, reach_cap=False)
     assert not off.reach_cap and off.formulation.acceleration_caps is None
     data = yaml.safe_load(taskset_path(talos, "teleop").read_text())
@@ -210,7 +213,7 @@ def test_a_wrist_flicked_faster_than_talos_wrist_no_longer_swings_the_gripper_of
     command filter's 10 rad/s, TALOS' wrist joints at about 2. Without the angular trigger (`reach_cap.rotation`) the
     QP turned the grippers with the shoulders, elbows and the body: the grippers swung up to 0.34 m off their
     position references and TALOS fell. With it the angular demand is capped while the rotation error is large:
-    no fall, the grippers within 0.15 m of their positions (0.10 m at most, 0.047 m mean when written)."""
+    no fall, the grippers within 0.15 m of their positions (under 0.06 m on average)."""
     from wbcbench.controllers.teleop import TSIDTeleop
     from wbcbench.runner import run
     from wbcbench.scenarios.teleop_kind import TeleopScenario

@@ -335,7 +335,11 @@ class InverseDynamicsFormulation:
         """Cap the named frame tasks' commanded accelerations (`acceleration_caps`; params [e0, e1, a_lin, a_ang, v0,
         v1, r0, r1, p0, p1], r0 = r1 = inf: no angular trigger); the problems' layouts are made again with the tasks'
         rows."""
-        self.acceleration_caps = (tuple(names), np.asarray(params, dtype=float))
+        params = np.asarray(params, dtype=float)
+        if params.shape != (10,):  # the compiled kernel reads all ten
+            raise ValueError(f"acceleration caps take 10 params [e0, e1, a_lin, a_ang, v0, v1, r0, r1, p0, p1], got "
+                             f"shape {params.shape}")
+        self.acceleration_caps = (tuple(names), params)
         self._layouts.clear()
 
     def set_wrench_targets(self, targets: Mapping | None) -> None:
