@@ -128,30 +128,45 @@ def cap_task_accelerations(b, drift, e, v_ref, rows, p):
     """Out-of-reach caps on frame tasks' commanded accelerations, in place on the stacked task rows ``b`` (= a* -
     drift; ``drift``, the errors ``e`` and the reference velocities ``v_ref`` the stack's): per task k, ``rows[k]``
     (6,) the stack rows of its axes x y z roll pitch yaw (-1: not selected). ``p`` = [e0, e1, a_lin, a_ang, v0,
-    v1]. Where the task's position error ``|e_xyz|`` exceeds ``e0`` [m] while its reference moves faster than
-    ``v0`` [m/s], its commanded linear and angular accelerations ``a* = b + drift`` are scaled towards the norms
-    ``a_lin``, ``a_ang`` (only where larger), fully from ``e1`` and ``v1`` on (min-jerk blends in between, so that
-    the rows stay continuous). A still target out of reach is left to the task. Returns how many tasks were
-    capped."""
+    v1, r0, r1, p0, p1]. Where the task's position error ``|e_xyz|`` exceeds ``e0`` [m] while its reference moves
+    faster than ``v0`` [m/s], its commanded linear and angular accelerations ``a* = b + drift`` are scaled towards
+    the norms ``a_lin``, ``a_ang`` (only where larger), fully from ``e1`` and ``v1`` on (min-jerk blends in
+    between, so that the rows stay continuous); a still target out of reach is left to the task. Where its
+    rotation error ``|e_rpy|`` exceeds ``r0`` [rad] (fully from ``r1``; r0 = inf: off), its angular one is, whatever
+    the reference's speed (the larger of the two blends), its linear one left to the position trigger; this angular
+    trigger lets go as the position error grows from ``p0`` to ``p1`` [m] (a hand far from its position, e.g. held
+    off a reference inside the body, keeps its full angular demand). Returns how many tasks were capped."""
     e0, e1, a_lin, a_ang, v0, v1 = p[0], p[1], p[2], p[3], p[4], p[5]
+    r0, r1, p0, p1 = p[6], p[7], p[8], p[9]
     n_capped = 0
     for k in range(rows.shape[0]):
         en = 0.0
         vn = 0.0
+        rn = 0.0
         for i in range(3):
             r = rows[k, i]
             if r >= 0:
                 en += e[r] * e[r]
                 vn += v_ref[r] * v_ref[r]
+            r = rows[k, 3 + i]
+            if r >= 0:
+                rn += e[r] * e[r]
         en = np.sqrt(en)
-        if en <= e0:
-            continue
-        s = _smoothstep((en - e0) / (e1 - e0)) * _smoothstep((np.sqrt(vn) - v0) / (v1 - v0))
-        if s <= 0.0:
+        rn = np.sqrt(rn)
+        s = 0.0
+        if en > e0:
+            s = _smoothstep((en - e0) / (e1 - e0)) * _smoothstep((np.sqrt(vn) - v0) / (v1 - v0))
+        s_rot = 0.0
+        if rn > r0:
+            s_rot = _smoothstep((rn - r0) / (r1 - r0)) * (1.0 - _smoothstep((en - p0) / (p1 - p0)))
+        if s <= 0.0 and s_rot <= 0.0:
             continue
         capped = False
         for part in range(2):
             limit = a_lin if part == 0 else a_ang
+            sp = s if part == 0 else max(s, s_rot)
+            if sp <= 0.0:
+                continue
             norm = 0.0
             for i in range(3 * part, 3 * part + 3):
                 r = rows[k, i]
@@ -161,7 +176,7 @@ def cap_task_accelerations(b, drift, e, v_ref, rows, p):
             norm = np.sqrt(norm)
             if norm <= limit:
                 continue
-            f = (1.0 - s) + s * limit / norm
+            f = (1.0 - sp) + sp * limit / norm
             for i in range(3 * part, 3 * part + 3):
                 r = rows[k, i]
                 if r >= 0:

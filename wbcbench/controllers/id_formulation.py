@@ -34,8 +34,8 @@ leaves (TSID's removeRigidContact unloads the contact before removing it). Per t
     sol = F.accept(x)                 # accelerations, wrenches and torques of the solution kept
 
 `acceleration_caps` (None by default) scales named frame tasks' commanded accelerations down while their position
-error is large and their reference moves (tsid-teleop's out-of-reach caps: `_kernels.cap_task_accelerations`, one
-compiled call a tick).
+error is large and their reference moves, and their angular ones while their rotation error is large
+(tsid-teleop's out-of-reach caps: `_kernels.cap_task_accelerations`, one compiled call a tick).
 
 Solving, and what to do when a solve fails, is the controller's policy. The problems' arrays are reused tick
 after tick (refilled in place): a `QPProblem` from here is valid until the next call that assembles.
@@ -214,10 +214,11 @@ class InverseDynamicsFormulation:
         self.joint_limit_horizon = joint_limit_horizon
         #: whether an active contact was left on a sole edge by the last `set_contact_pitch` (a toe-off under way)
         self.on_edge = False
-        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1]): the named frame tasks' commanded
-        #: accelerations capped while their position error exceeds e0 and their reference moves faster than v0
-        #: (`_kernels.cap_task_accelerations`; `set_acceleration_caps`). `n_capped_ticks` counts the ticks with a
-        #: task capped
+        #: None, or (task names, params [e0, e1, a_lin, a_ang, v0, v1, r0, r1, p0, p1]): the named frame tasks'
+        #: commanded accelerations capped while their position error exceeds e0 and their reference moves faster
+        #: than v0, the angular ones also while their rotation error exceeds r0 and the position error is under p0
+        #: (`_kernels.cap_task_accelerations`;
+        #: `set_acceleration_caps`). `n_capped_ticks` counts the ticks with a task capped
         self.acceleration_caps: tuple | None = None
         self.n_capped_ticks = 0
         self.transition_time = transition_time
@@ -332,8 +333,13 @@ class InverseDynamicsFormulation:
 
     def set_acceleration_caps(self, names: Collection[str], params: np.ndarray) -> None:
         """Cap the named frame tasks' commanded accelerations (`acceleration_caps`; params [e0, e1, a_lin, a_ang, v0,
-        v1]); the problems' layouts are made again with the tasks' rows."""
-        self.acceleration_caps = (tuple(names), np.asarray(params, dtype=float))
+        v1, r0, r1, p0, p1], r0 = r1 = inf: no angular trigger); the problems' layouts are made again with the tasks'
+        rows."""
+        params = np.asarray(params, dtype=float)
+        if params.shape != (10,):  # the compiled kernel reads all ten
+            raise ValueError(f"acceleration caps take 10 params [e0, e1, a_lin, a_ang, v0, v1, r0, r1, p0, p1], got "
+                             f"shape {params.shape}")
+        self.acceleration_caps = (tuple(names), params)
         self._layouts.clear()
 
     def set_wrench_targets(self, targets: Mapping | None) -> None:

@@ -62,17 +62,25 @@ class ReachCapSpec:
     """Out-of-reach caps (YAML `reach_cap:`, tsid-teleop): while a named frame task's position error exceeds
     `error[0]` [m] and its reference moves faster than `speed[0]` [m/s], its commanded linear and angular
     accelerations are scaled towards the norms `linear` [m/s^2] and `angular` [rad/s^2], fully from `error[1]`
-    and `speed[1]` on (`InverseDynamicsFormulation.set_acceleration_caps`)."""
+    and `speed[1]` on; while its rotation error exceeds `rotation[0]` [rad] (fully from `rotation[1]`), its angular
+    one is, whatever the reference's speed, unless its position error exceeds `rotation_within` [m] (letting go from
+    the first to the second; `rotation` None: no angular trigger;
+    `InverseDynamicsFormulation.set_acceleration_caps`)."""
 
     tasks: tuple[str, ...]
     error: tuple[float, float] = (0.10, 0.15)
     linear: float = 20.0
     angular: float = 60.0
     speed: tuple[float, float] = (0.2, 0.5)
+    rotation: tuple[float, float] | None = None
+    rotation_within: tuple[float, float] = (0.20, 0.30)
 
     def params(self) -> np.ndarray:
-        """[e0, e1, a_lin, a_ang, v0, v1], as `_kernels.cap_task_accelerations` takes them."""
-        return np.array([*self.error, self.linear, self.angular, *self.speed], dtype=float)
+        """[e0, e1, a_lin, a_ang, v0, v1, r0, r1, p0, p1], as `_kernels.cap_task_accelerations` takes them (r0 = r1
+        = inf without the angular trigger)."""
+        rot = (np.inf, np.inf) if self.rotation is None else self.rotation
+        return np.array([*self.error, self.linear, self.angular, *self.speed, *rot, *self.rotation_within],
+                        dtype=float)
 
 
 @dataclass(frozen=True)
@@ -290,13 +298,20 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
             if not isinstance(n, str) or n not in names:
                 raise rc.error(f"tasks[{i}]", f"{n!r} is not a task of this set; its tasks: {', '.join(sorted(names))}")
         pairs = {}
-        for k, default in (("error", (0.10, 0.15)), ("speed", (0.2, 0.5))):
-            v = rc.vector(k, list(default), length=2, nonnegative=True)
+        if rc.has("rotation_within") and not rc.has("rotation"):
+            raise rc.error("rotation_within", "needs `rotation: [start, full]` [rad], the angular trigger it limits")
+        for k, default in (("error", (0.10, 0.15)), ("speed", (0.2, 0.5)), ("rotation", None),
+                           ("rotation_within", (0.20, 0.30))):
+            if default is None and not rc.has(k):
+                pairs[k] = None
+                continue
+            v = rc.vector(k, None if default is None else list(default), length=2, nonnegative=True)
             if not v[0] < v[1]:
                 raise rc.error(k, f"must be [start, full] with start < full, got {v.tolist()}")
             pairs[k] = (float(v[0]), float(v[1]))
         reach_cap = ReachCapSpec(tuple(cap_tasks), pairs["error"], rc.float("linear", 20.0, positive=True),
-                                 rc.float("angular", 60.0, positive=True), pairs["speed"])
+                                 rc.float("angular", 60.0, positive=True), pairs["speed"], pairs["rotation"],
+                                 pairs["rotation_within"])
         rc.finish()
     spec = TaskSetSpec(tasks=tuple(tasks), contacts=contacts, swing_foot=swing,
                        regularization_dv=reg.float("dv", 1e-6, positive=True),

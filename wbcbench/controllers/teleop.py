@@ -25,7 +25,13 @@ It is `InverseDynamicsController` (inverse_dynamics.py) with its own policy:
   With kp 8000, an arm that cannot follow its target asked for hundreds of m/s^2 and the weighted QP took them from
   the torso, the pelvis and the legs: on public dance, jump and spin captures the model bent over its straightened
   legs until the pelvis tilted 0.7 rad, with the feet flat on the ground. The cap leaves a tracked target (errors of
-  a few cm) and a still one untouched;
+  a few cm) and a still one untouched. The angular cap also applies while a hand's rotation error exceeds
+  `reach_cap.rotation[0]` (TALOS: 0.10 rad; fully from `rotation[1]`, 0.20 rad), whatever its reference's speed,
+  while its position error is under `rotation_within` (0.20-0.30 m: a hand held off a reference inside the body by
+  the repulsors keeps its full angular demand), its linear acceleration left alone: an operator's wrist turns at up
+  to 12 rad/s, TALOS' at about 2, and the QP turned the gripper with the shoulder and elbow at their torque limits,
+  swinging it tens of cm off its position reference (gated by the reference's angular speed as well, the cap let go
+  while the error was large, and the real squat capture fell);
 * SPD and position modes, the task set's `arm_damping_injection` c > 0: the arms' velocity references are
   ``v_int + c (v_int - v)`` (v the encoders' velocities, `inject_damping`), so that the joint servos, whose
   damping is only 0.01 of their stiffness, damp the arm's tracking error (1 + c) times as much.
