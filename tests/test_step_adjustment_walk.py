@@ -35,6 +35,20 @@ def _pushed(talos, adjust: bool, impulse: float = IMPULSE, after: float = 1.5):
     return scen, t
 
 
+def _stretched(talos, tmp_path, impulse: float, t_push: float):
+    """walk-20cm-quick with its own `step_adjustment: {late_descent: 0.0}` (every re-planned swing's height the old
+    profile stretched) and the push of `_pushed` (impulse [N s] in DIRECTION at t_push)."""
+    yaml = tmp_path / "stretched.yaml"
+    yaml.write_text(Path(load_scenario("walk-20cm-quick", talos).spec.file).read_text().replace(
+        "  apex: 0.05", "  apex: 0.05\n  step_adjustment: {late_descent: 0.0}"))
+    stretched = load_scenario(str(yaml), talos)
+    a = math.radians(DIRECTION)
+    f = impulse / 0.1
+    stretched.spec = replace(stretched.spec, duration=t_push + 3.0, pushes=(
+        Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
+    return stretched
+
+
 def test_a_push_survived_only_with_step_adjustment(talos, tmp_path):
     scen, t_push = _pushed(talos, adjust=True)
     res = run(scen, "tsid-torque", talos, out=tmp_path / "on")
@@ -98,15 +112,8 @@ def test_a_late_descent_of_the_replanned_swing_keeps_tsid_position_up(talos, tmp
     assert not res.summary["fell"], res.summary["fall_reason"]
     assert scen.adjuster.count >= 1
 
-    yaml = tmp_path / "stretched.yaml"   # the scenario's own setting wins over the task set's
-    yaml.write_text(Path(load_scenario("walk-20cm-quick", talos).spec.file).read_text().replace(
-        "  apex: 0.05", "  apex: 0.05\n  step_adjustment: {late_descent: 0.0}"))
-    stretched = load_scenario(str(yaml), talos)
+    stretched = _stretched(talos, tmp_path, LATE_DESCENT_IMPULSE, t_push)  # the scenario's setting wins
     assert stretched.step_adjustment is not None and stretched.step_adjustment.late_descent == 0.0
-    a = math.radians(DIRECTION)
-    f = LATE_DESCENT_IMPULSE / 0.1
-    stretched.spec = replace(stretched.spec, duration=t_push + 3.0, pushes=(
-        Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
     off = run(stretched, "tsid-position", talos, out=tmp_path / "stretched")
     assert stretched.step_adjustment.late_descent == 0.0 and stretched.step_adjustment.deadband == 0.04
     assert off.summary["fell"]
@@ -128,14 +135,7 @@ def test_ik_survives_a_backward_push_with_the_late_descent_of_a_swing_sent_back(
     step = scen.adjuster.history[0][1]
     assert scen.walk.plan.steps[step].p_world_sole[0] < scen.adjuster.nominal.plan.steps[step].p_world_sole[0] - 0.1
 
-    yaml = tmp_path / "stretched.yaml"
-    yaml.write_text(Path(load_scenario("walk-20cm-quick", talos).spec.file).read_text().replace(
-        "  apex: 0.05", "  apex: 0.05\n  step_adjustment: {late_descent: 0.0}"))
-    stretched = load_scenario(str(yaml), talos)
-    a = math.radians(DIRECTION)
-    f = IK_BACK_IMPULSE / 0.1
-    stretched.spec = replace(stretched.spec, duration=t_push + 3.0, pushes=(
-        Push(body="base", force=(f * math.cos(a), f * math.sin(a), 0.0), start=t_push, duration=0.1),))
+    stretched = _stretched(talos, tmp_path, IK_BACK_IMPULSE, t_push)
     off = run(stretched, "ik", talos, out=tmp_path / "stretched")
     assert stretched.step_adjustment.late_descent == 0.0 and stretched.step_adjustment.deadband == 0.01
     assert off.summary["fell"]

@@ -134,6 +134,16 @@ def test_the_angular_trigger_lets_go_of_a_hand_far_from_its_position():
     assert out[2] == pytest.approx(2030.0) and out[3] == pytest.approx(4000.0) and out[4] == pytest.approx(4000.0)
 
 
+def _write_motion(tmp_path, name: str, description: str, duration: float, frames) -> object:
+    """A synthetic operator motion through the keyframes `frames` [(t, {joint: deg})] written as a BVH file."""
+    from wbcbench.teleop import write_bvh
+    from wbcbench.teleop.synthetic import SyntheticMotion, _keyframes, motion_configurations
+
+    motion = SyntheticMotion(name, description, "A", duration, 50.0, lambda t: _keyframes(t, frames))
+    human, _, qs = motion_configurations(motion)
+    return write_bvh(tmp_path / f"{name}.bvh", human.bvh_skeleton(0.01), human.bvh_motion(qs, 0.01), 1 / 50.0)
+
+
 def test_arms_swung_behind_the_back_fell_without_the_cap_and_stand_with_it(talos, tmp_path):
     """An operator (a fixture of our own, written as BVH) swings both arms behind his back and then overhead,
     back and over again, 0.3 s a swing: the targets leave the reach of TALOS' arms (joint limits) while moving
@@ -143,18 +153,15 @@ def test_arms_swung_behind_the_back_fell_without_the_cap_and_stand_with_it(talos
     from wbcbench.controllers.teleop import TSIDTeleop
     from wbcbench.runner import run
     from wbcbench.scenarios.teleop_kind import TeleopScenario
-    from wbcbench.teleop import load_recording, write_bvh
-    from wbcbench.teleop.synthetic import SyntheticMotion, _both, _keyframes, motion_configurations
+    from wbcbench.teleop import load_recording
+    from wbcbench.teleop.synthetic import _both
     from wbcbench.types import ActuationMode
 
     behind, up = _both({"right_shoulder_Z": -80.0, "right_elbow_Z": 20.0}), _both({"right_shoulder_Z": 160.0,
                                                                                   "right_shoulder_X": 30.0})
     frames = [(0.3, {}), (0.6, behind), (0.9, up), (1.2, _both({"right_shoulder_Z": -80.0})),
               (1.5, _both({"right_shoulder_Z": 160.0})), (1.8, {})]
-    motion = SyntheticMotion("swing_back", "arms swung behind the back and overhead", "A", 2.5, 50.0,
-                             lambda t: _keyframes(t, frames))
-    human, _, qs = motion_configurations(motion)
-    path = write_bvh(tmp_path / "swing_back.bvh", human.bvh_skeleton(0.01), human.bvh_motion(qs, 0.01), 1 / 50.0)
+    path = _write_motion(tmp_path, "swing_back", "arms swung behind the back and overhead", 2.5, frames)
     out = {}
     for cap in (False, True):
         scen = TeleopScenario.from_source(talos, load_recording(path), duration=2.5, name="swing_back")
@@ -217,8 +224,8 @@ def test_a_wrist_flicked_faster_than_talos_wrist_no_longer_swings_the_gripper_of
     from wbcbench.controllers.teleop import TSIDTeleop
     from wbcbench.runner import run
     from wbcbench.scenarios.teleop_kind import TeleopScenario
-    from wbcbench.teleop import load_recording, write_bvh
-    from wbcbench.teleop.synthetic import SyntheticMotion, _both, _keyframes, motion_configurations
+    from wbcbench.teleop import load_recording
+    from wbcbench.teleop.synthetic import _both
     from wbcbench.types import ActuationMode
 
     fwd = {"right_shoulder_Z": 50.0, "right_elbow_Z": 60.0}
@@ -226,10 +233,7 @@ def test_a_wrist_flicked_faster_than_talos_wrist_no_longer_swings_the_gripper_of
     for i in range(6):
         frames.append((0.9 + 0.2 * i, _both({**fwd, "right_wrist_Z": 70.0 if i % 2 == 0 else -70.0})))
     frames += [(2.3, _both(fwd))]
-    motion = SyntheticMotion("wrist_flick", "forearms forward, wrists flicked", "A", 2.8, 50.0,
-                             lambda t: _keyframes(t, frames))
-    human, _, qs = motion_configurations(motion)
-    path = write_bvh(tmp_path / "wrist_flick.bvh", human.bvh_skeleton(0.01), human.bvh_motion(qs, 0.01), 1 / 50.0)
+    path = _write_motion(tmp_path, "wrist_flick", "forearms forward, wrists flicked", 2.8, frames)
     out = {}
     for angular in (False, True):
         scen = TeleopScenario.from_source(talos, load_recording(path), duration=2.8, name="wrist_flick")
