@@ -9,9 +9,11 @@
    planned touch-down keeps descending until its F/T sensor reads a load;
 4. the base feedback (`wbcbench.estimation.base_feedback.BaseFeedback`, task-set key `base_feedback`): the plan
    mapped into the integrated model's world, so that a position-controlled scheme does not drift from it;
-5. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
+5. the swing-foot tilt compensation (`swing_tilt.SwingTilt`, task-set key `swing_tilt`): a swing foot turned against
+   the tilt the stance leg's yielding joints give the real one, so that it lands flatter;
+6. the stabilizer (any `wbcbench.stabilizers` type, task-set key `stabilizer`), given what it may know of the model.
 
-The first four exist only for a controller that integrates its own model (`integrated_model`: IK, the
+The first five exist only for a controller that integrates its own model (`integrated_model`: IK, the
 inverse-dynamics controllers in position and SPD modes); in torque mode the contact forces press a foot down and
 the model is the measured state. Each is built from the task set when it has the section, and is absent otherwise.
 """
@@ -28,6 +30,7 @@ from ..stabilizers.base import Stabilizer, make_stabilizer
 from ..types import Measurement, ModelFeedback, References
 from .liftoff import LiftOffWait
 from .plan_lead import PlanLead
+from .swing_tilt import SwingTilt
 from .taskset import TaskSetSpec
 from .touchdown import TouchdownSearch
 
@@ -58,6 +61,8 @@ class PlanCorrections:
                           if spec.touchdown_search is not None and integrated_model else None)
         self.base_feedback = (BaseFeedback(robot, dt, spec.base_feedback)
                               if spec.base_feedback is not None and integrated_model else None)
+        self.swing_tilt = (SwingTilt(spec.swing_tilt, robot, dt)
+                           if spec.swing_tilt is not None and integrated_model else None)
 
     def reset(self, meas: Measurement, refs: References, feedback: Callable[[], ModelFeedback]) -> None:
         """At the controller's reset; `feedback()` is the stabilizer's model feedback at reset (called only when
@@ -71,6 +76,8 @@ class PlanCorrections:
             self.touchdown.reset()
         if self.base_feedback is not None:
             self.base_feedback.reset()
+        if self.swing_tilt is not None:
+            self.swing_tilt.reset()
         if self.stabilizer is not None:
             self.stabilizer.check(refs)
             self.stabilizer.reset(meas, refs, feedback())
@@ -88,6 +95,8 @@ class PlanCorrections:
             refs = self.touchdown.apply(meas, refs)
         if self.base_feedback is not None:
             refs = self.base_feedback.correct(meas, refs, q_model)
+        if self.swing_tilt is not None:
+            refs = self.swing_tilt.apply(meas, refs, q_model)
         if self.stabilizer is not None:
             refs = self.stabilizer.correct(meas, refs, feedback(refs))
         return refs
@@ -100,4 +109,6 @@ class PlanCorrections:
             out["lift_off_wait_s"] = round(self.lift_off.total_wait, 4)
         if self.touchdown is not None:
             out["touchdown_searches"] = self.touchdown.n_searches
+        if self.swing_tilt is not None:
+            out["swing_tilt_max_rad"] = round(self.swing_tilt.max_tilt, 5)
         return out

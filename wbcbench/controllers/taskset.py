@@ -91,7 +91,7 @@ class TaskSetSpec:
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
     the arms' tracking velocity error (0: off; `TSIDTeleop`); `arm_torque_share`: tsid-teleop's share of an arm
     joint's torque limit its acceleration bound leaves it (0: no bound; `TSIDTeleop`); `solver`: the QP backend;
-    `stabilizer`: None or the configured one; `base_feedback`, `touchdown_search`, `lift_off_wait`, `plan_lead`: None
+    `stabilizer`: None or the configured one; `base_feedback`, `touchdown_search`, `swing_tilt`, `lift_off_wait`, `plan_lead`: None
     or their settings (position-controlled schemes); `step_adjustment`: the controller's own settings (key, value) of
     a walk's step adjustment, for the keys the scenario does not set (`WalkScenario.adopt_step_adjustment`), None:
     the defaults;
@@ -113,6 +113,7 @@ class TaskSetSpec:
     stabilizer: "StabilizerConfig | None" = None
     base_feedback: "BaseFeedbackConfig | None" = None
     touchdown_search: "TouchdownSearchConfig | None" = None
+    swing_tilt: "SwingTiltConfig | None" = None
     lift_off_wait: "LiftOffWaitConfig | None" = None
     plan_lead: "PlanLeadConfig | None" = None
     step_adjustment: tuple[tuple[str, object], ...] | None = None
@@ -259,6 +260,16 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                                           max_depth=ts.float("max_depth", 0.02, positive=True),
                                           min_force=ts.float("min_force", 100.0, positive=True))
         ts.finish()
+    swing_tilt = None
+    if root.has("swing_tilt"):
+        from .swing_tilt import SwingTiltConfig
+
+        st = root.section("swing_tilt")
+        swing_tilt = SwingTiltConfig(gain=st.float("gain", 0.3, positive=True),
+                                     max_tilt=st.float("max_tilt", 0.05, positive=True),
+                                     time_constant=st.float("time_constant", 0.05, positive=True),
+                                     settle=st.float("settle", 0.1, positive=True))
+        st.finish()
     lift_off_wait = None
     if root.has("lift_off_wait"):
         from .liftoff import LiftOffWaitConfig
@@ -323,7 +334,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        arm_damping_injection=root.float("arm_damping_injection", 0.0, min=0.0),
                        arm_torque_share=root.float("arm_torque_share", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
-                       base_feedback=base_feedback, touchdown_search=touchdown, lift_off_wait=lift_off_wait,
+                       base_feedback=base_feedback, touchdown_search=touchdown, swing_tilt=swing_tilt,
+                       lift_off_wait=lift_off_wait,
                        plan_lead=plan_lead, step_adjustment=step_adjustment,
                        swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)
     reg.finish()
