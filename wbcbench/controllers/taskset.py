@@ -16,7 +16,7 @@ points; one axis per point, so `kp`/`kd`/`mask` are a number or one value per po
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -91,10 +91,10 @@ class TaskSetSpec:
     (0: off); `joint_limit_horizon` [s]; `arm_damping_injection`: tsid-teleop's arm velocity references' gain on
     the arms' tracking velocity error (0: off; `TSIDTeleop`); `arm_torque_share`: tsid-teleop's share of an arm
     joint's torque limit its acceleration bound leaves it (0: no bound; `TSIDTeleop`); `solver`: the QP backend;
-    `stabilizer`: None or the configured one; `base_feedback`, `touchdown_search`, `swing_tilt`, `lift_off_wait`, `plan_lead`: None
-    or their settings (position-controlled schemes); `step_adjustment`: the controller's own settings (key, value) of
-    a walk's step adjustment, for the keys the scenario does not set (`WalkScenario.adopt_step_adjustment`), None:
-    the defaults;
+    `stabilizer`: None or the configured one; `base_feedback`, `touchdown_search`, `swing_tilt`, `lift_off_wait`,
+    `plan_lead`: None or their settings (position-controlled schemes); `step_adjustment`: the controller's own
+    settings (key, value) of a walk's step adjustment, for the keys the scenario does not set
+    (`WalkScenario.adopt_step_adjustment`), None: the defaults;
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
     (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
     out-of-reach caps (`ReachCapSpec`)."""
@@ -251,43 +251,16 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
             base_feedback = BaseFeedbackConfig(time_constant=bf.float("time_constant", 1.0, positive=True),
                                                liftoff_blend=bf.float("liftoff_blend", 0.0, min=0.0))
         bf.finish()
-    touchdown = None
-    if root.has("touchdown_search"):
-        from .touchdown import TouchdownSearchConfig
+    from .liftoff import LiftOffWaitConfig
+    from .plan_lead import PlanLeadConfig
+    from .swing_tilt import SwingTiltConfig
+    from .touchdown import TouchdownSearchConfig
 
-        ts = root.section("touchdown_search")
-        touchdown = TouchdownSearchConfig(speed=ts.float("speed", 0.1, positive=True),
-                                          max_depth=ts.float("max_depth", 0.02, positive=True),
-                                          min_force=ts.float("min_force", 100.0, positive=True))
-        ts.finish()
-    swing_tilt = None
-    if root.has("swing_tilt"):
-        from .swing_tilt import SwingTiltConfig
-
-        st = root.section("swing_tilt")
-        swing_tilt = SwingTiltConfig(gain=st.float("gain", 0.3, positive=True),
-                                     max_tilt=st.float("max_tilt", 0.05, positive=True),
-                                     time_constant=st.float("time_constant", 0.05, positive=True),
-                                     settle=st.float("settle", 0.1, positive=True))
-        st.finish()
-    lift_off_wait = None
-    if root.has("lift_off_wait"):
-        from .liftoff import LiftOffWaitConfig
-
-        lw = root.section("lift_off_wait")
-        max_load = lw.float("max_load", 0.2, positive=True)
-        if max_load >= 1.0:
-            raise lw.error("max_load", f"is a share of the feet's summed load: must be in (0, 1), got {max_load}")
-        lift_off_wait = LiftOffWaitConfig(max_load=max_load, max_wait=lw.float("max_wait", 0.1, positive=True),
-                                          catch_up=lw.float("catch_up", 0.5, positive=True))
-        lw.finish()
-    plan_lead = None
-    if root.has("plan_lead"):
-        from .plan_lead import PlanLeadConfig
-
-        pl = root.section("plan_lead")
-        plan_lead = PlanLeadConfig(time=pl.float("time", positive=True))
-        pl.finish()
+    touchdown = _positive_section(root, "touchdown_search", TouchdownSearchConfig)
+    swing_tilt = _positive_section(root, "swing_tilt", SwingTiltConfig)
+    lift_off_wait = _positive_section(root, "lift_off_wait", LiftOffWaitConfig, upper={"max_load": (
+        1.0, "is a share of the feet's summed load: must be in (0, 1)")})
+    plan_lead = _positive_section(root, "plan_lead", PlanLeadConfig, required=("time",))
     step_adjustment = None
     if root.has("step_adjustment"):  # the controller's own settings of a walk's step adjustment (when it is on)
         from ..errors import PlanningError
@@ -335,9 +308,25 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        arm_torque_share=root.float("arm_torque_share", 0.0, min=0.0),
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, swing_tilt=swing_tilt,
-                       lift_off_wait=lift_off_wait,
-                       plan_lead=plan_lead, step_adjustment=step_adjustment,
+                       lift_off_wait=lift_off_wait, plan_lead=plan_lead, step_adjustment=step_adjustment,
                        swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)
     reg.finish()
     root.finish()
     return spec
+
+
+def _positive_section(root, key: str, cls, required: tuple[str, ...] = (), upper: dict | None = None):
+    """The settings `cls` (a dataclass of floats) from the task set's section `key`, None when it has none: each
+    field a positive number, the dataclass's default when absent (unless `required`); `upper`: field -> (bound,
+    message) for a field that must stay below a bound."""
+    if not root.has(key):
+        return None
+    sec = root.section(key)
+    values = {}
+    for f in fields(cls):
+        v = sec.float(f.name, ... if f.name in required else f.default, positive=True)
+        if upper and f.name in upper and v >= upper[f.name][0]:
+            raise sec.error(f.name, f"{upper[f.name][1]}, got {v}")
+        values[f.name] = v
+    sec.finish()
+    return cls(**values)
