@@ -133,10 +133,8 @@ def arm_joints(robot: Robot) -> np.ndarray:
     """Velocity indices of the arms' joints: those that carry one gripper (the protected frame of a side's
     `repulsors` in the robot profile) and not the other, increasing."""
     model = robot.model
-    chains = [set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
-              for spec in robot.profile.repulsors.values()]
-    joints = chains[0] ^ chains[1] if len(chains) == 2 else set()
-    idx = [model.joints[j].idx_v + k for j in sorted(joints) if j > 0 for k in range(model.joints[j].nv)]
+    idx = [model.joints[j].idx_v + k for j in sorted(robot.arm_joint_ids()) if j > 0
+           for k in range(model.joints[j].nv)]
     return np.array(sorted(idx), dtype=np.intp)
 
 

@@ -250,6 +250,14 @@ class Robot:
         in_sensor = frame.placement.actInv(total) if frame.type != pin.FrameType.JOINT else total
         return float(in_sensor.mass), np.array(in_sensor.lever)
 
+    def arm_joint_ids(self) -> set[int]:
+        """The arms' own joints (pinocchio joint ids): those that carry one gripper (the protected frame of a side's
+        `repulsors` in the profile) and not the other; empty unless the profile gives both sides."""
+        m = self.model
+        chains = [set(m.supports[m.frames[m.getFrameId(spec.frame)].parentJoint])
+                  for spec in self.profile.repulsors.values()]
+        return chains[0] ^ chains[1] if len(chains) == 2 else set()
+
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, mass={self.mass:.2f} kg)"
 

@@ -485,7 +485,7 @@ class _SphereKinematics:
     def __init__(self, robot):
         model = robot.model
         self.model, self.data = model, model.createData()
-        arm_joints = _arm_joints(model, robot.profile.repulsors)
+        arm_joints = robot.arm_joint_ids()
         self.joints: list[int] = []
         self.points: list[np.ndarray] = []
         self.index: dict[str, np.ndarray] = {}
@@ -547,16 +547,6 @@ def wrist_speed(robot) -> float:
         v = [float(limit[name]) for name in own[-3:]]
         speeds.append(float(np.linalg.norm(v)) if v else np.inf)
     return float(min(speeds)) if speeds else np.inf
-
-
-def _arm_joints(model, repulsors: dict) -> set:
-    """The arms' own joints: those that carry one gripper and not the other."""
-    chains = {}
-    for side in Side:
-        spec = repulsors.get(side)
-        if spec is not None:
-            chains[side] = set(model.supports[model.frames[model.getFrameId(spec.frame)].parentJoint])
-    return chains[Side.LEFT] ^ chains[Side.RIGHT] if len(chains) == 2 else set()
 
 
 def _moves_with_arms(model, joint: int, arm_joints: set) -> bool:
