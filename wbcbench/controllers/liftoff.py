@@ -26,8 +26,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pinocchio as pin
 
+from ..planning.swing import quintic_blend
 from ..side import Side
 from ..types import Measurement, PoseReference, References
+from .touchdown import foot_load
 
 __all__ = ["LiftOffWaitConfig", "LiftOffWait"]
 
@@ -54,12 +56,6 @@ class LiftOffWaitConfig:
             raise ValueError(f"LiftOffWaitConfig.max_load must be in (0, 1), got {self.max_load!r}")
 
 
-def _load(meas: Measurement, side: Side) -> float:
-    """The normal load on a foot from its ankle F/T sensor [N], at least 0 (see touchdown._load)."""
-    f = meas.ft_force.get(side)
-    return max(-float(f[2]), 0.0) if f is not None else 0.0
-
-
 @dataclass
 class _Swing:
     """A leaving foot's state: its planned lift-off t0, the plan's swing references since (times, feet, pitch),
@@ -71,12 +67,6 @@ class _Swing:
     pitch: list = field(default_factory=list)
     released: float | None = None
     delay: float = 0.0
-
-
-def _blend(u: float) -> tuple[float, float, float]:
-    """Quintic blend b(u) on [0, 1] and its first two derivatives in u."""
-    return (u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u), 30.0 * u * u * (1.0 - u) ** 2,
-            60.0 * u * (1.0 - u) * (1.0 - 2.0 * u))
 
 
 class LiftOffWait:
@@ -98,7 +88,8 @@ class LiftOffWait:
         return frozenset(s for s, w in self._swing.items() if w.released is None)
 
     def _loaded(self, meas: Measurement, side: Side) -> bool:
-        f, g = _load(meas, side), _load(meas, side.other)
+        # the feet's normal loads (a hanging foot's negative reading counted as none)
+        f, g = max(foot_load(meas, side), 0.0), max(foot_load(meas, side.other), 0.0)
         return f + g > 0.0 and f > self.config.max_load * (f + g)
 
     def apply(self, meas: Measurement, refs: References) -> References:
@@ -155,7 +146,7 @@ class LiftOffWait:
 
     def _warped(self, w: _Swing, t: float, u: float) -> tuple[PoseReference, np.ndarray | None]:
         """The plan's swing reference at tau(t) (module docstring), with its rates scaled by the warp."""
-        b, db, ddb = _blend(u)
+        b, db, ddb = (float(x) for x in quintic_blend(u))
         T = self.config.catch_up
         tau = t - w.delay * (1.0 - b)
         r1 = 1.0 + w.delay * db / T          # dtau/dt

@@ -43,7 +43,7 @@ class TouchdownSearchConfig:
                 raise ValueError(f"TouchdownSearchConfig.{name} must be > 0, got {v!r}")
 
 
-def _load(meas: Measurement, side: Side) -> float:
+def foot_load(meas: Measurement, side: Side) -> float:
     """The normal load on a foot from its ankle F/T sensor [N]: the force the leg exerts on the foot along the
     sensor's z axis, sign flipped (a hanging foot reads about -15 N, the weight below the sensor)."""
     f = meas.ft_force.get(side)
@@ -82,12 +82,12 @@ class TouchdownSearch:
                 continue
             last = self._last.get(s)
             if s not in self._search:
-                if s in self._prev or last is None or _load(meas, s) >= c.min_force:
+                if s in self._prev or last is None or foot_load(meas, s) >= c.min_force:
                     continue
                 self._search[s] = refs.t
                 self.n_searches += 1
             depth = c.speed * (refs.t - self._search[s])
-            if (_load(meas, s) >= c.min_force or depth >= c.max_depth or s.other not in contacts):
+            if (foot_load(meas, s) >= c.min_force or depth >= c.max_depth or s.other not in contacts):
                 del self._search[s]  # the contact is made this tick, where the model's foot is
                 continue
             n = last.rotation[:, 2] if last.rotation is not None else np.array([0.0, 0.0, 1.0])
