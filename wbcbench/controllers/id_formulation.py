@@ -100,9 +100,8 @@ class _Layout:
     refilled in place."""
 
     __slots__ = ("slices", "k", "kb", "barriers", "cap_rows", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv",
-                 "H_diag_w", "g_w",
-                 "A_hard", "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones", "C_blocks",
-                 "u_blocks", "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque",
+                 "H_diag_w", "g_w", "A_hard", "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones",
+                 "C_blocks", "u_blocks", "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque",
                  "problem_relaxed", "targets_set", "rows", "buffers")
 
     def __init__(self, F: InverseDynamicsFormulation, nc: int, stack: TaskStack, n_hard: int, A: np.ndarray,
