@@ -40,6 +40,33 @@ def test_a_stall_is_counted_and_not_caught_up_in_a_rush(talos, tmp_path):
     assert late[99:102].max() >= 25.0 and not s["realtime"]["kept_up"]
     assert s["wall_time_s"] >= 0.3 + 0.025
     assert np.argmax(late) in (99, 100, 101)
+    rt = s["realtime"]  # told apart: the tick's own time, not a late sleep
+    assert rt["slow_ticks"] >= 1 and rt["worst_tick_ms"] >= 25.0
+
+
+def test_a_late_sleep_is_the_ticks_own_lateness_and_told_apart(talos, tmp_path, monkeypatch):
+    """A sleep that returns 20 ms after its deadline once (the machine did not run the loop in time): that very
+    tick is logged 20 ms late (not the next one), the summary names the sleep's overrun apart from the ticks' own
+    time, and its line says the machine's scheduling was the cause."""
+    import wbcbench.runner as runner_module
+    from wbcbench.summary import pacing_text
+
+    real_sleep = time.sleep
+    sleeps = [0]
+
+    def late_sleep(seconds):
+        sleeps[0] += 1
+        real_sleep(seconds + (0.02 if sleeps[0] == 150 else 0.0))
+
+    monkeypatch.setattr(runner_module.time, "sleep", late_sleep)
+    res = run("stand", "joint-pd", duration=0.3, out=tmp_path / "r", realtime=True)
+    monkeypatch.undo()
+    rt, late = res.summary["realtime"], res.log["lateness_ms"]
+    k = 140 + int(np.argmax(late[140:170]))  # the 150th sleep is about the 150th tick's (joint-pd sleeps every tick)
+    assert late[k] >= 19.0 and late[k + 1] < 5.0  # the stall's own tick; the schedule resumed from the clock
+    assert rt["worst_oversleep_ms"] >= 19.0 and not rt["kept_up"]
+    if rt["worst_tick_ms"] <= 5.0:  # the machine running this test may itself stall a tick
+        assert "the machine's scheduling" in pacing_text(rt)
 
 
 def test_a_paced_loop_runs_above_its_log_writer_and_returns_to_normal(talos, tmp_path):

@@ -286,6 +286,8 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
 
     rec.derive(time_columns)
     lateness = np.zeros(n_ticks) if realtime else None
+    # a paced run's causes of lateness [ms]: how late each sleep returned (the machine), each tick's own time (the work)
+    overslept, busy = (np.zeros(n_ticks), np.full(n_ticks, np.nan)) if realtime else (None, None)
     # a paced run: no cyclic garbage collection during the loop (a full collection stalls the interpreter for
     # milliseconds; the loop's objects are freed by reference counting), what exists now moved out of its reach
     gc_paused = realtime and gc.isenabled()
@@ -341,13 +343,21 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
                 now = time.perf_counter()
                 if tick == 1:  # the clock starts after the first tick (one-off start-up work is not a delay)
                     wall_start = now - t
-                ahead = wall_start + t - now
-                if ahead > 0:
-                    time.sleep(ahead)
+                else:  # the previous tick's own time, from its start to now
+                    busy[tick - 1] = (now - started) * 1e3
+                late = now - (wall_start + t)
+                if late < 0:
+                    time.sleep(-late)
+                    started = time.perf_counter()
+                    late = started - (wall_start + t)
+                    if late > 0:  # the sleep returned after the tick's start: the machine's scheduling
+                        overslept[tick] = late * 1e3
                 else:
-                    lateness[tick] = -ahead * 1e3
-                    if -ahead > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
-                        wall_start -= ahead
+                    started = now
+                if late > 0:
+                    lateness[tick] = late * 1e3
+                    if late > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
+                        wall_start += late
             if observe is not None:  # a scenario that re-plans from the measurement (e.g. step adjustment)
                 observe(t, meas)
             refs = references(t)
@@ -458,7 +468,8 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
         "faults": injector.summary() if injector.enabled else None,
         "realtime": None if lateness is None else {
-            **_lateness_summary(lateness[: tick + 1], spec.control_dt, sim_time, wall),
+            **_lateness_summary(lateness[: tick + 1], spec.control_dt, sim_time, wall, overslept[: tick + 1],
+                                busy[: tick + 1]),
             "scheduling": "real-time (SCHED_FIFO)" if priority and priority[1] else "normal (real-time class not permitted)"},
         "fall_prediction": None if predictor is None else {
             "first_prediction_t": predictor.first_prediction_t, "safe_stop": safe_stop,
@@ -521,12 +532,21 @@ def _restore_priority(priority: tuple) -> None:
             pass
 
 
-def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float) -> dict:
+def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float,
+                      overslept_ms: np.ndarray | None = None, busy_ms: np.ndarray | None = None) -> dict:
     """A wall-clock-paced run: how many ticks started more than one control period late, the worst lateness
-    [ms], and whether it kept up (no tick later than 5 ms)."""
+    [ms], and whether it kept up (no tick later than 5 ms); and the two causes of lateness apart: the longest a
+    sleep returned after its tick's start (`worst_oversleep_ms`: the machine's scheduling, the loop had nothing to
+    do) and the ticks whose own time exceeded the period (`slow_ticks`, the longest `worst_tick_ms`: the work)."""
     worst = float(late_ms.max()) if late_ms.size else 0.0
-    return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
-            "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
+    out = {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
+           "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
+    if overslept_ms is not None and busy_ms is not None:
+        timed = busy_ms[np.isfinite(busy_ms)]
+        out.update(worst_oversleep_ms=float(overslept_ms.max()) if overslept_ms.size else 0.0,
+                   slow_ticks=int((timed > dt * 1e3).sum()),
+                   worst_tick_ms=float(timed.max()) if timed.size else 0.0)
+    return out
 
 
 def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) -> Path | int:

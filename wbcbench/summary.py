@@ -19,8 +19,14 @@ def _fmt(v) -> str:
 def pacing_text(rt: dict) -> str:
     """One line on a wall-clock-paced run (the summary's `realtime` section)."""
     verdict = "[green]kept up[/green]" if rt["kept_up"] else "[red]could not keep up[/red]"
-    return (f"{verdict}: {rt['late_ticks']} ticks late by more than one period, worst "
+    text = (f"{verdict}: {rt['late_ticks']} ticks late by more than one period, worst "
             f"{rt['worst_lateness_ms']:.1f} ms")
+    if "worst_oversleep_ms" in rt:  # the causes apart (summaries written before they were measured lack them)
+        text += (f"; ticks longer than the period {rt['slow_ticks']} (longest {rt['worst_tick_ms']:.1f} ms), "
+                 f"a sleep overran by up to {rt['worst_oversleep_ms']:.1f} ms")
+        if not rt["kept_up"] and rt["worst_oversleep_ms"] > 5.0 and rt["worst_tick_ms"] <= 5.0:
+            text += " (the machine's scheduling, not the loop's work)"
+    return text
 
 
 def render_summary(console: Console, s: dict, run_dir: Path) -> None:
