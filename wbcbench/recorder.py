@@ -51,14 +51,24 @@ def _warm_up_writes() -> None:
     if _warmed_up:
         return
     block = np.zeros((2, 2))
-    columns = np.empty(block.shape, order="F")
-    if JIT_ENABLED:
-        _columns_and_reset(block, columns, block)
-    sink = pa.BufferOutputStream()
-    table = pa.Table.from_arrays([pa.array(columns[:, i]) for i in range(2)], names=["a", "b"])
-    with pq.ParquetWriter(sink, table.schema, **_PARQUET_OPTIONS) as writer:
+    table, _ = _arrow_table(block, block, ["a", "b"])
+    with pq.ParquetWriter(pa.BufferOutputStream(), table.schema, **_PARQUET_OPTIONS) as writer:
         writer.write_table(table)
     _warmed_up = True
+
+
+def _arrow_table(block: np.ndarray, base: np.ndarray, names: list[str]) -> tuple[pa.Table, bool]:
+    """A row group's rows as an Arrow table of its columns, and whether ``base`` (the buffer ``block`` is the
+    first rows of) was reset to NaN on the way (compiled: the copy and the reset without holding the interpreter's
+    lock)."""
+    if JIT_ENABLED:
+        columns = np.empty(block.shape, order="F")
+        _columns_and_reset(block, columns, base)
+        reset = True
+    else:
+        columns = np.asfortranarray(block)  # each column contiguous: Arrow takes them without a copy
+        reset = False
+    return pa.Table.from_arrays([pa.array(columns[:, i]) for i in range(columns.shape[1])], names=names), reset
 
 
 class Recorder:
@@ -208,14 +218,7 @@ class Recorder:
                 self._writer = pq.ParquetWriter(self.path, schema, **_PARQUET_OPTIONS)
             for fill in self._derived:
                 fill(block, first)
-            if JIT_ENABLED:  # the copy and the reset (below) without holding the interpreter's lock
-                columns = np.empty(block.shape, order="F")
-                _columns_and_reset(block, columns, block.base)
-                reset = True
-            else:
-                columns = np.asfortranarray(block)  # each column contiguous: Arrow takes them without a copy
-            table = pa.Table.from_arrays([pa.array(columns[:, i]) for i in range(columns.shape[1])],
-                                         names=self.columns)
+            table, reset = _arrow_table(block, block.base, self.columns)
             self._writer.write_table(table)
             self.rows_written += n
         except BaseException as exc:  # raised in the caller's thread by the next flush or close
