@@ -532,21 +532,18 @@ def _restore_priority(priority: tuple) -> None:
             pass
 
 
-def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float,
-                      overslept_ms: np.ndarray | None = None, busy_ms: np.ndarray | None = None) -> dict:
+def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float, overslept_ms: np.ndarray,
+                      busy_ms: np.ndarray) -> dict:
     """A wall-clock-paced run: how many ticks started more than one control period late, the worst lateness
     [ms], and whether it kept up (no tick later than 5 ms); and the two causes of lateness apart: the longest a
     sleep returned after its tick's start (`worst_oversleep_ms`: the machine's scheduling, the loop had nothing to
     do) and the ticks whose own time exceeded the period (`slow_ticks`, the longest `worst_tick_ms`: the work)."""
     worst = float(late_ms.max()) if late_ms.size else 0.0
-    out = {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
-           "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time}
-    if overslept_ms is not None and busy_ms is not None:
-        timed = busy_ms[np.isfinite(busy_ms)]
-        out.update(worst_oversleep_ms=float(overslept_ms.max()) if overslept_ms.size else 0.0,
-                   slow_ticks=int((timed > dt * 1e3).sum()),
-                   worst_tick_ms=float(timed.max()) if timed.size else 0.0)
-    return out
+    timed = busy_ms[np.isfinite(busy_ms)]
+    return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
+            "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time,
+            "worst_oversleep_ms": float(overslept_ms.max()) if overslept_ms.size else 0.0,
+            "slow_ticks": int((timed > dt * 1e3).sum()), "worst_tick_ms": float(timed.max()) if timed.size else 0.0}
 
 
 def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) -> Path | int:
