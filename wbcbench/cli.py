@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--realtime", action="store_true",
                    help="pace the simulation to the wall clock; late ticks are counted (summary `realtime`, log "
                         "`lateness_ms`)")
+    r.add_argument("--engine", default="mujoco",
+                   help="physics engine: mujoco (default), dart (pip install 'wbcbench[dart]'), or a plugin's")
     r.add_argument("--video", action="store_true",
                    help="render the run to RUN_DIR/video.mp4 when it ends (see `wbcbench render`)")
     from .viz.commands import add_view_options
@@ -111,7 +113,8 @@ def _cmd_run(args) -> int:
     view = live_view_from(args)
     kwargs = dict(taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error,
                   faults=faults, predict_falls=args.predict_falls, safe_stop=args.safe_stop,
-                  overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [])
+                  overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [],
+                  engine=args.engine)
     try:
         if args.quiet:
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out, **kwargs)

@@ -12,6 +12,10 @@ A package adds to wbcbench by declaring, in its pyproject.toml::
     my-robot = "my_package:PROFILE"                # the path of a robot profile YAML (str or Path, or a callable
                                                    # returning one)
 
+    [project.entry-points."wbcbench.engines"]
+    my-engine = "my_package:MySimulator"           # a physics engine: a class with the interface of
+                                                   # wbcbench.sim.simulator.Simulator (see wbcbench.sim.engines)
+
 They appear in `wbcbench list`, `run`, `reproduce` and sweeps beside the built-in ones. A plugin that fails to
 import, or that takes a name already taken (built-in or by another plugin), is reported with one line naming the
 entry point and its distribution when that name is used (and by `wbcbench list`); nothing else is affected.
@@ -28,7 +32,7 @@ from .errors import ConfigError
 
 __all__ = ["GROUPS", "Plugin", "PluginError", "discover"]
 
-GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots")
+GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.engines")
 
 
 class PluginError(ConfigError):
@@ -67,6 +71,9 @@ def _check(group: str, obj: Any) -> str | None:
 
         if not (isinstance(obj, type) and issubclass(obj, Scenario)):
             return "is not a Scenario subclass"
+    elif group == "wbcbench.engines":
+        if not callable(obj):
+            return "is not a simulator class (called with robot, terrain, mode, options, pushes, model_error)"
     elif group == "wbcbench.robots":
         path = Path(obj() if callable(obj) else obj)
         if not path.is_file():

@@ -35,6 +35,7 @@ from .faults import FaultInjector
 from .sensing import make_sensor_model
 from .stabilizers.base import MissingReferenceError
 from .tasks.placements import CenterOfMass
+from .sim.engines import make_simulator
 from .sim.simulator import Simulator
 
 
@@ -89,7 +90,8 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         progress: Callable[[float], None] | None = None, sim_options: SimOptions | None = None,
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
-        overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None) -> RunResult:
+        overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None,
+        engine: str = "mujoco") -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -98,12 +100,14 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     logged in those channels) and `metrics(log) -> dict` (merged into the summary's metrics); e.g.
     `wbcbench.sim.self_collision.SelfCollisionProbe`. A probe may also have `observe(t, refs)`, called with the
     references handed to the controller every tick (e.g. the live view, `wbcbench.viz.live.LiveView`).
-    `branch`: continue the run several times from one state (`BranchPoint`).
+    `branch`: continue the run several times from one state (`BranchPoint`). `engine`: the physics engine
+    (`wbcbench.sim.engines`: mujoco, dart or a plugin's).
     """
     global _BRANCH_CHILD
     try:
         result = _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset,
-                      sensors, seed, model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch)
+                      sensors, seed, model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch,
+                      engine)
     except BaseException:
         if _BRANCH_CHILD:  # a branch's process never returns into its parent's code
             _branch_exit(1, traceback.format_exc())
@@ -132,7 +136,7 @@ _BRANCH_DIR: Path | None = None
 
 
 def _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset, sensors, seed,
-         model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch) -> RunResult:
+         model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch, engine="mujoco") -> RunResult:
     robot = load_robot(robot) if isinstance(robot, str) else robot
     scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
     spec = scen.spec
@@ -163,7 +167,9 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         model_error = parse_model_error(Section(load_yaml(model_error), str(model_error)))
     model_error = model_error if model_error is not None else spec.model_error
     try:
-        sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+        sim = make_simulator(engine, robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+    except ConfigError:
+        raise
     except ValueError as exc:  # MuJoCo refuses the model built from the profile's URDF
         raise ConfigError(f"cannot build the MuJoCo model: {str(exc).splitlines()[0]}",
                           file=robot.profile.file) from None
@@ -189,7 +195,8 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
               **({"scenario_sizes": sizes} if (sizes := robot_sizes(spec.name, robot)) else {}),
               "controller": controller,
               "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
-              "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
+              "mode": ctrl.mode.value, "engine": engine,
+              "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
               "sim": {"timestep": options.timestep, "integrator": options.integrator,
                       "noslip_iterations": options.noslip_iterations, "substeps": substeps,
                       "self_collision": options.self_collision},
