@@ -142,6 +142,7 @@ def _cmd_list() -> int:
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
     from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
     from .sensing import available_profiles
+    from .sim.engines import available_engines, engine_label, engine_plugin_errors
     from .stabilizers.base import available_stabilizers
     from .tasks import task_types
 
@@ -157,8 +158,10 @@ def _cmd_list() -> int:
     print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
           f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
           f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
-          f"sensors:     {', '.join(available_profiles())}")
-    errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values()]
+          f"sensors:     {', '.join(available_profiles())}\n"
+          f"engines:     {', '.join(engine_label(e) for e in available_engines())}")
+    errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values(),
+              *engine_plugin_errors().values()]
     for e in errors:
         print(f"wbcbench: error: {e}", file=sys.stderr)
     return 2 if errors else 0

@@ -27,8 +27,11 @@ sensor frame: DART's transmitted body wrench of the sensor's body, constraint im
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import re
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +70,35 @@ def _urdf_text(robot: Robot) -> str:
     txt = re.sub(r"<visual\b.*?</visual>", "", txt, flags=re.S)
     txt = re.sub(r"<collision\b.*?</collision>", "", txt, flags=re.S)
     return txt.replace("package://", str(robot.files.package_root) + "/")
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """DART's loader warns on the process' standard error for every massless URDF link (TALOS' camera frames):
+    silenced while the model is built, since wbcbench states the massless links' treatment itself."""
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, ValueError, OSError):  # no real file descriptor (e.g. captured): nothing to silence
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), fd)
+            yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
+def _links_without_inertial(urdf: str) -> list[str]:
+    """The names of the URDF's links that have no <inertial> element."""
+    out = []
+    for m in re.finditer(r"<link\b[^>]*?\bname=\"([^\"]+)\"[^>]*?(/>|>(.*?)</link>)", urdf, flags=re.S):
+        if m.group(2) == "/>" or "<inertial" not in (m.group(3) or ""):
+            out.append(m.group(1))
+    return out
 
 
 def _isometry(R: np.ndarray, p: np.ndarray):
@@ -161,7 +193,8 @@ class DartSimulator:
                                          "dart": dart.collision.DARTCollisionDetector,
                                          "fcl": dart.collision.FCLCollisionDetector,
                                          "bullet": dart.collision.BulletCollisionDetector}[detector]())
-        self.skel = self._load_robot()
+        with _quiet_native_stderr():
+            self.skel = self._load_robot()
         self.world.addSkeleton(self.skel)
         self.ground = self._build_terrain()
         if self.ground is not None:
@@ -196,6 +229,12 @@ class DartSimulator:
         skel.disableSelfCollisionCheck()
         for i in range(skel.getNumDofs()):
             skel.getDof(i).setSpringStiffness(0.0)
+        # a URDF link without <inertial> is massless (URDF, pinocchio, MuJoCo); DART's loader gives it 1 kg
+        for name in _links_without_inertial(self.robot.files.urdf.read_text()):
+            body = skel.getBodyNode(name)
+            if body is not None:
+                body.setMass(0.0)
+                body.setMomentOfInertia(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         return skel
 
     def _body_and_placement(self, frame_name: str):

@@ -23,7 +23,7 @@ import importlib.util
 
 from ..errors import ConfigError, UnknownNameError
 
-__all__ = ["ENGINES", "available_engines", "engine_class", "make_simulator"]
+__all__ = ["ENGINES", "available_engines", "engine_class", "engine_plugin_errors", "make_simulator"]
 
 #: the built-in engines: name -> "module:attribute" (imported when first used) and what it needs installed
 ENGINES = {"mujoco": ("wbcbench.sim.simulator:Simulator", None),
@@ -39,6 +39,23 @@ def _plugins():
 def available_engines() -> list[str]:
     """The engines' names: built-in, then the usable plugins'."""
     return list(ENGINES) + [p.name for p in _plugins() if p.error is None]
+
+
+def engine_plugin_errors() -> dict[str, str]:
+    """Each unusable engine plugin's one-line error, by name."""
+    from ..plugins import message
+
+    return {p.name: message(p) for p in _plugins() if p.error is not None}
+
+
+def engine_label(name: str) -> str:
+    """An engine's name as `wbcbench list` shows it: a plugin's with its distribution, a built-in not installed
+    with what it needs."""
+    if name in ENGINES:
+        needs = ENGINES[name][1]
+        return name if needs is None or importlib.util.find_spec(needs) else f"{name} (needs {needs})"
+    dist = next((p.dist for p in _plugins() if p.name == name), "?")
+    return f"{name} [{dist}]"
 
 
 def engine_class(name: str):
