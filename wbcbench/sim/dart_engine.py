@@ -15,9 +15,15 @@ Differences from the MuJoCo model that cannot be removed (stated in every engine
 - DART 6 has no joint armature: the pinocchio model's rotor inertia (0.1 kg m^2 on TALOS' actuated joints) is
   absent from the simulated robot. The controller keeps its nominal model, as it would on a robot whose rotor
   inertia it over-estimates. The bridge test compares DART's mass matrix with pinocchio's without armature.
-- Position mode: the servo PD is DART's implicit joint spring-damper (stiffness kp, damping kd, rest position
-  q_ref + kd/kp v_ref), stable at the profile's gains like MuJoCo's implicitfast; its torque is not clipped to
-  the effort limit (a spring cannot be), MuJoCo's is.
+- Position mode: the servo PD (kp (q_ref - q) + kd (v_ref - v), MuJoCo's position actuator) evaluated at the
+  next step's state predicted from the skeleton's dynamics (stable PD, Tan et al. 2011: stable at the profile's
+  gains without armature, as MuJoCo's implicit integration is) and clipped to the effort limit (MuJoCo's actuator
+  force range); the same law as the spd mode. With rigid contacts and no armature, TALOS held at half-sitting by
+  its servos alone (no balance controller) rocks from foot to foot (about 5 mm at the base); the stabilized
+  controllers walk. Tried and not kept: DART's implicit joint springs, unclipped (the 10x-Menagerie ankle servos
+  fought the rigid ground with 600 N m standing and up to 10 kN m walking; the position schemes' energies were
+  20-70 times MuJoCo's; TSID position fell in every scene), clipped by moving the rest position (the saturated
+  ankles tipped the robot over), or switched off for a saturated joint's step (chatter: the feet bounced).
 - Contacts are rigid (an LCP with a small error-reduction and a penetration allowance), MuJoCo's soft.
 
 Sensors, as in MuJoCo: the IMU (orientation, gyro in the IMU frame, accelerometer: the IMU point's acceleration
@@ -99,6 +105,11 @@ def _links_without_inertial(urdf: str) -> list[str]:
         if m.group(2) == "/>" or "<inertial" not in (m.group(3) or ""):
             out.append(m.group(1))
     return out
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for two 3-vectors (numpy's cross costs ten times more on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def _isometry(R: np.ndarray, p: np.ndarray):
@@ -264,6 +275,7 @@ class DartSimulator:
             node.createVisualAspect().setColor(np.array([0.2, 0.2, 0.8]))
             self._sole_shapes[side] = node
             self._ft_body[side], self._ft_placement[side] = self._body_and_placement(foot.ft_sensor_frame)
+        self._sole_names = {node.getName(): k for k, node in enumerate(self._sole_shapes.values())}
 
     def _build_terrain(self):
         t = self.terrain
@@ -342,7 +354,7 @@ class DartSimulator:
         M = self._ft_placement[side]
         force_b, torque_b = F[3:6], F[0:3]
         R, p = M.rotation, M.translation
-        torque_s = R.T @ (torque_b - np.cross(p, force_b))
+        torque_s = R.T @ (torque_b - _cross(p, force_b))
         return np.concatenate([R.T @ force_b, torque_s])
 
     def read_state(self) -> np.ndarray:
@@ -378,23 +390,31 @@ class DartSimulator:
         """Ground-truth contact wrench on each sole, (2, 6), left then right: the force the ground exerts on the
         sole (world frame) and its moment about the world origin."""
         out = np.zeros((2, 6))
-        result = self.world.getLastCollisionResult()
-        frames = list(self._sole_shapes.values())
-        for c in result.getContacts():
-            f = np.asarray(c.force)
-            p = np.asarray(c.point)
-            for k, node in enumerate(frames):
-                s1 = c.collisionObject1.getShapeFrame()
-                s2 = c.collisionObject2.getShapeFrame()
-                if s1.getName() == node.getName():  # DART's contact force acts on the first object
-                    sign = 1.0
-                elif s2.getName() == node.getName():
-                    sign = -1.0
-                else:
+        contacts = self.world.getLastCollisionResult().getContacts()
+        if not contacts:
+            return out
+        names = self._sole_names
+        side, sign, forces, points = [], [], [], []
+        for c in contacts:
+            n1 = c.collisionObject1.getShapeFrame().getName()
+            k = names.get(n1)
+            if k is not None:  # DART's contact force acts on the first object
+                s = 1.0
+            else:
+                k = names.get(c.collisionObject2.getShapeFrame().getName())
+                if k is None:
                     continue
-                force = sign * f
-                out[k, :3] += force
-                out[k, 3:] += np.cross(p, force)
+                s = -1.0
+            side.append(k)
+            sign.append(s)
+            forces.append(c.force)
+            points.append(c.point)
+        if side:
+            f = np.asarray(forces) * np.asarray(sign)[:, None]
+            p = np.asarray(points)
+            m = np.column_stack([p[:, 1] * f[:, 2] - p[:, 2] * f[:, 1], p[:, 2] * f[:, 0] - p[:, 0] * f[:, 2],
+                                 p[:, 0] * f[:, 1] - p[:, 1] * f[:, 0]])
+            np.add.at(out, np.asarray(side), np.column_stack([f, m]))
         return out
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
@@ -415,22 +435,16 @@ class DartSimulator:
         self._configure_joints()
 
     def _configure_joints(self) -> None:
-        """Each actuated joint's implicit spring-damper: the position servo (position mode), a failed joint's
-        damping, or the URDF's damping alone."""
-        position = self.mode is ActuationMode.POSITION
+        """Each actuated joint's implicit damping: a failed joint's, or the URDF's alone."""
         for i, d in enumerate(self._act):
             dof = self.skel.getDof(int(d))
             kind = self._fault.get(i)
-            damping, stiffness = float(self._urdf_damping[i]), 0.0
+            damping = float(self._urdf_damping[i])
             if kind == "passive":
                 damping += float(self.kd[i])
             elif kind == "locked":
                 damping += 1e5
-            elif kind is None and position:
-                damping += float(self.kd[i])
-                stiffness = float(self.kp[i])
             dof.setDampingCoefficient(damping)
-            dof.setSpringStiffness(stiffness)
 
     def fall_status(self) -> FallStatus:
         pos = self.skel.getPositions()
@@ -465,11 +479,6 @@ class DartSimulator:
     def apply(self, command: Command) -> None:
         """Set the command used by the following physics steps (held until the next call)."""
         self._command = command
-        if self.mode is ActuationMode.POSITION:
-            v = command.v if command.v is not None else 0.0
-            rest = np.asarray(command.q, dtype=float) + (self.kd / self.kp) * v
-            for i, d in enumerate(self._act):
-                self.skel.getDof(int(d)).setRestPosition(float(rest[i]))
 
     def _joint_torque(self) -> np.ndarray:
         """The actuators' torque for the next physics step (pinocchio joint order), before any fault."""
@@ -478,9 +487,7 @@ class DartSimulator:
         if self.mode is ActuationMode.TORQUE:
             tau = np.zeros(na) if cmd.tau is None else np.asarray(cmd.tau, dtype=float)
             return np.clip(tau, -self.effort, self.effort)
-        if self.mode is ActuationMode.POSITION:  # the servo acts through the joint springs; feed-forward only here
-            return np.zeros(na) if cmd.tau is None else np.asarray(cmd.tau, dtype=float)
-        return self._spd_torque()
+        return self._spd_torque()  # the position servo and SPD (see the module docstring)
 
     def _spd_torque(self) -> np.ndarray:
         """Stable PD (Tan et al. 2011): the PD on the next step's state, with the next acceleration predicted from
@@ -526,20 +533,8 @@ class DartSimulator:
             self.world.step()
             w, lin = self._imu_world_velocity()
             self._imu_acc = (lin - self._imu_vel) / self.dt - np.asarray(self.options.gravity, dtype=float)
-            self._tau = tau + self._servo_torque()
+            self._tau = tau
             self._tick += 1
-
-    def _servo_torque(self) -> np.ndarray:
-        """The position servo's torque at the new state (position mode; zero otherwise)."""
-        if self.mode is not ActuationMode.POSITION:
-            return 0.0
-        skel, act = self.skel, self._act
-        q, dq = skel.getPositions()[act], skel.getVelocities()[act]
-        rest = np.array([skel.getDof(int(d)).getRestPosition() for d in act])
-        tau = self.kp * (rest - q) - self.kd * dq
-        for i in self._fault:
-            tau[i] = 0.0
-        return tau
 
     def applied_torque(self) -> np.ndarray:
         """Torque the actuators produced at the last step, (na,) in pinocchio joint order [N m]."""
