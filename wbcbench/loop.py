@@ -198,8 +198,10 @@ class RunLoop:
     def add_hook(self, hook: Hook) -> None:
         """Register a hook on the phases it names; its channels are added now (`Hook.attach`)."""
         if not isinstance(hook, Hook):
-            phase, fn = hook  # a (phase, callable) pair
-            self.add(phase, fn)
+            if not (isinstance(hook, tuple) and len(hook) == 2):
+                raise ConfigError(f"a hook is a wbcbench.loop.Hook or a (phase, callable) pair, not "
+                                  f"{type(hook).__name__}", key="hooks")
+            self.add(*hook)
             return
         hook.attach(self)
         self.hooks.append(hook)
