@@ -55,7 +55,8 @@ class Tick:
     tick); ``meas`` the controller's measurement (from the last ``sense``); ``refs`` the scenario's references
     (from ``reference``); ``cmd`` the command (from ``control``, maybe replaced in ``safety``); ``row`` the log row
     being filled (float64, written with the slices of `Recorder.add_channel`); ``truth`` the ground-truth
-    measurement after the step and ``fall`` the simulator's fall status (from ``sense``)."""
+    measurement after the step and ``fall`` the simulator's fall status (from ``sense``). In the ``sense`` phase
+    before the first tick (``k == -1``) only ``meas`` and ``truth`` are set (no row yet)."""
 
     __slots__ = ("k", "t", "meas", "refs", "cmd", "row", "truth", "fall")
 
