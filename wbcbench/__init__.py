@@ -21,7 +21,8 @@ __version__ = "0.1.0"
 
 _EXPORTS = {
     # running
-    "run": "wbcbench.runner", "RunResult": "wbcbench.runner",
+    "run": "wbcbench.runner", "RunResult": "wbcbench.runner", "RunConfig": "wbcbench.runner",
+    "Hook": "wbcbench.loop", "Tick": "wbcbench.loop", "EndRun": "wbcbench.loop",
     "load_robot": "wbcbench.robots", "Robot": "wbcbench.robots",
     "load_scenario": "wbcbench.scenarios", "make_scenario": "wbcbench.scenarios", "Scenario": "wbcbench.scenarios",
     "ScenarioSpec": "wbcbench.scenarios", "register_kind": "wbcbench.scenarios",

@@ -94,7 +94,8 @@ def parse_fault_option(text: str, joints: list[str]) -> Fault:
 
 class FaultInjector:
     """Applies a fault schedule each tick: to the measurement (sensor faults, then the guard), to the simulator
-    (joint faults), to the controller's QP solvers (qp_failure). `log` holds this tick's flags:
+    (joint faults), to the controller's QP solves (qp_failure, through its solve hook). The run loop calls it in
+    its ``sense`` and ``safety`` phases (`wbcbench.loop_hooks.FaultHook`). `log` holds this tick's flags:
     (faults active, guard held the measurement, a reading frozen, safe stop on)."""
 
     LOG_LABELS = ("faults_active", "guard_held", "sensor_frozen", "safe_stop")
@@ -146,26 +147,22 @@ class FaultInjector:
         self._t = t
 
     def _wrap_solvers(self, ctrl) -> None:
-        """qp_failure: every solver of the controller (attributes named *solver) reports a failure while a
-        qp_failure fault is active."""
+        """qp_failure: every QP solve of the controller (its solve hook, `Controller.set_solve_hook`) reports a
+        failure while a qp_failure fault is active."""
         if self._qp_wrapped:
             return
-        from .qp import QPResult, QPStatus
-
-        injector = self
-        for name in [n for n in vars(ctrl) if n.endswith("solver")]:
-            solver = getattr(ctrl, name)
-            if not hasattr(solver, "solve"):
-                continue
-            original = solver.solve
-
-            def failing(*args, _original=original, **kwargs):
-                if any(f.type == "qp_failure" and f.active(injector._t) for f in injector.faults):
-                    return QPResult.failure(QPStatus.INFEASIBLE, solver="injected", raw_status=-1)
-                return _original(*args, **kwargs)
-
-            solver.solve = failing
+        set_hook = getattr(ctrl, "set_solve_hook", None)
+        if set_hook is not None:
+            set_hook(self._solve)
         self._qp_wrapped = True
+
+    def _solve(self, solver, args: tuple):
+        """The solve hook: a failure while a qp_failure fault is active, else the solver's own result."""
+        if any(f.type == "qp_failure" and f.active(self._t) for f in self.faults):
+            from .qp import QPResult, QPStatus
+
+            return QPResult.failure(QPStatus.INFEASIBLE, solver="injected", raw_status=-1)
+        return solver.solve(*args)
 
     # ------------------------------------------------------------------ measurement
     def measurement(self, meas: Measurement) -> Measurement:

@@ -2,41 +2,48 @@
 
 A run directory holds config.json (everything resolved), log.parquet (one row per control tick) and
 summary.json. A run that falls or fails still writes its log up to the failure and says why.
+
+`run` resolves its options into a `RunConfig`, builds the parts (robot, scenario, controller, simulator, sensor
+model, faults), the run directory and its config, then a `wbcbench.loop.RunLoop` whose ticks are named phases:
+the options that add per-tick work (probes, sensors, faults, fall prediction and safe stop, wall-clock pacing,
+a branch point, the caller's own hooks) are hooks registered on the phases they need (`wbcbench.loop_hooks`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import gc
 import json
-import math
-import os
 import platform
-import sys
 import time
 import traceback
-from collections.abc import Callable, Generator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from . import branching
+from .branching import Branch, BranchHook, BranchPoint
 from .controllers.base import Controller, make_controller
+from .errors import ConfigError
+from .faults import FaultInjector
+from .loop import PHASES, EndRun, Hook, LogLayout, LogWriteError, LoopOutcome, RunLoop, Tick
+from .loop_hooks import FallHook, FaultHook, PacingHook, ProbeHook, SensorHook
 from .metrics.from_log import compute_run_metrics
-from .errors import ConfigError, WbcError
 from .recorder import Recorder, read_log
-from .robots import Robot, Side, load_robot
+from .robots import Robot, load_robot
 from .scenarios import Scenario, load_scenario
 from .scenarios.base import robot_sizes
-from .sim.model import SimOptions
-from .estimation.fall import FallPredictor
-from .faults import FaultInjector
 from .sensing import make_sensor_model
+from .sim.engines import make_simulator
+from .sim.model import SimOptions
+from .sim.simulator import Simulator
 from .stabilizers.base import MissingReferenceError
 from .tasks.placements import CenterOfMass
-from .sim.engines import make_simulator
-from .sim.simulator import Simulator
+
+__all__ = ["run", "run_config", "RunConfig", "RunResult", "Branch", "BranchPoint", "Hook", "Tick", "PHASES",
+           "EndRun", "LogWriteError", "RunInterrupted", "step_time_stats"]
 
 
 @dataclass
@@ -44,12 +51,6 @@ class RunResult:
     run_dir: Path
     summary: dict
     log: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
-
-
-def _base_labels(robot: Robot) -> tuple[list[str], list[str]]:
-    q = ["x", "y", "z", "qx", "qy", "qz", "qw"] + robot.joint_names
-    v = ["vx", "vy", "vz", "wx", "wy", "wz"] + robot.joint_names
-    return q, v
 
 
 def step_time_stats(us: np.ndarray) -> dict:
@@ -61,28 +62,30 @@ def step_time_stats(us: np.ndarray) -> dict:
 
 
 @dataclass(frozen=True)
-class Branch:
-    """One continuation of a run from its branch point: its own run directory and the pushes it adds."""
+class RunConfig:
+    """Everything a run is asked for (the arguments of `run`, which documents them)."""
 
-    out: Path
-    pushes: tuple = ()
-
-
-@dataclass(frozen=True)
-class BranchPoint:
-    """Run once up to time `t`, then continue several times from that same state, each continuation (a
-    `Branch`) in a child process of its own (`os.fork`: the simulator, controller, sensing and scenario as they
-    are, nothing rebuilt or re-simulated) that writes a complete run directory (log from t = 0, config with its
-    pushes, summary) exactly as a run with those pushes from the start would (a branch's pushes must not start
-    before `t`).
-
-    `plan()` is a generator: it yields the first `Branch`, is sent the summary of each finished branch (a dict
-    with "error" when the branch's process died) and yields the next, until it returns. The branches run one
-    after another, so the next can depend on the last (e.g. a bisection over a push's force). The run that
-    branches ends at `t`: its own directory keeps the log up to there and its summary counts the branches."""
-
-    t: float
-    plan: Callable[[], Generator[Branch, dict, None]]
+    scenario: str | Scenario
+    controller: str | Controller
+    robot: str | Robot = "talos"
+    mode: str | None = None
+    duration: float | None = None
+    out: str | Path | None = None
+    progress: Callable[[float], None] | None = None
+    sim_options: SimOptions | None = None
+    probes: tuple = ()
+    taskset: str | Path | None = None
+    sensors: object = None
+    seed: int = 0
+    model_error: object = None
+    faults: tuple = ()
+    predict_falls: bool = False
+    safe_stop: bool = False
+    overwrite: bool = False
+    realtime: bool = False
+    branch: BranchPoint | None = None
+    hooks: tuple = ()
+    engine: str = "mujoco"
 
 
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
@@ -91,7 +94,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
         overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None,
-        engine: str = "mujoco") -> RunResult:
+        hooks: Sequence = (), engine: str = "mujoco") -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -100,66 +103,84 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     logged in those channels) and `metrics(log) -> dict` (merged into the summary's metrics); e.g.
     `wbcbench.sim.self_collision.SelfCollisionProbe`. A probe may also have `observe(t, refs)`, called with the
     references handed to the controller every tick (e.g. the live view, `wbcbench.viz.live.LiveView`).
-    `branch`: continue the run several times from one state (`BranchPoint`). `engine`: the physics engine
-    (`wbcbench.sim.engines`: mujoco, dart or a plugin's).
+    `branch`: continue the run several times from one state (`BranchPoint`).
+    `hooks`: the caller's own part in each tick, `wbcbench.loop.Hook` objects or `(phase, callable(tick))`
+    pairs, called after the built-in work of their phases (`wbcbench.loop` documents the phases).
+    `engine`: the physics engine (`wbcbench.sim.engines`: mujoco, dart or a plugin's).
     """
-    global _BRANCH_CHILD
+    return run_config(RunConfig(scenario, controller, robot, mode, duration, out, progress, sim_options,
+                                tuple(probes), taskset, sensors, seed, model_error, tuple(faults), predict_falls,
+                                safe_stop, overwrite, realtime, branch, tuple(hooks), engine))
+
+
+def run_config(cfg: RunConfig) -> RunResult:
+    """`run` with its options in a `RunConfig`. In a branch's child process (`BranchPoint`) this never returns:
+    the process ends at the end of its run."""
     try:
-        result = _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset,
-                      sensors, seed, model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch,
-                      engine)
+        result = _run(cfg)
     except BaseException:
-        if _BRANCH_CHILD:  # a branch's process never returns into its parent's code
-            _branch_exit(1, traceback.format_exc())
+        if branching.is_branch_child():  # a branch's process never returns into its parent's code
+            branching.branch_exit(1, traceback.format_exc())
         raise
-    if _BRANCH_CHILD:
-        _branch_exit(0, None)
+    if branching.is_branch_child():
+        branching.branch_exit(0, None)
     return result
 
 
-#: True in a branch's child process (see `BranchPoint`)
-_BRANCH_CHILD = False
+@dataclass
+class _Parts:
+    """What a run is made of, resolved from its `RunConfig`."""
+
+    robot: Robot
+    scen: Scenario
+    spec: object
+    options: SimOptions
+    substeps: int
+    ctrl: Controller
+    controller: str
+    model_error: object
+    sim: Simulator
+    sensing: object
+    injector: FaultInjector
 
 
-def _branch_exit(code: int, error: str | None) -> None:
-    """End a branch's process. An error that escaped the run goes to the branch's error.txt (not to a stream
-    whose lock another thread of the parent may have held at the fork); nothing of the parent's runs at exit."""
+def _run(cfg: RunConfig) -> RunResult:
+    p = _build(cfg)
+    run_dir = _make_run_dir(cfg, p)
+    config = _config(cfg, p)
+    (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
+    loop, hooks = _make_loop(cfg, p, run_dir, config)
+    duration = _setup_scenario(p)
+    loop.prepare(int(round(duration / p.spec.control_dt)), duration)
+    outcome = loop.execute(_reset(p))
+    summary = _summary(cfg, p, loop, outcome, hooks)
+    log = _add_metrics(summary, loop.run_dir, loop.recorder, p, cfg.probes)
     try:
-        if error and _BRANCH_DIR is not None:
-            (_BRANCH_DIR / "error.txt").write_text(error)
-    finally:
-        os._exit(code)
+        if outcome.error:
+            (loop.run_dir / "error.txt").write_text(outcome.error)
+        (loop.run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    except OSError as exc:
+        raise LogWriteError(f"cannot write {loop.run_dir / 'summary.json'} ({exc.strerror or exc}); the log is "
+                            "kept") from None
+    if outcome.interrupted:
+        raise RunInterrupted(f"interrupted at t = {summary['sim_time_s']:.3f} s; {loop.run_dir} keeps the log and the "
+                             "summary up to there")
+    return RunResult(loop.run_dir, summary, log)
 
 
-#: the run directory of this branch's process (see `BranchPoint`)
-_BRANCH_DIR: Path | None = None
-
-
-def _run(scenario, controller, robot, mode, duration, out, progress, sim_options, probes, taskset, sensors, seed,
-         model_error, faults, predict_falls, safe_stop, overwrite, realtime, branch, engine="mujoco") -> RunResult:
-    robot = load_robot(robot) if isinstance(robot, str) else robot
-    scen = load_scenario(scenario, robot, duration) if isinstance(scenario, str) else scenario
+def _build(cfg: RunConfig) -> _Parts:
+    robot = load_robot(cfg.robot) if isinstance(cfg.robot, str) else cfg.robot
+    scen = load_scenario(cfg.scenario, robot, cfg.duration) if isinstance(cfg.scenario, str) else cfg.scenario
     spec = scen.spec
-    options = sim_options or SimOptions()
+    options = cfg.sim_options or SimOptions()
     if spec.sim:   # the scene's own simulator settings (e.g. no-slip on slopes) win over the defaults
         options = replace(options, **spec.sim)
     substeps = int(round(spec.control_dt / options.timestep))
     if substeps < 1 or abs(substeps * options.timestep - spec.control_dt) > 1e-12:
         raise ConfigError(f"control_dt {spec.control_dt} must be a multiple of the physics timestep "
                           f"{options.timestep}", file=spec.file, key="control_dt")
-    if isinstance(controller, Controller):
-        ctrl = controller
-        if ctrl.robot is not robot or abs(ctrl.dt - spec.control_dt) > 1e-12:
-            raise ConfigError(f"controller '{ctrl.name}' was built for another robot or control_dt "
-                              f"({ctrl.dt} s, scenario {spec.control_dt} s)", key="--controller")
-        if mode is not None and ctrl.mode.value != str(getattr(mode, "value", mode)):
-            raise ConfigError(f"mode '{mode}' differs from the controller's '{ctrl.mode.value}'", key="--mode")
-        controller = ctrl.name
-    else:
-        if taskset is None and spec.taskset_variant is not None:  # the scene's own gains, where the robot has them
-            from .controllers.taskset import taskset_variant_path
-            taskset = taskset_variant_path(robot, controller, spec.taskset_variant)
-        ctrl = make_controller(controller, robot, mode, spec.control_dt, taskset)
+    ctrl, controller = _controller(cfg, robot, spec)
+    model_error = cfg.model_error
     if isinstance(model_error, (str, Path)):
         from .config import Section, load_yaml
         from .sim.model_error import parse_model_error
@@ -167,21 +188,44 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         model_error = parse_model_error(Section(load_yaml(model_error), str(model_error)))
     model_error = model_error if model_error is not None else spec.model_error
     try:
-        sim = make_simulator(engine, robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+        sim = make_simulator(cfg.engine, robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
     except ConfigError:
         raise
     except ValueError as exc:  # MuJoCo refuses the model built from the profile's URDF
         raise ConfigError(f"cannot build the MuJoCo model: {str(exc).splitlines()[0]}",
                           file=robot.profile.file) from None
     # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
-    sensing = make_sensor_model(sensors if sensors is not None else spec.sensors, robot, spec.control_dt, seed)
-    injector = FaultInjector(tuple(faults) + tuple(spec.faults), robot, spec.control_dt)
+    sensing = make_sensor_model(cfg.sensors if cfg.sensors is not None else spec.sensors, robot, spec.control_dt,
+                                cfg.seed)
+    injector = FaultInjector(tuple(cfg.faults) + tuple(spec.faults), robot, spec.control_dt)
+    return _Parts(robot, scen, spec, options, substeps, ctrl, controller, model_error, sim, sensing, injector)
 
+
+def _controller(cfg: RunConfig, robot: Robot, spec) -> tuple[Controller, str]:
+    """The run's controller and its name: the one given (checked against the robot and control period) or one
+    made from the registry (with the scene's task-set variant where the robot has one)."""
+    controller, mode, taskset = cfg.controller, cfg.mode, cfg.taskset
+    if isinstance(controller, Controller):
+        ctrl = controller
+        if ctrl.robot is not robot or abs(ctrl.dt - spec.control_dt) > 1e-12:
+            raise ConfigError(f"controller '{ctrl.name}' was built for another robot or control_dt "
+                              f"({ctrl.dt} s, scenario {spec.control_dt} s)", key="--controller")
+        if mode is not None and ctrl.mode.value != str(getattr(mode, "value", mode)):
+            raise ConfigError(f"mode '{mode}' differs from the controller's '{ctrl.mode.value}'", key="--mode")
+        return ctrl, ctrl.name
+    if taskset is None and spec.taskset_variant is not None:  # the scene's own gains, where the robot has them
+        from .controllers.taskset import taskset_variant_path
+        taskset = taskset_variant_path(robot, controller, spec.taskset_variant)
+    return make_controller(controller, robot, mode, spec.control_dt, taskset), controller
+
+
+def _make_run_dir(cfg: RunConfig, p: _Parts) -> Path:
+    out = cfg.out
     if out is None:
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        out = Path("runs") / f"{spec.name}-{controller}-{ctrl.mode.value}-{robot.name}-{stamp}"
+        out = Path("runs") / f"{p.spec.name}-{p.controller}-{p.ctrl.mode.value}-{p.robot.name}-{stamp}"
     run_dir = Path(out)
-    if not overwrite and ((run_dir / "log.parquet").exists() or (run_dir / "summary.json").exists()):
+    if not cfg.overwrite and ((run_dir / "log.parquet").exists() or (run_dir / "summary.json").exists()):
         raise ConfigError(f"{run_dir} already holds a run; give another directory or overwrite it (--overwrite)",
                           key="--out")
     try:
@@ -190,455 +234,136 @@ def _run(scenario, controller, robot, mode, duration, out, progress, sim_options
         (run_dir / ".write-test").unlink()
     except OSError as exc:
         raise ConfigError(f"cannot write the run directory {run_dir}: {exc.strerror or exc}", key="--out") from None
-    config = {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
-              "scenario_file": spec.file, "scenario_kind": spec.kind,
-              **({"scenario_sizes": sizes} if (sizes := robot_sizes(spec.name, robot)) else {}),
-              "controller": controller,
-              "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
-              "mode": ctrl.mode.value, "engine": engine,
-              "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
-              "sim": {"timestep": options.timestep, "integrator": options.integrator,
-                      "noslip_iterations": options.noslip_iterations, "substeps": substeps,
-                      "self_collision": options.self_collision},
-              "pushes": [p.__dict__ for p in spec.pushes], "terrain": spec.terrain.kind,
-              "scene": dataclasses.asdict(spec.terrain),
-              "sensors": {**sensing.profile.__dict__, "seed": seed},
-              "model_error": {"spec": model_error.__dict__ if model_error is not None else None,
-                              "applied": sim.model_error},
-              "versions": _versions()}
-    (run_dir / "config.json").write_text(json.dumps(config, indent=2, default=str))
+    return run_dir
 
-    # --- log layout
+
+def _config(cfg: RunConfig, p: _Parts) -> dict:
+    """config.json: everything the run resolved."""
+    robot, spec, options, ctrl = p.robot, p.spec, p.options, p.ctrl
+    return {"robot": robot.name, "robot_profile": robot.profile.file, "scenario": spec.name,
+            "scenario_file": spec.file, "scenario_kind": spec.kind,
+            **({"scenario_sizes": sizes} if (sizes := robot_sizes(spec.name, robot)) else {}),
+            "controller": p.controller,
+            "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
+            "mode": ctrl.mode.value, "engine": cfg.engine,
+            "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
+            "sim": {"timestep": options.timestep, "integrator": options.integrator,
+                    "noslip_iterations": options.noslip_iterations, "substeps": p.substeps,
+                    "self_collision": options.self_collision},
+            "pushes": [push.__dict__ for push in spec.pushes], "terrain": spec.terrain.kind,
+            "scene": dataclasses.asdict(spec.terrain),
+            "sensors": {**p.sensing.profile.__dict__, "seed": cfg.seed},
+            "model_error": {"spec": p.model_error.__dict__ if p.model_error is not None else None,
+                            "applied": p.sim.model_error},
+            "versions": _versions()}
+
+
+def _make_loop(cfg: RunConfig, p: _Parts, run_dir: Path, config: dict) -> tuple[RunLoop, dict]:
+    """The run's loop, its log layout and hooks: the built-in ones the run asks for, in the log's column order
+    (probes, sensors, faults, fall prediction; a branch point; pacing), then the caller's."""
+    robot, sim = p.robot, p.sim
     rec = Recorder(run_dir / "log.parquet")
-    qlab, vlab = _base_labels(robot)
-    s_t = rec.add_channel("t")
-    s_q = rec.add_channel("q", qlab)
-    s_v = rec.add_channel("v", vlab)
-    s_tau = rec.add_channel("tau", robot.joint_names)
-    s_com = rec.add_channel("com", ["x", "y", "z"])
-    s_vcom = rec.add_channel("com_vel", ["x", "y", "z"])
-    s_ref = rec.add_channel("com_ref", ["x", "y", "z"])
-    s_zmp = rec.add_channel("zmp_ref", ["x", "y", "z"])
-    s_fref = {s: rec.add_channel(f"foot_ref_{s.value}", ["x", "y", "z"]) for s in Side}
-    wl = ["fx", "fy", "fz", "mx", "my", "mz"]
-    s_cw = {s: rec.add_channel(f"contact_{s.value}", wl) for s in Side}
-    s_ft = {s: rec.add_channel(f"ft_{s.value}", wl) for s in Side}
-    s_in = {s: rec.add_channel(f"in_contact_ref_{s.value}") for s in Side}
-    # each pair of per-side channels is registered left then right, next to each other: written in one go
-    s_cw_all, s_ft_all, s_in_all = (slice(d[Side.LEFT].start, d[Side.RIGHT].stop) for d in (s_cw, s_ft, s_in))
-    # where Simulator.read_tick writes the ground truth: q, v, tau, both soles' wrenches, both F/T readings
-    truth_dst = np.array([s_q.start, s_v.start, s_tau.start, s_cw_all.start, s_ft_all.start], dtype=np.int64)
-    i_t = s_t.start
-    in_contact = _ContactFlags()
-    # the frame-task targets handed to the controller (e.g. teleoperation hands and head): position, rotation
-    target_comps = ["x", "y", "z"] + [f"r{i}{j}" for i in range(3) for j in range(3)]
-    s_targets = {name: rec.add_channel(f"target_{name}", target_comps) for name in scen.target_names}
-    s_time = rec.add_channel("controller_time_us")
-    extra = ctrl.log_channels()
-    s_extra = [rec.add_channel(name, comps) for name, comps in extra.items()]
-    # a scenario may log its own per-tick channels (e.g. the teleoperation command filter's interventions)
-    scen_channels = scen.log_channels() if hasattr(scen, "log_channels") else {}
-    s_scen = [rec.add_channel(name, comps) for name, comps in scen_channels.items()]
-    s_probe = [[rec.add_channel(name, comps) for name, comps in p.attach(sim).items()] for p in probes]
-    observers = [p for p in probes if hasattr(p, "observe")]
-    s_est = (rec.add_channel("base_estimate_error", ["x", "y", "z", "rx", "ry", "rz"])
-             if sensing.estimator is not None else None)
-    s_fault = rec.add_channel("faults", list(injector.LOG_LABELS)) if injector.enabled else None
-    # predicted falls from the measurement (capture point vs support polygon, tilt rate); optional safe stop
-    predictor = FallPredictor(robot) if (predict_falls or safe_stop) else None
-    s_fall = rec.add_channel("fall_prediction", list(FallPredictor.LOG_LABELS)) if predictor else None
-    # paced to the wall clock: how late each tick started [ms] (0 when on time)
-    s_late = rec.add_channel("lateness_ms") if realtime else None
-    stopper = None
-
-    model, data = robot.model, robot.model.createData()
+    layout = LogLayout(rec, robot, p.scen, p.ctrl)
     # the ground-truth CoM and its velocity: computed from the logged q and v for a whole row group at a time
     # (compiled, in the log's writer thread), or per tick by pinocchio for joint types the kernel lacks
-    com_kernel = CenterOfMass(model)
-    if com_kernel.supported and s_vcom.start == s_com.start + 3:
+    model, data = robot.model, robot.model.createData()
+    com_kernel, com = CenterOfMass(model), None
+    if not (com_kernel.supported and layout.com_vel.start == layout.com.start + 3):
+        def com(q, v):
+            return pin.centerOfMass(model, data, q, v, False), data.vcom[0]
+
+    loop = RunLoop(plant=sim, controller=p.ctrl, scenario=p.scen, recorder=rec, layout=layout,
+                   dt=p.spec.control_dt, substeps=p.substeps, run_dir=run_dir, progress=cfg.progress, com=com)
+    hooks = {"probes": ProbeHook(cfg.probes), "sensors": SensorHook(p.sensing),
+             "faults": FaultHook(p.injector) if p.injector.enabled else None,
+             "fall": FallHook(robot, cfg.safe_stop) if (cfg.predict_falls or cfg.safe_stop) else None,
+             "branch": BranchHook(cfg.branch, config) if cfg.branch is not None else None,
+             "pacing": PacingHook() if cfg.realtime else None}
+    for hook in [h for h in hooks.values() if h is not None] + list(cfg.hooks):
+        loop.add_hook(hook)
+    if com is None:
+        q0, v0, c0 = layout.q.start, layout.v.start, layout.com.start
+
         def com_columns(block: np.ndarray, first: int = 0) -> None:
-            com_kernel.write_rows(block, s_q.start, s_v.start, s_com.start)
+            com_kernel.write_rows(block, q0, v0, c0)
 
         rec.derive(com_columns)
         # load the compiled kernel now: loading it at the first row group holds the interpreter for milliseconds
         com_columns(np.empty((0, len(rec.columns))))
-    else:
-        com_kernel = None
-    q_true = sim.true_q()
-    ts = getattr(ctrl, "spec", None)  # the controller's task set may carry its own step-adjustment settings
+    return loop, hooks
+
+
+def _setup_scenario(p: _Parts) -> float:
+    """The scenario planned from the start state (with the controller's own step adjustment and swing pitch where
+    it has them); the run's duration [s]."""
+    scen = p.scen
+    q_true = p.sim.true_q()
+    ts = getattr(p.ctrl, "spec", None)  # the controller's task set may carry its own step-adjustment settings
     if getattr(ts, "step_adjustment", None) and hasattr(scen, "adopt_step_adjustment"):
         scen.adopt_step_adjustment(dict(ts.step_adjustment), ts.file)
     if hasattr(scen, "offer_swing_pitch"):  # a walk plans the swing pitch only for a controller that takes it
         scen.offer_swing_pitch = getattr(ts, "swing_pitch_with_leg", True)
-    scen.setup(q_true, pin.centerOfMass(model, data, q_true).copy())
-    duration = spec.duration if spec.duration > 0 else scen.planned_duration
-    n_ticks = int(round(duration / spec.control_dt))
-    k_branch, n_branches = None, 0
-    if branch is not None:
-        k_branch = int(math.floor(branch.t / spec.control_dt + 1e-9))
-        if not 0 < k_branch < n_ticks:
-            raise ConfigError(f"branch point t = {branch.t} s outside the run (0, {duration}) s", key="branch")
-        if not hasattr(os, "fork"):
-            raise ConfigError("branching a run needs os.fork (Linux, macOS)", key="branch")
-        rec.chunk = max(rec.chunk, k_branch + 1)  # nothing written to the file before the branches: they copy it
-    fell, reason, error, interrupted = False, "", None, False
-    ctrl_us = np.full(n_ticks, np.nan)
+    model = p.robot.model
+    scen.setup(q_true, pin.centerOfMass(model, model.createData(), q_true).copy())
+    return p.spec.duration if p.spec.duration > 0 else scen.planned_duration
 
-    def time_columns(block: np.ndarray, first: int) -> None:
-        """Row k is tick k: its time (the state's, after the step) and the controller's step time, filled per row
-        group (the same numbers as per tick)."""
-        ticks = np.arange(first + 1, first + 1 + len(block))
-        block[:, i_t] = ticks * spec.control_dt
-        block[:, s_time.start] = ctrl_us[first:first + len(block)]
 
-    rec.derive(time_columns)
-    lateness = np.zeros(n_ticks) if realtime else None
-    # a paced run's causes of lateness [ms]: how late each sleep returned (the machine), each tick's own time (the work)
-    overslept, busy = (np.zeros(n_ticks), np.full(n_ticks, np.nan)) if realtime else (None, None)
-    # a paced run: no cyclic garbage collection during the loop (a full collection stalls the interpreter for
-    # milliseconds; the loop's objects are freed by reference counting), what exists now moved out of its reach
-    gc_paused = realtime and gc.isenabled()
-    if gc_paused:
-        gc.collect()
-        gc.freeze()
-        gc.disable()
-    # a paced run takes the interpreter back from the log's writer thread within 0.2 ms instead of Python's 5 ms
-    # (the writer builds a row group's Arrow columns in Python while holding it)
-    switch_interval = sys.getswitchinterval()
-    if realtime:
-        sys.setswitchinterval(min(switch_interval, 2e-4))
-    # a paced loop asks for the real-time scheduling class, as a robot's control thread does, where it may: the
-    # kernel's and other programs' threads no longer preempt it for milliseconds (it sleeps every tick, so they
-    # run then; threads started before, e.g. the log's writer, keep the normal class)
-    priority = _raise_priority() if realtime else None
-    if priority is not None and priority[1]:
-        rec.set_writer_priority(_REALTIME_PRIORITY - 5)
-    wall0 = time.perf_counter()
-    tick = 0
-    observe = getattr(scen, "observe", None)
-    try:
-        if injector.enabled:
-            injector.update(0.0, sim, ctrl)
-        meas = sensing.measure(sim.measure())
-        if injector.enabled:
-            meas = injector.measurement(meas)
+def _reset(p: _Parts) -> Callable:
+    """The controller's reset on the first measurement, a missing reference named as the scenario's."""
+    def reset(meas) -> None:
         try:
-            ctrl.reset(meas, scen.references(0.0))
+            p.ctrl.reset(meas, p.scen.references(0.0))
         except MissingReferenceError as exc:  # the scenario lacks what the controller's stabilizer needs
-            raise ConfigError(f"scenario '{spec.name}' with controller '{controller}': {exc}",
-                              file=spec.file) from None
-        control_dt = spec.control_dt
-        ideal_sensing = sensing.ideal  # the controller sees the simulator's measurement as it is
-        faults_on = injector.enabled
-        row = rec.row  # the row of this tick's log (the recorder hands out the next one at each commit)
-        # the per-tick calls, looked up once
-        references, ctrl_step, apply, physics = scen.references, ctrl.step, sim.apply, sim.step
-        read_tick, measurement, log_values, commit = sim.read_tick, sim.measurement, ctrl.log_values, rec.commit
-        for tick in range(n_ticks):
-            t = tick * control_dt
-            if tick == k_branch:
-                approach = time.perf_counter() - wall0
-                try:
-                    got = _branch(branch, sim, rec, config)
-                except Exception as exc:  # the plan's own error (not the controller's): raised as it is
-                    raise _PlanError(exc) from None
-                if isinstance(got, int):  # the parent: every branch has run; this run ends here
-                    n_branches = got
-                    break
-                run_dir, wall0 = got, time.perf_counter() - approach  # a branch: its own run from here on
-            if realtime and tick > 0:  # tick k starts at wall_start + k dt, or late
-                now = time.perf_counter()
-                if tick == 1:  # the clock starts after the first tick (one-off start-up work is not a delay)
-                    wall_start = now - t
-                else:  # the previous tick's own time, from its start to now
-                    busy[tick - 1] = (now - started) * 1e3
-                late = now - (wall_start + t)
-                if late < 0:
-                    time.sleep(-late)
-                    started = time.perf_counter()
-                    late = started - (wall_start + t)
-                    if late > 0:  # the sleep returned after the tick's start: the machine's scheduling
-                        overslept[tick] = late * 1e3
-                else:
-                    started = now
-                if late > 0:
-                    lateness[tick] = late * 1e3
-                    if late > _MAX_CATCH_UP:  # a stall: resume from now rather than rush to catch up
-                        wall_start += late
-            if observe is not None:  # a scenario that re-plans from the measurement (e.g. step adjustment)
-                observe(t, meas)
-            refs = references(t)
-            for p in observers:
-                p.observe(t, refs)
-            c0 = time.perf_counter()
-            cmd = ctrl_step(meas, refs)
-            ctrl_us[tick] = (time.perf_counter() - c0) * 1e6
-            if faults_on:
-                cmd = injector.safe_stop(meas, ctrl.mode, refs.contacts) or cmd
-            if predictor is not None:
-                fall_log = predictor.update(meas)
-                if safe_stop and predictor.first_prediction_t is not None:
-                    if stopper is None:  # joint-pd about the posture at the prediction, for good
-                        from .controllers.joint_pd import JointPD
+            raise ConfigError(f"scenario '{p.spec.name}' with controller '{p.controller}': {exc}",
+                              file=p.spec.file) from None
+    return reset
 
-                        stopper = JointPD(robot, ctrl.mode, spec.control_dt)
-                        stopper.q_ref = meas.q[7:].copy()
-                    cmd = stopper.step(meas, refs)
-            apply(cmd)
-            physics(substeps)
-            # ---- record the state after the step (ground truth) and what was commanded
-            if predictor is not None:
-                row[s_fall] = fall_log
-            if s_late is not None:
-                row[s_late] = lateness[tick]
-            # the next tick's measurement, recorded with the state it belongs to: q, v, applied torque, contact
-            # wrenches and F/T readings go into the row in the same call
-            state, fs = read_tick(row, truth_dst)
-            true_meas = measurement(state)  # ground truth before the sensor layer
-            if com_kernel is None:  # else filled per row group from the logged q and v (below)
-                row[s_com] = pin.centerOfMass(model, data, true_meas.q, true_meas.v, False)
-                row[s_vcom] = data.vcom[0]
-            if refs.com is not None:
-                row[s_ref] = refs.com.position
-            if refs.zmp is not None:
-                row[s_zmp] = refs.zmp
-            if refs.feet:
-                for s, foot in refs.feet.items():
-                    row[s_fref[s]] = foot.position
-            if s_targets:
-                for name, sl in s_targets.items():
-                    target = refs.targets.get(name)
-                    if target is not None:
-                        cells = row[sl]
-                        cells[:3] = target.position
-                        if target.rotation is not None:
-                            cells[3:] = target.rotation.reshape(-1)
-            row[s_in_all] = in_contact[refs.contacts]
-            meas = true_meas if ideal_sensing else sensing.measure(true_meas)
-            if faults_on:
-                row[s_fault] = injector.log
-                injector.update((tick + 1) * spec.control_dt, sim, ctrl)
-                meas = injector.measurement(meas)
-            for sl, val in zip(s_extra, log_values()):
-                row[sl] = val
-            if s_scen:
-                for sl, val in zip(s_scen, scen.log_values()):
-                    row[sl] = val
-            if s_est is not None:
-                row[s_est] = sensing.base_error()
-            for slices, p in zip(s_probe, probes):
-                for sl, val in zip(slices, p.values()):
-                    row[sl] = val
-            try:
-                row = commit()  # the next tick's row
-            except OSError as exc:  # e.g. the disk is full: what was flushed stays readable
-                raise LogWriteError(f"cannot write the log {run_dir / 'log.parquet'} at t = "
-                                    f"{(tick + 1) * control_dt:.3f} s ({exc.strerror or exc}); the ticks written "
-                                    "before are kept") from None
-            if fs.fell:
-                fell, reason = True, fs.reason
-                break
-            if progress is not None and tick % 100 == 0:
-                progress((tick + 1) / n_ticks)
-    except WbcError:
-        _close_quietly(rec)
-        raise
-    except _PlanError as exc:
-        _close_quietly(rec)
-        raise exc.error
-    except KeyboardInterrupt:  # Ctrl-C: stop here, keep the log and say so in the summary
-        interrupted = True
-    except Exception as exc:  # a crash in a controller: keep the log, say why
-        if _from_interrupt(exc):  # Ctrl-C inside a compiled call, which re-raised it as another error
-            interrupted = True
-        else:
-            fell, reason = True, f"error: {type(exc).__name__}: {exc}"
-            error = traceback.format_exc()
-    finally:
-        _close_quietly(rec)
-        if gc_paused:
-            gc.enable()
-            gc.unfreeze()
-        sys.setswitchinterval(switch_interval)
-        if priority is not None:
-            _restore_priority(priority)
-    wall = time.perf_counter() - wall0
-    sim_time = (tick + (0 if n_branches else 1)) * spec.control_dt if n_ticks else 0.0
-    summary = {
-        "robot": robot.name, "scenario": spec.name, "controller": controller, "mode": ctrl.mode.value,
-        "fell": fell, "fall_reason": reason or None, "interrupted": interrupted, "sim_time_s": sim_time,
-        "duration_s": duration,
+
+def _summary(cfg: RunConfig, p: _Parts, loop: RunLoop, out: LoopOutcome, hooks: dict) -> dict:
+    dt, k = p.spec.control_dt, out.k
+    branch, pacing, fall = hooks["branch"], hooks["pacing"], hooks["fall"]
+    n_branches = branch.n_branches if branch is not None else 0
+    sim_time = (k + (0 if n_branches else 1)) * dt if loop.n_ticks else 0.0
+    wall = out.wall
+    predictor = fall.predictor if fall is not None else None
+    return {
+        "robot": p.robot.name, "scenario": p.spec.name, "controller": p.controller, "mode": p.ctrl.mode.value,
+        "fell": out.fell, "fall_reason": out.reason or None, "interrupted": out.interrupted, "sim_time_s": sim_time,
+        "duration_s": loop.duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
-        **({"branches": n_branches} if branch is not None and not _BRANCH_CHILD else {}),
-        "step_time_us": step_time_stats(ctrl_us[: tick + 1]),
-        "controller_status": ctrl.status(),
-        "sensors": {"profile": sensing.profile.name, "seed": seed, "dropped_ticks": sensing.n_dropped},
-        "faults": injector.summary() if injector.enabled else None,
-        "realtime": None if lateness is None else {
-            **_lateness_summary(lateness[: tick + 1], spec.control_dt, sim_time, wall, overslept[: tick + 1],
-                                busy[: tick + 1]),
-            "scheduling": "real-time (SCHED_FIFO)" if priority and priority[1] else "normal (real-time class not permitted)"},
+        **({"branches": n_branches} if branch is not None and not branching.is_branch_child() else {}),
+        "step_time_us": step_time_stats(loop.ctrl_us[: k + 1]),
+        "controller_status": p.ctrl.status(),
+        "sensors": {"profile": p.sensing.profile.name, "seed": cfg.seed, "dropped_ticks": p.sensing.n_dropped},
+        "faults": p.injector.summary() if p.injector.enabled else None,
+        "realtime": None if pacing is None else pacing.summary(k, dt, sim_time, wall),
         "fall_prediction": None if predictor is None else {
-            "first_prediction_t": predictor.first_prediction_t, "safe_stop": safe_stop,
+            "first_prediction_t": predictor.first_prediction_t, "safe_stop": cfg.safe_stop,
             "time_to_fall_s": (sim_time - predictor.first_prediction_t
-                               if fell and predictor.first_prediction_t is not None else None),
-            "false_alarm": bool(predictor.first_prediction_t is not None and not fell)},
+                               if out.fell and predictor.first_prediction_t is not None else None),
+            "false_alarm": bool(predictor.first_prediction_t is not None and not out.fell)},
         "metrics": {},
     }
+
+
+def _add_metrics(summary: dict, run_dir: Path, rec: Recorder, p: _Parts, probes: Sequence) -> dict:
+    """The log read back, and its metrics into the summary (the scenario's, the papers', the probes')."""
     log = {}
     if rec.rows_written:
         log = read_log(run_dir / "log.parquet")
         try:
-            scen_metrics = scen.metrics(log)
-            paper = compute_run_metrics(log, robot, dt=spec.control_dt,
+            scen_metrics = p.scen.metrics(log)
+            paper = compute_run_metrics(log, p.robot, dt=p.spec.control_dt,
                                         distance_planned_m=scen_metrics.get("planned_distance_m"))
-            probe_metrics = {k: v for p in probes for k, v in p.metrics(log).items()}
+            probe_metrics = {k: v for probe in probes for k, v in probe.metrics(log).items()}
             summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics, **probe_metrics}
         except Exception as exc:  # metrics must never lose the run
             summary["metrics_error"] = f"{type(exc).__name__}: {exc}"
-    try:
-        if error:
-            (run_dir / "error.txt").write_text(error)
-        (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
-    except OSError as exc:
-        raise LogWriteError(f"cannot write {run_dir / 'summary.json'} ({exc.strerror or exc}); the log is kept") from None
-    if interrupted:
-        raise RunInterrupted(f"interrupted at t = {sim_time:.3f} s; {run_dir} keeps the log and the summary up to there")
-    return RunResult(run_dir, summary, log)
-
-
-#: [s] a paced run that falls further behind than this resumes from the wall clock (the stall is counted)
-#: instead of running the simulation faster than real time to catch up
-_MAX_CATCH_UP = 0.005
-
-
-#: the paced loop's real-time priority (SCHED_FIFO, 1-99): low, above every normal thread and below the kernel's own
-#: real-time threads; the log's writer thread runs 5 below it
-_REALTIME_PRIORITY = 10
-
-
-def _raise_priority() -> tuple | None:
-    """Put the calling thread in the real-time class (SCHED_FIFO at `_REALTIME_PRIORITY`) when the system allows;
-    (the previous policy and parameters, whether it was raised), or None where the call does not exist."""
-    if not hasattr(os, "sched_setscheduler"):
-        return None
-    before = (os.sched_getscheduler(0), os.sched_getparam(0))
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(_REALTIME_PRIORITY))
-    except OSError:  # no CAP_SYS_NICE / RLIMIT_RTPRIO: the normal class
-        return before, False
-    return before, True
-
-
-def _restore_priority(priority: tuple) -> None:
-    (policy, param), raised = priority
-    if raised:
-        try:
-            os.sched_setscheduler(0, policy, param)
-        except OSError:
-            pass
-
-
-def _lateness_summary(late_ms: np.ndarray, dt: float, sim_time: float, wall: float, overslept_ms: np.ndarray,
-                      busy_ms: np.ndarray) -> dict:
-    """A wall-clock-paced run: how many ticks started more than one control period late, the worst lateness
-    [ms], and whether it kept up (no tick later than 5 ms); and the two causes of lateness apart: the longest a
-    sleep returned after its tick's start (`worst_oversleep_ms`: the machine's scheduling, the loop had nothing to
-    do) and the ticks whose own time exceeded the period (`slow_ticks`, the longest `worst_tick_ms`: the work)."""
-    worst = float(late_ms.max()) if late_ms.size else 0.0
-    timed = busy_ms[np.isfinite(busy_ms)]
-    return {"late_ticks": int((late_ms > dt * 1e3).sum()), "worst_lateness_ms": worst,
-            "kept_up": worst <= 5.0, "wall_time_s": wall, "sim_time_s": sim_time,
-            "worst_oversleep_ms": float(overslept_ms.max()) if overslept_ms.size else 0.0,
-            "slow_ticks": int((timed > dt * 1e3).sum()), "worst_tick_ms": float(timed.max()) if timed.size else 0.0}
-
-
-def _branch(branch: BranchPoint, sim: Simulator, rec: Recorder, config: dict) -> Path | int:
-    """At the branch point. In the parent, run `branch.plan()`'s branches one by one, each in a forked child,
-    and return how many ran. In a child, set up its branch (pushes, run directory and config, log file: the
-    rows so far are in memory) and return its run directory: the child then runs on as a normal run and exits
-    at the end of `run`."""
-    global _BRANCH_CHILD, _BRANCH_DIR
-    plan = branch.plan()
-    try:
-        b = next(plan)
-    except StopIteration:
-        return 0
-    n = 0
-    while True:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        pid = os.fork()
-        if pid == 0:
-            _BRANCH_CHILD = True
-            out = _BRANCH_DIR = Path(b.out)
-            out.mkdir(parents=True, exist_ok=True)
-            for stale in ("summary.json", "error.txt", "log.parquet"):
-                (out / stale).unlink(missing_ok=True)
-            sim.set_pushes(tuple(sim.pushes) + tuple(b.pushes))
-            cfg = {**config, "pushes": [p.__dict__ for p in sim.pushes]}
-            (out / "config.json").write_text(json.dumps(cfg, indent=2, default=str))
-            rec.path = out / "log.parquet"
-            return out
-        _, status = os.waitpid(pid, 0)
-        n += 1
-        code = os.waitstatus_to_exitcode(status)
-        try:
-            summary = json.loads((Path(b.out) / "summary.json").read_text())
-        except (OSError, ValueError):
-            why = ""
-            try:
-                why = ": " + (Path(b.out) / "error.txt").read_text().strip().splitlines()[-1]
-            except (OSError, IndexError):
-                pass
-            summary = {"error": f"the branch's process ended with exit code {code} and no summary{why}"}
-        try:
-            b = plan.send(summary)
-        except StopIteration:
-            return n
-
-
-class _PlanError(Exception):
-    """An error raised by a branch plan (carried past the loop's handler of controller crashes)."""
-
-    def __init__(self, error: Exception):
-        super().__init__(str(error))
-        self.error = error
-
-
-def _from_interrupt(exc: BaseException) -> bool:
-    """Whether an error was caused by a Ctrl-C: a KeyboardInterrupt raised while a compiled kernel was calling back
-    into the interpreter comes out of the kernel as a SystemError whose cause is the interrupt."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
-
-
-class _ContactFlags(dict):
-    """contacts (a frozenset of sides) -> the row's (in_contact_ref_left, in_contact_ref_right), made once."""
-
-    def __missing__(self, contacts):
-        flags = self[contacts] = np.array([float(s in contacts) for s in Side])
-        return flags
-
-
-class LogWriteError(WbcError):
-    """The run directory could not be written (disk full, removed, no permission) during a run."""
+    return log
 
 
 class RunInterrupted(KeyboardInterrupt):
     """Ctrl-C during a run: the run directory keeps the log and the summary up to the interruption."""
-
-
-def _close_quietly(rec: Recorder) -> None:
-    try:
-        rec.close()
-    except OSError:  # the log cannot be completed (disk full): what was flushed stays readable
-        pass
 
 
 def _common_metrics(log: dict[str, np.ndarray]) -> dict:

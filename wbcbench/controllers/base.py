@@ -13,13 +13,25 @@ from ..types import ActuationMode
 from ..types import Command, Measurement, References
 
 
+#: a hook around a controller's QP solves: ``hook(solver, args) -> QPResult`` (`Controller.set_solve_hook`)
+SolveHook = Callable[[object, tuple], object]
+
+
 class Controller(ABC):
     """A whole-body controller: `reset` once with the first measurement, then `step` every control tick.
 
     A controller sees only a `Measurement` (what a real robot gives) and the scenario's `References`.
     `log_channels()` names extra per-tick values it wants recorded (name -> component labels);
     `log_values()` returns them for the last step, in the same order.
+
+    A controller that solves QPs calls each solve as ``self.solve_qp(solver, *args)`` (instead of
+    ``solver.solve(*args)``): a solve hook set with `set_solve_hook` then sees every solve and may replace its
+    result (fault injection's ``qp_failure`` makes them fail; a test or a profiler may count or time them). The
+    measurement a controller sees is changed outside it, in the run loop's ``sense`` phase (`wbcbench.loop`).
     """
+
+    #: the hook around this controller's QP solves (None: none; `set_solve_hook`)
+    solve_hook: SolveHook | None = None
 
     name: str = ""
     modes: tuple[ActuationMode, ...] = ()
@@ -48,6 +60,20 @@ class Controller(ABC):
     def status(self) -> dict:
         """Counters for the run summary (e.g. QP failures)."""
         return {}
+
+    def set_solve_hook(self, hook: SolveHook | None) -> None:
+        """Call ``hook(solver, args)`` in place of each of this controller's QP solves ``solver.solve(*args)``
+        (None: solve directly again). The hook returns the solve's `QPResult`: the solver's own (it calls
+        ``solver.solve(*args)``) or another one, e.g. ``QPResult.failure(...)``; the controller then acts on it
+        as on the solver's (its fallbacks, its status counters)."""
+        self.solve_hook = hook
+
+    def solve_qp(self, solver, *args):
+        """``solver.solve(*args)``, through the solve hook when one is set (`set_solve_hook`)."""
+        hook = self.solve_hook
+        if hook is None:
+            return solver.solve(*args)
+        return hook(solver, args)
 
 
 ControllerFactory = Callable[[Robot, ActuationMode, float], Controller]

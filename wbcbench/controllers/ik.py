@@ -111,7 +111,7 @@ class IKController(Controller):
         K.set_contacts(refs.contacts)
         levels, lower, upper = K.problem()
         t0 = perf_counter()
-        res = self.solver.solve(levels, lower, upper)
+        res = self.solve_qp(self.solver, levels, lower, upper)
         self._t_solve = perf_counter() - t0
         if not res.ok:
             self.n_failed += 1

@@ -260,20 +260,20 @@ class InverseDynamicsController(Controller):
 
     def _first_solve(self, P):
         """The tick's first solve, without the torque rows (a hook: a controller may bound it further)."""
-        return self.solver.solve(P)
+        return self.solve_qp(self.solver, P)
 
     def _solve_limited(self, res, t0: float) -> tuple[np.ndarray, np.ndarray] | None:
         """The first solve failed or its torques exceed a limit: solve with the torque rows, then relaxed."""
         F = self.formulation
         if res.ok:
-            res = self.torque_solver.solve(F.problem_with_torque_limits())
+            res = self.solve_qp(self.torque_solver, F.problem_with_torque_limits())
         self._t_solve = perf_counter() - t0
         if res.ok:
             self.qp_status = QP_OK
             return res.x, F.torques(res.x)[0]
         # relaxed: keep the contact rows, drop joint and torque limits
         self.n_relaxed += 1
-        res = self.relaxed_solver.solve(F.problem_relaxed())
+        res = self.solve_qp(self.relaxed_solver, F.problem_relaxed())
         if res.ok:
             self.qp_status = QP_RELAXED
             return res.x, F.torques(res.x)[0]

@@ -296,11 +296,11 @@ class TSIDTeleop(InverseDynamicsController):
         d = F.data
         arm_acceleration_bounds(d.M, d.nle, idx, F.tau_max, self.arm_torque_share, L.lb_joints, L.ub_joints,
                                 self._arm_saved)
-        res = self.solver.solve(P)
+        res = self.solve_qp(self.solver, P)
         if not res.ok:
             _restore_bounds(idx, self._arm_saved, L.lb_joints, L.ub_joints)
             self.n_arm_bounds_dropped += 1
-            res = self.solver.solve(P)
+            res = self.solve_qp(self.solver, P)
         return res
 
     def _solve_limited(self, res, t0: float):
@@ -314,7 +314,7 @@ class TSIDTeleop(InverseDynamicsController):
         if self.mode is ActuationMode.TORQUE or not res.ok:
             return super()._solve_limited(res, t0)
         F = self.formulation
-        limited = self.torque_solver.solve(F.problem_with_torque_limits())
+        limited = self.solve_qp(self.torque_solver, F.problem_with_torque_limits())
         self._t_solve = perf_counter() - t0
         self.qp_status = QP_OK
         if limited.ok:
