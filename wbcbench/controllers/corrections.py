@@ -320,12 +320,12 @@ def parse_corrections(sec: Section, key: str = "corrections") -> tuple[Correctio
                                 f"got {entry!r}")
         type_ = e.str("type")
         cls = correction_class(type_, file=sec.file, key=e.key("type"))
+        if issubclass(cls, StabilizerStage) and any(s.type == "stabilizer" for s in out):
+            raise e.error("type", "a task set has at most one stabilizer")
         name = e.str("name", type_)
         if name in names:
             raise e.error("name", f"'{name}' names entry {names[name]} too; give each stage of one type its own "
                                   "`name`")
-        if issubclass(cls, StabilizerStage) and any(s.type == "stabilizer" for s in out):
-            raise e.error("type", "a task set has at most one stabilizer")
         names[name] = i
         try:
             config = cls.parse(e)
