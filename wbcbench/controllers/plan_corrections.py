@@ -35,13 +35,14 @@ class PlanCorrections:
             then).
 
     Attributes:
-        stages: the stages, in order (a tuple); `names`: their names.
+        stages: the stages, in order (a tuple); `names`, `types`: their names and types.
     """
 
     def __init__(self, robot: Robot, dt: float, spec: TaskSetSpec, stabilizer: Stabilizer | None = None,
                  integrated_model: bool = True):
         stages: list[Correction] = []
         names: list[str] = []
+        types: list[str] = []
         for cs in spec.correction_specs():
             cls = correction_class(cs.type, file=spec.file or None, key="corrections")
             if cls.needs_integrated_model and not integrated_model:
@@ -52,11 +53,14 @@ class PlanCorrections:
                 stage = cls.build(cs.config, robot, dt)
             stages.append(stage)
             names.append(cs.name)
+            types.append(cs.type)
         if stabilizer is not None and not any(isinstance(s, StabilizerStage) for s in stages):
             stages.append(StabilizerStage(stabilizer))
             names.append("stabilizer")
+            types.append("stabilizer")
         self.stages: tuple[Correction, ...] = tuple(stages)
         self.names: tuple[str, ...] = tuple(names)
+        self.types: tuple[str, ...] = tuple(types)
         self.context = CorrectionContext()
         stab = next((s for s in stages if isinstance(s, StabilizerStage)), None)
         self.stabilizer: Stabilizer | None = None if stab is None else stab.stabilizer
@@ -69,7 +73,7 @@ class PlanCorrections:
 
     def stage(self, type_: str) -> Correction | None:
         """The first stage of type `type_` (None: none)."""
-        return next((s for s in self.stages if s.type == type_), None)
+        return next((s for s, t in zip(self.stages, self.types) if t == type_), None)
 
     # the built-in stages by their former attribute names
     @property
@@ -110,9 +114,12 @@ class PlanCorrections:
         """This tick's references with the stages applied in order. `q_model`: the controller's model configuration
         (the integrated one for position schemes); `feedback(refs)`: its model feedback for the references
         corrected so far (called only by a stage that needs it)."""
+        stages = self.stages
+        if not stages:
+            return refs
         ctx = self.context
         ctx.meas, ctx.plan, ctx.refs, ctx.q_model, ctx._feedback = meas, refs, refs, q_model, feedback
-        for stage in self.stages:
+        for stage in stages:
             ctx.refs = stage.apply(ctx)
         return ctx.refs
 
