@@ -60,7 +60,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BUILTIN_CORRECTIONS", "BaseFeedbackStage", "Correction", "CorrectionContext", "CorrectionSpec",
            "StabilizerStage", "available_corrections", "correction_class", "correction_plugin_errors",
-           "parse_corrections", "register_correction"]
+           "parse_corrections", "parse_settings", "register_correction"]
 
 #: the built-in correction types: name -> "module:Attr", imported when first used
 BUILTIN_CORRECTIONS: dict[str, str] = {
@@ -329,7 +329,7 @@ def parse_corrections(sec: Section, key: str = "corrections") -> tuple[Correctio
         names[name] = i
         try:
             config = cls.parse(e)
-        except ConfigError:
+        except ConfigError:  # already names file and key
             raise
         except (TypeError, ValueError) as exc:  # a plugin's settings class refusing a value
             raise e.error(None, str(exc)) from None
