@@ -1,4 +1,5 @@
-"""Plugins: controllers, scenario kinds and robot profiles from other installed packages, through entry points.
+"""Plugins: controllers, scenario kinds, robot profiles and plan corrections from other installed packages, through
+entry points.
 
 A package adds to wbcbench by declaring, in its pyproject.toml::
 
@@ -11,6 +12,10 @@ A package adds to wbcbench by declaring, in its pyproject.toml::
     [project.entry-points."wbcbench.robots"]
     my-robot = "my_package:PROFILE"                # the path of a robot profile YAML (str or Path, or a callable
                                                    # returning one)
+
+    [project.entry-points."wbcbench.corrections"]
+    lateral_shift = "my_package:LateralShift"      # a Correction subclass: a plan correction stage, used in task
+                                                   # sets as `corrections: [{type: lateral_shift, ...}]`
 
 They appear in `wbcbench list`, `run`, `reproduce` and sweeps beside the built-in ones. A plugin that fails to
 import, or that takes a name already taken (built-in or by another plugin), is reported with one line naming the
@@ -28,7 +33,7 @@ from .errors import ConfigError
 
 __all__ = ["GROUPS", "Plugin", "PluginError", "discover"]
 
-GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots")
+GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections")
 
 
 class PluginError(ConfigError):
@@ -67,6 +72,11 @@ def _check(group: str, obj: Any) -> str | None:
 
         if not (isinstance(obj, type) and issubclass(obj, Scenario)):
             return "is not a Scenario subclass"
+    elif group == "wbcbench.corrections":
+        from .controllers.corrections import Correction
+
+        if not (isinstance(obj, type) and issubclass(obj, Correction)):
+            return "is not a Correction subclass"
     elif group == "wbcbench.robots":
         path = Path(obj() if callable(obj) else obj)
         if not path.is_file():
