@@ -1,5 +1,5 @@
-"""The examples/ folder, installed and run as a user would: a controller plugin (pip-installed, found through its
-entry point), a scenario built in Python, a third robot by YAML alone.
+"""The examples/ folder, installed and run as a user would: a controller plugin and a plan-correction plugin
+(pip-installed, found through their entry points), a scenario built in Python, a third robot by YAML alone.
 
 Plugins are pip-installed into a directory of their own that the commands under test get on their PYTHONPATH
 (`pip install --target`): the installed distribution and its entry points are found exactly as in site-packages,
@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,6 +73,61 @@ def test_plugin_controller_joins_the_reproduce_report(weighted_ik, tmp_path):
     assert {(r["controller"], r["scenario"]) for r in res["runs"]} == {(weighted_ik, "walk-20cm"),
                                                                        (weighted_ik, "sway")}
     assert "Weighted" in (out / "report.md").read_text() or weighted_ik in (out / "report.md").read_text()
+
+
+@pytest.fixture(scope="module")
+def lateral_shift(tmp_path_factory):
+    """examples/lateral_shift pip-installed for the module: its install directory."""
+    return _pip_install(EXAMPLES / "lateral_shift", tmp_path_factory.mktemp("lateral-shift"))
+
+
+def _log(run_dir: Path) -> dict:
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(run_dir / "log.parquet")
+    return {n: table.column(n).to_numpy() for n in table.column_names}
+
+
+def test_the_example_correction_is_about_20_lines():
+    src = EXAMPLES / "lateral_shift" / "src" / "wbcbench_lateral_shift" / "__init__.py"
+    assert len([ln for ln in src.read_text().splitlines() if ln.strip()]) <= 30
+
+
+def test_plugin_correction_shifts_the_walks_references_by_its_offset(lateral_shift, tmp_path):
+    """examples/lateral_shift, found by its `wbcbench.corrections` entry point and declared first in an IK task
+    set's `corrections:` list: the CoM reference it hands on is the plan's (the logged com_ref) shifted by exactly its
+    offset (0.02 m along y, faded in over its first second), the robot walks the shifted plan (its CoM about 2 cm to
+    the left of the unshifted run's) and does not fall."""
+    taskset = EXAMPLES / "lateral_shift" / "ik-shifted.yaml"
+    out = _cli("list", check_rc=0, plugins=lateral_shift)
+    assert "lateral_shift [wbcbench-lateral-shift]" in next(ln for ln in out.stdout.splitlines()
+                                                           if ln.startswith("corrections:"))
+    runs = {}
+    for name, extra in (("shifted", ["--taskset", str(taskset)]), ("plan", [])):
+        _cli("run", "walk-20cm-quick", "-c", "ik", *extra, "--duration", "4.0", "--out", str(tmp_path / name),
+             "--quiet", check_rc=0, plugins=lateral_shift)
+        s = json.loads((tmp_path / name / "summary.json").read_text())
+        assert not s["fell"], s["fall_reason"]
+        runs[name] = _log(tmp_path / name)
+    a, b = runs["shifted"], runs["plan"]
+    t = a["t"] - 1e-3  # the log's time is the end of the tick; the references are the tick's start's
+    shift = np.stack([a[f"correction_lateral_shift.{k}"] - a[f"com_ref.{k}"] for k in "xyz"], axis=1)
+    expected = np.zeros_like(shift)
+    expected[:, 1] = 0.02 * np.minimum(t / 1.0, 1.0)
+    np.testing.assert_allclose(shift, expected, rtol=0.0, atol=1e-12)
+    np.testing.assert_array_equal(a["com_ref.y"], b["com_ref.y"])  # the plan itself is the same
+    late = t > 1.5  # after the fade-in: standing, shifting the weight, the first step
+    dy = a["com.y"][late] - b["com.y"][late]
+    assert 0.015 < dy.mean() < 0.03 and np.abs(dy - 0.02).max() < 0.012, (dy.mean(), np.abs(dy - 0.02).max())
+    assert np.abs(a["com.x"][late] - b["com.x"][late]).max() < 0.005
+
+
+def test_a_task_set_naming_a_correction_that_is_not_installed_is_one_line(tmp_path):
+    out = _cli("run", "walk-20cm-quick", "-c", "ik", "--taskset", str(EXAMPLES / "lateral_shift" / "ik-shifted.yaml"),
+               "--duration", "0.01", "--out", str(tmp_path / "r"), check_rc=2)
+    err = out.stderr.strip().splitlines()
+    assert len(err) == 1 and "ik-shifted.yaml" in err[0] and "corrections[0].type" in err[0], err
+    assert "unknown correction type 'lateral_shift'" in err[0] and "plan_lead" in err[0]
 
 
 def test_python_scenario_example(tmp_path):

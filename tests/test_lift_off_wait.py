@@ -37,7 +37,7 @@ def _run(wait, loads, t_end):
     outs = {}
     for k in range(int(round((T0 - 0.01) / DT)), int(round(t_end / DT)) + 1):
         t = round(k * DT, 6)
-        outs[t] = wait.apply(_meas(t, loads(t)), _plan(t))
+        outs[t] = wait.correct(_meas(t, loads(t)), _plan(t))
     return outs[t], outs
 
 
@@ -77,8 +77,8 @@ def test_an_unloaded_foot_leaves_on_time():
     wait = LiftOffWait(LiftOffWaitConfig())
     refs = _plan(T0)
     for t in (T0 - 0.002, T0 - 0.001):
-        wait.apply(_meas(t, 300.0), _plan(t))
-    assert wait.apply(_meas(T0, 100.0), refs) is refs         # 100 N of 600 N: below 20 %
+        wait.correct(_meas(t, 300.0), _plan(t))
+    assert wait.correct(_meas(T0, 100.0), refs) is refs         # 100 N of 600 N: below 20 %
     assert wait.n_waits == 0
 
 

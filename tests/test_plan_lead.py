@@ -22,9 +22,9 @@ def _plan(t):
 
 def test_the_com_and_the_horizontal_zmp_are_taken_ahead():
     lead = PlanLead(PlanLeadConfig(time=0.03), DT)
-    first = lead.apply(_plan(1.0))
+    first = lead.correct(_plan(1.0))
     np.testing.assert_array_equal(first.zmp, _plan(1.0).zmp)          # no rate yet: the ZMP as planned
-    out = lead.apply(_plan(1.001))
+    out = lead.correct(_plan(1.001))
     ahead, now = _plan(1.031), _plan(1.001)
     np.testing.assert_allclose(out.com.position, ahead.com.position, atol=1e-12)
     np.testing.assert_allclose(out.com.velocity, ahead.com.velocity, atol=1e-12)
@@ -34,11 +34,11 @@ def test_the_com_and_the_horizontal_zmp_are_taken_ahead():
 
 def test_a_gap_in_time_restarts_the_zmp_rate():
     lead = PlanLead(PlanLeadConfig(), DT)
-    lead.apply(_plan(1.0))
-    out = lead.apply(_plan(1.5))
+    lead.correct(_plan(1.0))
+    out = lead.correct(_plan(1.5))
     np.testing.assert_array_equal(out.zmp, _plan(1.5).zmp)
     lead.reset()
-    np.testing.assert_array_equal(lead.apply(_plan(1.501)).zmp, _plan(1.501).zmp)
+    np.testing.assert_array_equal(lead.correct(_plan(1.501)).zmp, _plan(1.501).zmp)
 
 
 def test_taskset_key_and_its_errors(talos, tmp_path):

@@ -32,7 +32,7 @@ def _turn(tilt, q_meas, q_model, ticks=400):
     """The left swing foot's reference rotation (as a rotation vector) after `ticks` single-support ticks."""
     out = None
     for k in range(ticks):
-        out = tilt.apply(_meas(q_meas), _swing(k * 0.001), q_model)
+        out = tilt.correct(_meas(q_meas), _swing(k * 0.001), q_model)
     return so3_log(out.feet[L].rotation)
 
 
@@ -66,7 +66,7 @@ def test_the_turn_is_bounded_and_the_contact_turns_back_to_the_plan(talos):
     assert tilt.max_tilt == pytest.approx(0.03, rel=0.05)
     turned = tilt._ref[L].rotation
     # touch-down: the model's contact is turned back to the plan's orientation over 0.1 s (a quintic)
-    landed = [tilt.apply(_meas(q_meas), References(t=0.4 + k * 0.001, contacts=frozenset(Side)), q_model)
+    landed = [tilt.correct(_meas(q_meas), References(t=0.4 + k * 0.001, contacts=frozenset(Side)), q_model)
               for k in range(120)]
     angle = [float(np.linalg.norm(so3_log(PLAN_R.T @ r.contact_poses[L].rotation))) if L in r.contact_poses
              else None for r in landed]

@@ -30,12 +30,12 @@ def _landed(t):
 
 def test_an_unloaded_foot_descends_along_its_sole_normal_until_loaded():
     search = TouchdownSearch(TouchdownSearchConfig(speed=0.1, max_depth=0.02, min_force=100.0))
-    out = search.apply(_meas(0.0, -16.0), _swing(0.0))
+    out = search.correct(_meas(0.0, -16.0), _swing(0.0))
     assert out.contacts == {R}
     # planned touch-down, the foot unloaded: no contact yet, its last swing reference moves down the sole normal
-    out = search.apply(_meas(0.001, -16.0), _landed(0.001))
+    out = search.correct(_meas(0.001, -16.0), _landed(0.001))
     assert out.contacts == {R} and search.searching == {L}
-    out = search.apply(_meas(0.031, 40.0), _landed(0.031))
+    out = search.correct(_meas(0.031, 40.0), _landed(0.031))
     assert out.contacts == {R}
     foot = out.feet[L]
     assert foot.position == pytest.approx(np.array([0.3, 0.1, 0.04]) - 0.003 * SLOPE[:, 2])
@@ -43,7 +43,7 @@ def test_an_unloaded_foot_descends_along_its_sole_normal_until_loaded():
     np.testing.assert_array_equal(foot.rotation, SLOPE)
     # loaded: the contact is made (where the model's foot is), and kept
     for t in (0.032, 0.033):
-        out = search.apply(_meas(t, 150.0), _landed(t))
+        out = search.correct(_meas(t, 150.0), _landed(t))
         assert out.contacts == frozenset(Side) and not search.searching
     assert search.n_searches == 1
 
@@ -51,13 +51,13 @@ def test_an_unloaded_foot_descends_along_its_sole_normal_until_loaded():
 @pytest.mark.parametrize("why", ["depth", "other_foot_leaves"])
 def test_the_search_ends_at_its_depth_or_when_the_other_foot_leaves(why):
     search = TouchdownSearch(TouchdownSearchConfig(speed=0.1, max_depth=0.02, min_force=100.0))
-    search.apply(_meas(0.0, 0.0), _swing(0.0))
-    assert search.apply(_meas(0.001, 0.0), _landed(0.001)).contacts == {R}
+    search.correct(_meas(0.0, 0.0), _swing(0.0))
+    assert search.correct(_meas(0.001, 0.0), _landed(0.001)).contacts == {R}
     if why == "depth":       # 2 cm at 0.1 m/s: 0.2 s after the planned touch-down
-        assert search.apply(_meas(0.15, 0.0), _landed(0.15)).contacts == {R}
-        assert search.apply(_meas(0.202, 0.0), _landed(0.202)).contacts == frozenset(Side)
+        assert search.correct(_meas(0.15, 0.0), _landed(0.15)).contacts == {R}
+        assert search.correct(_meas(0.202, 0.0), _landed(0.202)).contacts == frozenset(Side)
     else:                    # the right foot's lift-off is planned: the left contact is made now
-        out = search.apply(_meas(0.05, 0.0), References(t=0.05, contacts=frozenset({L})))
+        out = search.correct(_meas(0.05, 0.0), References(t=0.05, contacts=frozenset({L})))
         assert out.contacts == {L}
     assert not search.searching
 
@@ -65,10 +65,10 @@ def test_the_search_ends_at_its_depth_or_when_the_other_foot_leaves(why):
 def test_a_loaded_or_standing_foot_is_not_searched():
     search = TouchdownSearch(TouchdownSearchConfig())
     refs = _landed(0.0)
-    assert search.apply(_meas(0.0, 0.0), refs) is refs        # both feet down from the start: nothing to search
-    search.apply(_meas(0.1, 0.0), _swing(0.1))
+    assert search.correct(_meas(0.0, 0.0), refs) is refs        # both feet down from the start: nothing to search
+    search.correct(_meas(0.1, 0.0), _swing(0.1))
     refs = _landed(0.2)
-    assert search.apply(_meas(0.2, 300.0), refs) is refs      # touched down early: loaded at the planned time
+    assert search.correct(_meas(0.2, 300.0), refs) is refs      # touched down early: loaded at the planned time
     assert search.n_searches == 0
 
 

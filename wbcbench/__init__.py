@@ -33,6 +33,8 @@ _EXPORTS = {
     "KinematicHierarchy": "wbcbench.controllers.ik_formulation",
     "TaskReferences": "wbcbench.controllers.task_references",
     "PlanCorrections": "wbcbench.controllers.plan_corrections",
+    "Correction": "wbcbench.controllers.corrections", "CorrectionContext": "wbcbench.controllers.corrections",
+    "register_correction": "wbcbench.controllers.corrections",
     "Stabilizer": "wbcbench.stabilizers.base", "register_stabilizer": "wbcbench.stabilizers.base",
     "register_task": "wbcbench.tasks",
     # vocabulary

@@ -139,6 +139,7 @@ def _cmd_run(args) -> int:
 def _cmd_list() -> int:
     """The registries, each entry with where it comes from; broken plugins one line each on stderr (exit 2)."""
     from .controllers.base import available_controllers, builtin_controllers, controller_plugin_errors
+    from .controllers.corrections import BUILTIN_CORRECTIONS, available_corrections, correction_plugin_errors
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
     from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
     from .sensing import available_profiles
@@ -153,15 +154,17 @@ def _cmd_list() -> int:
     builtin = builtin_controllers()
     ctrls = [n + ("" if n in builtin else origin(c.__module__)) for n, c in available_controllers().items()]
     kinds = [n + ("" if n in _KINDS else origin(k.__module__)) for n, k in sorted(available_kinds().items())]
+    corrections = [n + ("" if n in BUILTIN_CORRECTIONS else f" [{o.split(' ')[0].split('.')[0].split(':')[0]}]")
+                   for n, o in available_corrections().items()]
     plug = plugin_robots()
     robots = builtin_robots() + [f"{n} [{p}]" for n, p in sorted(plug.items())]
     print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
           f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
           f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
-          f"sensors:     {', '.join(available_profiles())}\n"
+          f"corrections: {', '.join(corrections)}\nsensors:     {', '.join(available_profiles())}\n"
           f"engines:     {', '.join(engine_label(e) for e in available_engines())}")
     errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values(),
-              *engine_plugin_errors().values()]
+              *correction_plugin_errors().values(), *engine_plugin_errors().values()]
     for e in errors:
         print(f"wbcbench: error: {e}", file=sys.stderr)
     return 2 if errors else 0

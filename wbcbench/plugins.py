@@ -1,4 +1,5 @@
-"""Plugins: controllers, scenario kinds and robot profiles from other installed packages, through entry points.
+"""Plugins: controllers, scenario kinds, robot profiles and plan corrections from other installed packages, through
+entry points.
 
 A package adds to wbcbench by declaring, in its pyproject.toml::
 
@@ -11,6 +12,10 @@ A package adds to wbcbench by declaring, in its pyproject.toml::
     [project.entry-points."wbcbench.robots"]
     my-robot = "my_package:PROFILE"                # the path of a robot profile YAML (str or Path, or a callable
                                                    # returning one)
+
+    [project.entry-points."wbcbench.corrections"]
+    lateral_shift = "my_package:LateralShift"      # a Correction subclass: a plan correction stage, used in task
+                                                   # sets as `corrections: [{type: lateral_shift, ...}]`
 
     [project.entry-points."wbcbench.engines"]
     my-engine = "my_package:MySimulator"           # a physics engine: a class with the interface of
@@ -32,7 +37,8 @@ from .errors import ConfigError
 
 __all__ = ["GROUPS", "Plugin", "PluginError", "discover"]
 
-GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.engines")
+GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections",
+          "wbcbench.engines")
 
 
 class PluginError(ConfigError):
@@ -71,6 +77,11 @@ def _check(group: str, obj: Any) -> str | None:
 
         if not (isinstance(obj, type) and issubclass(obj, Scenario)):
             return "is not a Scenario subclass"
+    elif group == "wbcbench.corrections":
+        from .controllers.corrections import Correction
+
+        if not (isinstance(obj, type) and issubclass(obj, Correction)):
+            return "is not a Correction subclass"
     elif group == "wbcbench.engines":
         if not callable(obj):
             return "is not a simulator class (called with robot, terrain, mode, options, pushes, model_error)"

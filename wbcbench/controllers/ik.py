@@ -73,8 +73,9 @@ class IKController(Controller):
         self.level_names = K.level_names
         self.references = TaskReferences(self.tasks, swing, swing_pitch=spec.swing_pitch_with_leg)
         self.solver = HierarchicalSolver(m.nv, solver=spec.solver)
-        # touch-down search, base feedback and stabilizer, as the task set asks (plan_corrections.py)
+        # the task set's correction stages (plan lead, base feedback, stabilizer, ...: plan_corrections.py)
         self.corrections = PlanCorrections(robot, dt, spec, stabilizer)
+        self._log_sources = self.corrections.log_sources
         self.n_unmet = 0
         self.n_failed = 0
         self.unmet_levels = -1
@@ -92,7 +93,7 @@ class IKController(Controller):
         self.v = np.zeros(self.model.nv)
         K.update(self.q_int)
         K.reset_references(self.robot.q0, refs.contacts)
-        self.corrections.reset(meas, refs, lambda: ModelFeedback(self.q_int, frozenset(refs.contacts)))
+        self.corrections.reset(meas, refs, lambda: ModelFeedback(self.q_int, frozenset(refs.contacts)), self.q_int)
         self._warm_up()
 
     def _warm_up(self) -> None:
@@ -136,14 +137,13 @@ class IKController(Controller):
 
     def log_channels(self) -> dict[str, list[str]]:
         ch = {"ik_unmet_level": []}
-        if self.stabilizer is not None:
-            ch["stabilizer"] = list(self.stabilizer.LOG_LABELS)
+        ch.update(self.corrections.log_channels())  # the stabilizer's and any other logging stage's
         return ch
 
     def log_values(self) -> list:
         vals = [self.unmet_levels]
-        if self.stabilizer is not None:
-            vals.append(self.stabilizer.log)
+        for src in self._log_sources:
+            vals.append(src.log)
         return vals
 
     def status(self) -> dict:

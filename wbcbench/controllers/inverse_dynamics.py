@@ -116,11 +116,12 @@ class InverseDynamicsController(Controller):
         self.dv = np.zeros(self.nv)
         self.q_int = None
         self.v_int = None
-        # touch-down search, base feedback and stabilizer, as the task set asks (plan_corrections.py); the first two
-        # only in position and SPD modes (torque mode feeds back the measured state, and its contact forces press a
-        # landing foot down)
+        # the task set's correction stages (plan_corrections.py); those that need an integrated model only in
+        # position and SPD modes (torque mode feeds back the measured state, and its contact forces press a landing
+        # foot down)
         self.corrections = PlanCorrections(robot, dt, spec, stabilizer,
                                            integrated_model=mode is not ActuationMode.TORQUE)
+        self._log_sources = self.corrections.log_sources
         # the ankle pitch joints' axes (a toe-off's swing turns about them, `_set_references`), for a task set that
         # takes the plan's swing pitch
         self._ankle_axes = _ankle_pitch_axes(robot) if spec.swing_pitch_with_leg else {}
@@ -152,7 +153,7 @@ class InverseDynamicsController(Controller):
         self.fallback_pd = JointPD(self.robot, ActuationMode.TORQUE, self.dt)
         self._warm_up(meas)
         # the stabilizer's feedback at reset holds the warm-up solve's wrenches
-        self.corrections.reset(meas, refs, lambda: self.feedback(at_reset=True))
+        self.corrections.reset(meas, refs, lambda: self.feedback(at_reset=True), self._state(meas)[0])
 
     def _warm_up(self, meas: Measurement) -> None:
         """Assemble and solve this tick's QP once, without acting: the compiled kernels are compiled (or loaded
@@ -191,8 +192,8 @@ class InverseDynamicsController(Controller):
     def step(self, meas: Measurement, refs: References) -> Command:
         F = self.formulation
         q, v = self._state(meas)
-        # the stabilizer on the model of the last solve (its wrenches and contact placements)
-        refs = self.corrections.apply(meas, refs, self.q_int, self._stabilizer_feedback)
+        # the corrections on the model of the last solve (the stabilizer: its wrenches and contact placements)
+        refs = self.corrections.apply(meas, refs, q, self._stabilizer_feedback)
         t0 = perf_counter()
         F.update(q, v)
         self._t_pin = perf_counter() - t0
@@ -300,8 +301,7 @@ class InverseDynamicsController(Controller):
     def log_channels(self) -> dict[str, list[str]]:
         w = ["fx", "fy", "fz", "mx", "my", "mz"]
         ch = {"qp_status": [], "tau_cmd": self.robot.joint_names}
-        if self.stabilizer is not None:
-            ch["stabilizer"] = list(self.stabilizer.LOG_LABELS)
+        ch.update(self.corrections.log_channels())  # the stabilizer's and any other logging stage's
         ch.update({"wrench_qp_left": w, "wrench_qp_right": w, "contact_active": ["left", "right"]})
         return ch
 
@@ -309,9 +309,12 @@ class InverseDynamicsController(Controller):
         F = self.formulation
         active, contacts, wrenches = self._log_active, F.contacts, F.wrenches
         active[0], active[1] = contacts[_LEFT].active, contacts[_RIGHT].active
-        if self.stabilizer is None:
+        logs = self._log_sources
+        if len(logs) == 1:  # the usual: the stabilizer
+            return [self.qp_status, self.tau, logs[0].log, wrenches[_LEFT], wrenches[_RIGHT], active]
+        if not logs:
             return [self.qp_status, self.tau, wrenches[_LEFT], wrenches[_RIGHT], active]
-        return [self.qp_status, self.tau, self.stabilizer.log, wrenches[_LEFT], wrenches[_RIGHT], active]
+        return [self.qp_status, self.tau, *[src.log for src in logs], wrenches[_LEFT], wrenches[_RIGHT], active]
 
     def status(self) -> dict:
         return self.corrections.status({"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback})

@@ -28,7 +28,9 @@ import pinocchio as pin
 
 from ..planning.swing import quintic_blend
 from ..side import Side
+from ..config import Section
 from ..types import Measurement, PoseReference, References
+from .corrections import Correction, CorrectionContext, parse_settings
 from .touchdown import foot_load
 
 __all__ = ["LiftOffWaitConfig", "LiftOffWait"]
@@ -69,15 +71,32 @@ class _Swing:
     delay: float = 0.0
 
 
-class LiftOffWait:
-    """Per tick, `apply(meas, refs)` returns the references with a loaded leaving foot held in contact, or its
-    swing on the warped clock (module docstring). Stateful: `reset()` between runs."""
+class LiftOffWait(Correction):
+    """Per tick, `correct(meas, refs)` returns the references with a loaded leaving foot held in contact, or its
+    swing on the warped clock (module docstring). Stateful: `reset()` between runs. The correction stage
+    `lift_off_wait` (`{type: lift_off_wait, max_load: 0.2, max_wait: 0.1, catch_up: 0.5}`)."""
+
+    type = "lift_off_wait"
+    needs_integrated_model = True
 
     def __init__(self, config: LiftOffWaitConfig):
-        self.config = config
+        super().__init__(config)
         self.reset()
 
-    def reset(self) -> None:
+    @classmethod
+    def parse(cls, sec: Section) -> LiftOffWaitConfig:
+        return parse_settings(sec, LiftOffWaitConfig, upper={"max_load": (
+            1.0, "is a share of the feet's summed load: must be in (0, 1)")})
+
+    @classmethod
+    def build(cls, config: LiftOffWaitConfig, robot, dt: float) -> "LiftOffWait":
+        return cls(config)
+
+    def status(self) -> dict:
+        """The lift-offs delayed and their summed delay [s]."""
+        return {"lift_off_waits": self.n_waits, "lift_off_wait_s": round(self.total_wait, 4)}
+
+    def reset(self, ctx: CorrectionContext | None = None) -> None:
         self._swing: dict[Side, _Swing] = {}
         self._prev: frozenset = frozenset(Side)
         self.n_waits = 0
@@ -92,7 +111,12 @@ class LiftOffWait:
         f, g = max(foot_load(meas, side), 0.0), max(foot_load(meas, side.other), 0.0)
         return f + g > 0.0 and f > self.config.max_load * (f + g)
 
-    def apply(self, meas: Measurement, refs: References) -> References:
+    def correct(self, meas: Measurement, refs: References) -> References:
+        """The stage's `apply` outside a controller."""
+        return self.apply(CorrectionContext.of(refs, meas))
+
+    def apply(self, ctx: CorrectionContext) -> References:
+        meas, refs = ctx.meas, ctx.refs
         c = self.config
         contacts, t = refs.contacts, refs.t
         held, warped = [], {}

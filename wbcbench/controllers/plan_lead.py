@@ -17,7 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..config import Section
 from ..types import PointReference, References
+from .corrections import Correction, CorrectionContext, parse_settings
 
 __all__ = ["PlanLeadConfig", "PlanLead"]
 
@@ -35,20 +37,36 @@ class PlanLeadConfig:
             raise ValueError(f"PlanLeadConfig.time must be > 0 s, got {self.time!r}")
 
 
-class PlanLead:
-    """Per tick, `apply(refs)` returns the references with the CoM and the horizontal ZMP led (module docstring).
-    Stateful (the previous ZMP reference): `reset()` between runs."""
+class PlanLead(Correction):
+    """Per tick, `correct(refs)` returns the references with the CoM and the horizontal ZMP led (module docstring).
+    Stateful (the previous ZMP reference): `reset()` between runs. The correction stage `plan_lead`
+    (`{type: plan_lead, time: 0.02}`)."""
+
+    type = "plan_lead"
+    needs_integrated_model = True
 
     def __init__(self, config: PlanLeadConfig, dt: float):
-        self.config = config
-        self.dt = dt
+        super().__init__(config, None, dt)
         self._zmp_lead = np.array([config.time, config.time, 0.0])
         self.reset()
 
-    def reset(self) -> None:
+    @classmethod
+    def parse(cls, sec: Section) -> PlanLeadConfig:
+        return parse_settings(sec, PlanLeadConfig, required=("time",))
+
+    @classmethod
+    def build(cls, config: PlanLeadConfig, robot, dt: float) -> "PlanLead":
+        return cls(config, dt)
+
+    def reset(self, ctx: CorrectionContext | None = None) -> None:
         self._prev: tuple[float, np.ndarray] | None = None
 
-    def apply(self, refs: References) -> References:
+    def correct(self, refs: References) -> References:
+        """`refs` with the CoM and the horizontal ZMP led (the stage's `apply` outside a controller)."""
+        return self.apply(CorrectionContext.of(refs))
+
+    def apply(self, ctx: CorrectionContext) -> References:
+        refs = ctx.refs
         T = self.config.time
         com, zmp = refs.com, refs.zmp
         if com is not None:

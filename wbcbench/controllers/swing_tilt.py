@@ -25,7 +25,9 @@ from ..planning.geometry import so3_exp, so3_log
 from ..planning.swing import quintic_blend
 from ..robots import Robot
 from ..side import Side
+from ..config import Section
 from ..types import Measurement, PoseReference, References
+from .corrections import Correction, CorrectionContext, parse_settings
 
 __all__ = ["SwingTiltConfig", "SwingTilt"]
 
@@ -51,13 +53,17 @@ class SwingTiltConfig:
                 raise ValueError(f"SwingTiltConfig.{name} must be > 0, got {v!r}")
 
 
-class SwingTilt:
-    """Per tick, `apply(meas, refs, q_model)` returns the references with the swing feet turned and the contacts
+class SwingTilt(Correction):
+    """Per tick, `correct(meas, refs, q_model)` returns the references with the swing feet turned and the contacts
     just made from a turned foot turning back (module docstring). References in the integrated model's world (after
-    the base feedback). Stateful: `reset()` between runs."""
+    the base feedback). Stateful: `reset()` between runs. The correction stage `swing_tilt` (`{type: swing_tilt,
+    gain: 0.3, max_tilt: 0.05, time_constant: 0.05, settle: 0.1}`)."""
+
+    type = "swing_tilt"
+    needs_integrated_model = True
 
     def __init__(self, config: SwingTiltConfig, robot: Robot, dt: float):
-        self.config = config
+        super().__init__(config, robot, dt)
         self._alpha = min(1.0, dt / config.time_constant)
         m = robot.model
         self._model = m
@@ -73,7 +79,15 @@ class SwingTilt:
             self._leg_q[s] = np.array(sorted(idx))
         self.reset()
 
-    def reset(self) -> None:
+    @classmethod
+    def parse(cls, sec: Section) -> SwingTiltConfig:
+        return parse_settings(sec, SwingTiltConfig)
+
+    def status(self) -> dict:
+        """The largest measured tilt [rad]."""
+        return {"swing_tilt_max_rad": round(self.max_tilt, 5)}
+
+    def reset(self, ctx: CorrectionContext | None = None) -> None:
         self._tilt: dict[Side, np.ndarray] = {}     # each swing foot's filtered tilt (rotation vector, sole frame)
         self._ref: dict[Side, PoseReference] = {}   # each swing foot's last (turned) reference
         self._plan: dict[Side, np.ndarray] = {}     # and the plan's orientation then
@@ -87,7 +101,12 @@ class SwingTilt:
         b = pin.updateFramePlacement(self._model, data, self._sole[s.other]).rotation
         return b.T @ a
 
-    def apply(self, meas: Measurement, refs: References, q_model: np.ndarray | None) -> References:
+    def correct(self, meas: Measurement, refs: References, q_model: np.ndarray | None) -> References:
+        """The stage's `apply` outside a controller."""
+        return self.apply(CorrectionContext.of(refs, meas, q_model))
+
+    def apply(self, ctx: CorrectionContext) -> References:
+        meas, refs, q_model = ctx.meas, ctx.refs, ctx.q_model
         c = self.config
         feet = None
         poses = None

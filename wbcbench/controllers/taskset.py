@@ -11,12 +11,20 @@ frame tasks (a model frame or a symbolic one of the robot profile: `base`, `tors
 `right_hand`, `left_foot`, `right_foot`), `side: left|right` for self_collision tasks (the profile's repulsion
 points; one axis per point, so `kp`/`kd`/`mask` are a number or one value per point).
 
-`stabilizer:` (optional) selects a stabilizer by `type:` (`wbcbench.stabilizers`: `dcm`, `force`) with its gains.
+`corrections:` (optional) lists the plan corrections in the order they run (`wbcbench.controllers.corrections`):
+  corrections:
+    - {type: plan_lead, time: 0.02}
+    - {type: base_feedback, time_constant: 0.3, liftoff_blend: 0.3}
+    - {type: stabilizer, law: dcm, kp_adm: 15.0, kp_dcm: 8.0, ki_dcm: 1.0, kz_dcm: 1.0}
+each entry a registered correction type (built-in, or a plugin's through the entry-point group
+`wbcbench.corrections`) with its settings. Instead of the list, the sections `plan_lead:`, `lift_off_wait:`,
+`touchdown_search:`, `base_feedback:`, `swing_tilt:` and `stabilizer:` (a stabilizer by `type:`: `dcm`, `force`,
+with its gains) give the built-in stages, run in that order; a task set gives one form or the other.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,6 +34,7 @@ from ..config import Section, load_yaml
 from ..errors import ConfigError
 from ..robots import Robot
 from ..tasks.registry import TaskSpec, resolve_frame, task_class
+from .corrections import SECTIONS, CorrectionSpec, parse_corrections, parse_settings, specs_from_sections
 
 if TYPE_CHECKING:
     from ..estimation.base_feedback import BaseFeedbackConfig
@@ -97,7 +106,8 @@ class TaskSetSpec:
     (`WalkScenario.adopt_step_adjustment`), None: the defaults;
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
     (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
-    out-of-reach caps (`ReachCapSpec`)."""
+    out-of-reach caps (`ReachCapSpec`); `corrections`: the stages of a `corrections:` list in order (then the six
+    sections above are None), None when the task set gives its corrections as sections (`correction_specs`)."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -119,7 +129,29 @@ class TaskSetSpec:
     step_adjustment: tuple[tuple[str, object], ...] | None = None
     swing_pitch_with_leg: bool = False
     reach_cap: ReachCapSpec | None = None
+    corrections: tuple[CorrectionSpec, ...] | None = None
     file: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        if self.corrections is not None:
+            given = [k for k in SECTIONS if getattr(self, k) is not None]
+            if given:
+                raise ConfigError(f"give the corrections either as the `corrections:` list or as sections, not "
+                                  f"both (sections given: {', '.join(given)})", file=self.file or None,
+                                  key="corrections")
+
+    def correction_specs(self) -> tuple[CorrectionSpec, ...]:
+        """The correction stages in the order they run: the `corrections:` list, or the sections mapped onto it in
+        the order plan_lead, lift_off_wait, touchdown_search, base_feedback, swing_tilt, stabilizer."""
+        return self.corrections if self.corrections is not None else specs_from_sections(self)
+
+    def without_stabilizer(self) -> "TaskSetSpec":
+        """This task set without its stabilizer (section or stage)."""
+        from dataclasses import replace
+
+        if self.corrections is None:
+            return replace(self, stabilizer=None)
+        return replace(self, corrections=tuple(c for c in self.corrections if c.type != "stabilizer"))
 
     def task(self, name: str) -> TaskSpec:
         for t in self.tasks:
@@ -237,6 +269,13 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     pitch_with_leg = sw.bool("pitch_with_leg", False)
     swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
+    corrections = None
+    if root.has("corrections"):
+        both = [k for k in SECTIONS if root.has(k)]
+        if both:
+            raise root.error("corrections", f"the corrections are given twice: as this list and as the section(s) "
+                                            f"{', '.join(both)}; move them into the list (in the order they run)")
+        corrections = parse_corrections(root)
     stab = None
     if root.has("stabilizer"):
         from ..stabilizers.base import parse_stabilizer
@@ -309,7 +348,8 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        solver=root.str("solver", "daqp", choices=["daqp", "proxsuite"]), stabilizer=stab,
                        base_feedback=base_feedback, touchdown_search=touchdown, swing_tilt=swing_tilt,
                        lift_off_wait=lift_off_wait, plan_lead=plan_lead, step_adjustment=step_adjustment,
-                       swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, file=file)
+                       swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, corrections=corrections,
+                       file=file)
     reg.finish()
     root.finish()
     return spec
@@ -322,11 +362,6 @@ def _positive_section(root, key: str, cls, required: tuple[str, ...] = (), upper
     if not root.has(key):
         return None
     sec = root.section(key)
-    values = {}
-    for f in fields(cls):
-        v = sec.float(f.name, ... if f.name in required else f.default, positive=True)
-        if upper and f.name in upper and v >= upper[f.name][0]:
-            raise sec.error(f.name, f"{upper[f.name][1]}, got {v}")
-        values[f.name] = v
+    out = parse_settings(sec, cls, required, upper)
     sec.finish()
-    return cls(**values)
+    return out

@@ -177,7 +177,7 @@ class TSIDTeleop(InverseDynamicsController):
             taskset = load_taskset(taskset, robot)
         spec = taskset if taskset is not None else teleop_taskset(robot, repulsors=repulsors)
         if not stabilizer:
-            spec = replace(spec, stabilizer=None)
+            spec = spec.without_stabilizer()
         super().__init__(robot, ActuationMode(mode), dt, spec)
         if self.mode is not ActuationMode.TORQUE and spec.solver == "daqp":
             # the torque-limited QP may fail here (`_solve_limited` keeps the joint-limited optimum), so it gets a

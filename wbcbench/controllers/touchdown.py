@@ -19,7 +19,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..side import Side
+from ..config import Section
 from ..types import Measurement, PoseReference, References
+from .corrections import Correction, CorrectionContext, parse_settings
 
 __all__ = ["TouchdownSearchConfig", "TouchdownSearch"]
 
@@ -50,26 +52,47 @@ def foot_load(meas: Measurement, side: Side) -> float:
     return -float(f[2]) if f is not None else np.inf
 
 
-class TouchdownSearch:
-    """Per tick, `apply(meas, refs)` returns the references with a searching foot out of `contacts` and its
-    reference descending (module docstring). Stateful: `reset()` between runs."""
+class TouchdownSearch(Correction):
+    """Per tick, `correct(meas, refs)` returns the references with a searching foot out of `contacts` and its
+    reference descending (module docstring). Stateful: `reset()` between runs. The correction stage
+    `touchdown_search` (`{type: touchdown_search, speed: 0.1, max_depth: 0.02, min_force: 100.0}`)."""
+
+    type = "touchdown_search"
+    needs_integrated_model = True
 
     def __init__(self, config: TouchdownSearchConfig):
-        self.config = config
+        super().__init__(config)
         self._last: dict[Side, PoseReference] = {}      # each foot's last swing reference
         self._search: dict[Side, float] = {}            # searching foot -> time its touch-down was planned
         self._prev: frozenset = frozenset(Side)
         self.n_searches = 0
 
-    def reset(self) -> None:
+    @classmethod
+    def parse(cls, sec: Section) -> TouchdownSearchConfig:
+        return parse_settings(sec, TouchdownSearchConfig)
+
+    @classmethod
+    def build(cls, config: TouchdownSearchConfig, robot, dt: float) -> "TouchdownSearch":
+        return cls(config)
+
+    def reset(self, ctx: CorrectionContext | None = None) -> None:
         self._last, self._search, self._prev = {}, {}, frozenset(Side)
         self.n_searches = 0
+
+    def status(self) -> dict:
+        """The touch-down searches made."""
+        return {"touchdown_searches": self.n_searches}
 
     @property
     def searching(self) -> frozenset:
         return frozenset(self._search)
 
-    def apply(self, meas: Measurement, refs: References) -> References:
+    def correct(self, meas: Measurement, refs: References) -> References:
+        """The stage's `apply` outside a controller."""
+        return self.apply(CorrectionContext.of(refs, meas))
+
+    def apply(self, ctx: CorrectionContext) -> References:
+        meas, refs = ctx.meas, ctx.refs
         c = self.config
         contacts = refs.contacts
         feet = None
