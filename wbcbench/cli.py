@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--realtime", action="store_true",
                    help="pace the simulation to the wall clock; late ticks are counted (summary `realtime`, log "
                         "`lateness_ms`)")
+    r.add_argument("--engine", default="mujoco",
+                   help="physics engine: mujoco (default), dart (pip install 'wbcbench[dart]'), or a plugin's")
     r.add_argument("--video", action="store_true",
                    help="render the run to RUN_DIR/video.mp4 when it ends (see `wbcbench render`)")
     from .viz.commands import add_view_options
@@ -111,7 +113,8 @@ def _cmd_run(args) -> int:
     view = live_view_from(args)
     kwargs = dict(taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error,
                   faults=faults, predict_falls=args.predict_falls, safe_stop=args.safe_stop,
-                  overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [])
+                  overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [],
+                  engine=args.engine)
     try:
         if args.quiet:
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out, **kwargs)
@@ -140,6 +143,7 @@ def _cmd_list() -> int:
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
     from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
     from .sensing import available_profiles
+    from .sim.engines import available_engines, engine_label, engine_plugin_errors
     from .stabilizers.base import available_stabilizers
     from .tasks import task_types
 
@@ -157,9 +161,10 @@ def _cmd_list() -> int:
     print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
           f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
           f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
-          f"corrections: {', '.join(corrections)}\nsensors:     {', '.join(available_profiles())}")
+          f"corrections: {', '.join(corrections)}\nsensors:     {', '.join(available_profiles())}\n"
+          f"engines:     {', '.join(engine_label(e) for e in available_engines())}")
     errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values(),
-              *correction_plugin_errors().values()]
+              *correction_plugin_errors().values(), *engine_plugin_errors().values()]
     for e in errors:
         print(f"wbcbench: error: {e}", file=sys.stderr)
     return 2 if errors else 0

@@ -17,6 +17,10 @@ A package adds to wbcbench by declaring, in its pyproject.toml::
     lateral_shift = "my_package:LateralShift"      # a Correction subclass: a plan correction stage, used in task
                                                    # sets as `corrections: [{type: lateral_shift, ...}]`
 
+    [project.entry-points."wbcbench.engines"]
+    my-engine = "my_package:MySimulator"           # a physics engine: a class with the interface of
+                                                   # wbcbench.sim.simulator.Simulator (see wbcbench.sim.engines)
+
 They appear in `wbcbench list`, `run`, `reproduce` and sweeps beside the built-in ones. A plugin that fails to
 import, or that takes a name already taken (built-in or by another plugin), is reported with one line naming the
 entry point and its distribution when that name is used (and by `wbcbench list`); nothing else is affected.
@@ -33,7 +37,8 @@ from .errors import ConfigError
 
 __all__ = ["GROUPS", "Plugin", "PluginError", "discover"]
 
-GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections")
+GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections",
+          "wbcbench.engines")
 
 
 class PluginError(ConfigError):
@@ -77,6 +82,9 @@ def _check(group: str, obj: Any) -> str | None:
 
         if not (isinstance(obj, type) and issubclass(obj, Correction)):
             return "is not a Correction subclass"
+    elif group == "wbcbench.engines":
+        if not callable(obj):
+            return "is not a simulator class (called with robot, terrain, mode, options, pushes, model_error)"
     elif group == "wbcbench.robots":
         path = Path(obj() if callable(obj) else obj)
         if not path.is_file():

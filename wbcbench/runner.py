@@ -36,6 +36,7 @@ from .robots import Robot, load_robot
 from .scenarios import Scenario, load_scenario
 from .scenarios.base import robot_sizes
 from .sensing import make_sensor_model
+from .sim.engines import make_simulator
 from .sim.model import SimOptions
 from .sim.simulator import Simulator
 from .stabilizers.base import MissingReferenceError
@@ -84,6 +85,7 @@ class RunConfig:
     realtime: bool = False
     branch: BranchPoint | None = None
     hooks: tuple = ()
+    engine: str = "mujoco"
 
 
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
@@ -92,7 +94,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
         overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None,
-        hooks: Sequence = ()) -> RunResult:
+        hooks: Sequence = (), engine: str = "mujoco") -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -104,10 +106,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     `branch`: continue the run several times from one state (`BranchPoint`).
     `hooks`: the caller's own part in each tick, `wbcbench.loop.Hook` objects or `(phase, callable(tick))`
     pairs, called after the built-in work of their phases (`wbcbench.loop` documents the phases).
+    `engine`: the physics engine (`wbcbench.sim.engines`: mujoco, dart or a plugin's).
     """
     return run_config(RunConfig(scenario, controller, robot, mode, duration, out, progress, sim_options,
                                 tuple(probes), taskset, sensors, seed, model_error, tuple(faults), predict_falls,
-                                safe_stop, overwrite, realtime, branch, tuple(hooks)))
+                                safe_stop, overwrite, realtime, branch, tuple(hooks), engine))
 
 
 def run_config(cfg: RunConfig) -> RunResult:
@@ -185,7 +188,9 @@ def _build(cfg: RunConfig) -> _Parts:
         model_error = parse_model_error(Section(load_yaml(model_error), str(model_error)))
     model_error = model_error if model_error is not None else spec.model_error
     try:
-        sim = Simulator(robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+        sim = make_simulator(cfg.engine, robot, spec.terrain, ctrl.mode, options, spec.pushes, model_error)
+    except ConfigError:
+        raise
     except ValueError as exc:  # MuJoCo refuses the model built from the profile's URDF
         raise ConfigError(f"cannot build the MuJoCo model: {str(exc).splitlines()[0]}",
                           file=robot.profile.file) from None
@@ -240,7 +245,8 @@ def _config(cfg: RunConfig, p: _Parts) -> dict:
             **({"scenario_sizes": sizes} if (sizes := robot_sizes(spec.name, robot)) else {}),
             "controller": p.controller,
             "taskset_file": getattr(getattr(ctrl, "spec", None), "file", None) or None,
-            "mode": ctrl.mode.value, "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
+            "mode": ctrl.mode.value, "engine": cfg.engine,
+            "duration_s": spec.duration or None, "control_dt_s": spec.control_dt,
             "sim": {"timestep": options.timestep, "integrator": options.integrator,
                     "noslip_iterations": options.noslip_iterations, "substeps": p.substeps,
                     "self_collision": options.self_collision},

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 COMMANDS = ("reproduce", "report", "compare")
 
@@ -37,6 +38,10 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
                         "at the scenario sizes of its profile")
     r.add_argument("--sensors", default=None,
                    help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
+    r.add_argument("--engine", default="mujoco", help="physics engine of every run: mujoco (default), dart, a plugin's")
+    r.add_argument("--engines", default=None, metavar="E1,E2",
+                   help="the matrix on each engine (OUT/<engine>/) and an engine-sensitivity section beside them "
+                        "(OUT/engine-sensitivity.md, .html, .json), the first engine the reference")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories (from `wbcbench run`)")
     p.add_argument("--out", "-o", required=True, help="report directory")
@@ -57,11 +62,22 @@ def run_command(args: argparse.Namespace) -> int:
     if args.command == "reproduce":
         if args.jobs is not None and args.jobs < 1:
             raise WbcError(f"--jobs must be >= 1, got {args.jobs}")
-        res = reproduce(args.out, quick=args.quick, jobs=args.jobs, progress=not args.quiet,
-                        sanity=not args.no_sanity, sensors=args.sensors,
-                        controllers=args.controllers.split(",") if args.controllers else None,
-                        scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
-                        keyframes=not args.no_keyframes, video=args.video, robot=args.robot)
+        kwargs = dict(quick=args.quick, jobs=args.jobs, progress=not args.quiet,
+                      sanity=not args.no_sanity, sensors=args.sensors,
+                      controllers=args.controllers.split(",") if args.controllers else None,
+                      scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
+                      keyframes=not args.no_keyframes, video=args.video, robot=args.robot)
+        if args.engines:
+            from .reproduce import reproduce_engines
+
+            reports, _ = reproduce_engines(args.out, args.engines.split(","), **kwargs)
+            for e, r in zip(args.engines.split(","), reports):
+                n_ok = sum(o.status == "ok" for o in r.outcomes)
+                console.print(f"{e}: {len(r.outcomes)} cells, {n_ok} ok; report {r.out_dir / 'report.md'}")
+            console.print(f"engine sensitivity: {Path(args.out) / 'engine-sensitivity.md'}, "
+                          f"{Path(args.out) / 'engine-sensitivity.html'}")
+            return 0
+        res = reproduce(args.out, engine=args.engine, **kwargs)
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

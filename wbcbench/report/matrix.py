@@ -63,6 +63,7 @@ class Job:
         keyframes: also render the run's key-frame strip (RUN_DIR/keyframes.png) where it ran.
         video: also render the run's video (RUN_DIR/video.mp4) where it ran.
         robot: the robot profile the job runs on.
+        engine: the physics engine the job runs on (`wbcbench.sim.engines`).
     """
 
     section: str
@@ -75,6 +76,7 @@ class Job:
     keyframes: bool = False
     video: bool = False
     robot: str = "talos"
+    engine: str = "mujoco"
 
     @property
     def name(self) -> str:

@@ -89,7 +89,8 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     _send("start", job.name)
     try:
         result = run(job.scenario_run, job.controller, job.robot, None, job.duration_cap_s, run_dir,
-                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True)
+                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True,
+                     engine=job.engine)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
     except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)
@@ -268,7 +269,7 @@ def key_frames(outcomes: list[RunOutcome], out_dir: Path) -> list[dict]:
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
               scenarios: list[str] | None = None, ray: str | None = None, keyframes: bool = True,
-              video: bool = False, robot: str = "talos") -> ReportResult:
+              video: bool = False, robot: str = "talos", engine: str = "mujoco") -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -288,6 +289,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
         video: also render each table cell's video (RUN_DIR/video.mp4, 1280x720), linked from the report.
         robot: the robot (a profile name or YAML path); another robot than TALOS gets the same report with our
             numbers only (the published ones are TALOS'), its profile's scenario sizes stated.
+        engine: the physics engine of every run (`wbcbench.sim.engines`); several engines side by side:
+            `reproduce_engines`.
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -302,6 +305,9 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     from .runs import cached_robot
 
     robot_obj = cached_robot(robot)  # an unknown robot fails before anything runs
+    from ..sim.engines import engine_class
+
+    engine_class(engine)  # an unknown or missing engine fails before anything runs
     if sensors is not None:
         from ..sensing import load_sensor_profile
 
@@ -324,14 +330,16 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
 
         plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
                 for j in plan]
-    if robot != "talos":
+    if robot != "talos" or engine != "mujoco":
         from dataclasses import replace
 
-        plan = [replace(j, robot=robot) for j in plan]
+        plan = [replace(j, robot=robot, engine=engine) for j in plan]
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     command = "reproduce --quick" if quick else "reproduce"
     if robot != "talos":
         command += f" --robot {robot}"
+    if engine != "mujoco":
+        command += f" --engine {engine}"
     if sensors:
         command += f" --sensors {sensors}"
     if controllers:
@@ -345,6 +353,22 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     results, figures = write_report(outcomes, out, command=command, quick=quick, jobs=n_jobs, started_at=t0,
                                     robot=None if robot == "talos" else robot_obj)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
+
+
+def reproduce_engines(out_dir: str | Path, engines: list[str], **kwargs) -> tuple[list[ReportResult], dict]:
+    """`reproduce` once per engine (OUT/<engine>/, each a complete report), then the engine-sensitivity section
+    (OUT/engine-sensitivity.md, .html, .json: `wbcbench.report.engines`). The first engine is the reference."""
+    from ..sim.engines import engine_class
+    from . import engines as sensitivity
+
+    if len(engines) < 2 or len(set(engines)) != len(engines):
+        raise WbcError(f"--engines needs two or more different engines, got {','.join(engines)}")
+    for e in engines:  # every engine checked before anything runs
+        engine_class(e)
+    out = Path(out_dir)
+    reports = [reproduce(out / e, engine=e, **kwargs) for e in engines]
+    sens = sensitivity.write({e: r.results for e, r in zip(engines, reports)}, out)
+    return reports, sens
 
 
 def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:

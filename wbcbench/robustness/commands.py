@@ -26,6 +26,7 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tolerance", type=float, default=0.10, help="[m] CoM back within this of the plan")
     p.add_argument("--sensors", default=None, help="sensor profile (default ideal)")
     p.add_argument("--robot", "-r", default="talos")
+    p.add_argument("--engine", default="mujoco", help="physics engine of every trial: mujoco (default), dart, a plugin's")
     p.add_argument("--quick", action="store_true",
                    help="3 bisection steps from half the top (7.5 N s resolution at 60 N s), the scenario's "
                         "-quick variant when there is one")
@@ -46,6 +47,9 @@ def run_command(args: argparse.Namespace) -> int:
     from ..controllers.base import available_controllers
     from ..errors import UnknownNameError
 
+    from ..sim.engines import engine_class
+
+    engine_class(args.engine)  # an unknown or missing engine fails before anything runs
     known = available_controllers()
     for c in controllers:
         if c not in known:
@@ -76,6 +80,7 @@ def run_command(args: argparse.Namespace) -> int:
                       seeds=args.seeds or (3 if noisy else 1), push_duration=args.push_duration,
                       max_impulse=args.max_impulse, iterations=args.iterations or (3 if args.quick else 5),
                       tolerance=args.tolerance, robot=args.robot, sensors=args.sensors, probe_max=not args.quick,
+                      engine=args.engine,
                       step_adjustment=args.step_adjustment)
     console = Console()
     jobs = args.jobs or os.cpu_count() or 1

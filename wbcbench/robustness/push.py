@@ -53,6 +53,8 @@ class PushStudy:
     """First try `max_impulse` itself (to report '>= max'); off, the bisection starts at half of it."""
     step_adjustment: bool = False
     """Switch the walk's DCM-based step adjustment on (wbcbench.planning.step_adjustment, default settings)."""
+    engine: str = "mujoco"
+    """The physics engine of every trial (`wbcbench.sim.engines`)."""
 
 
 @dataclass(frozen=True)
@@ -151,7 +153,7 @@ def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple
     scen = _trial_scenario(study, robot, cell.push_time)
     scen.spec = replace(scen.spec, pushes=(_push(study, cell, impulse),))
     res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
-              predict_falls=True, overwrite=True)
+              predict_falls=True, overwrite=True, engine=study.engine)
     log = res.log
     return _verdict(study, res.summary, np.array([log[f"com.{a}"][-1] for a in "xyz"]),
                     np.array([log[f"com_ref.{a}"][-1] for a in "xyz"]))
@@ -237,7 +239,7 @@ def _bisect_group(study: PushStudy, cells: list[PushCell], out_dir: Path) -> lis
     name = f"{first.controller}-{first.phase}-{int(first.direction_deg):03d}deg-s{first.seed}-approach"
     approach = out_dir / "runs" / name
     run(scen, first.controller, robot=robot, out=approach, sensors=study.sensors, seed=first.seed,
-        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan))
+        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan), engine=study.engine)
     shutil.rmtree(approach, ignore_errors=True)  # a partial run: the trials are the raw runs
     return results
 
@@ -316,7 +318,7 @@ def write_report(study: PushStudy, results: list[PushResult], out_dir: str | Pat
              f"{study.max_impulse / 2 ** study.iterations:.2f} N s; survived = no fall for {study.settle} s and the "
              f"CoM back within {study.tolerance} m of the plan; '>=' when the largest impulse tried, "
              f"{study.max_impulse} N s, was survived). Directions in the world frame, the robot facing 0 deg, 90 deg "
-             f"its left. Sensors: {study.sensors or 'ideal'}; seeds: {study.seeds}; step adjustment: "
+             f"its left. Engine: {study.engine}. Sensors: {study.sensors or 'ideal'}; seeds: {study.seeds}; step adjustment: "
              f"{'on' if study.step_adjustment else 'off'}.", ""]
     for phase in study.phases:
         lines += [f"## Phase {phase}", "",

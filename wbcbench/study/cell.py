@@ -126,7 +126,7 @@ def run_cell(params: dict, cell_dir: str, code_version: str, cell_id: str, progr
         scen, controller, robot, options, mode = prepare(params, d)
         result = run(scen, controller, robot, mode if not hasattr(controller, "step") else None,
                      None, d / "run", sim_options=options, progress=progress, overwrite=True,
-                     seed=int(params.get("seed") or 0))
+                     seed=int(params.get("seed") or 0), engine=str(params.get("engine") or "mujoco"))
         summary = result.summary
         row.update(flatten({k: v for k, v in summary.items()
                             if k not in ("robot", "scenario", "controller", "controller_status")}))

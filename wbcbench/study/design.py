@@ -40,7 +40,7 @@ import numpy as np
 from ..config import load_yaml
 from ..errors import ConfigError
 
-TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset")
+TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset", "engine")
 PATH_PREFIXES = ("scenario.", "taskset.", "profile.", "sim.")
 MAX_CELLS = 10_000
 
