@@ -10,6 +10,11 @@ from .errors import WbcError
 
 
 def _lists() -> tuple[list[str], list[str], list[str], list[str]]:
+    from . import catalogue
+
+    if not catalogue.has_plugins():  # the shipped names alone, without importing the registries (fast --help)
+        return (catalogue.scenarios(), list(catalogue.BUILTIN_CONTROLLERS), catalogue.robots(),
+                list(catalogue.MODES))
     from .controllers.base import available_controllers
     from .robots import available_robots
     from .scenarios import available_scenarios
@@ -135,6 +140,13 @@ def _cmd_run(args) -> int:
 
 def _cmd_list() -> int:
     """The registries, each entry with where it comes from; broken plugins one line each on stderr (exit 2)."""
+    from . import catalogue
+
+    if not catalogue.has_plugins():  # the shipped names alone, without importing the registries
+        print(_list_text(catalogue.scenarios(), catalogue.BUILTIN_KINDS, catalogue.BUILTIN_CONTROLLERS,
+                         catalogue.robots(), catalogue.MODES, catalogue.TASK_TYPES, catalogue.STABILIZERS,
+                         catalogue.sensor_profiles()))
+        return 0
     from .controllers.base import available_controllers, builtin_controllers, controller_plugin_errors
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
     from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
@@ -151,14 +163,18 @@ def _cmd_list() -> int:
     kinds = [n + ("" if n in _KINDS else origin(k.__module__)) for n, k in sorted(available_kinds().items())]
     plug = plugin_robots()
     robots = builtin_robots() + [f"{n} [{p}]" for n, p in sorted(plug.items())]
-    print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
-          f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
-          f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
-          f"sensors:     {', '.join(available_profiles())}")
+    print(_list_text(s, kinds, ctrls, robots, m, task_types(), available_stabilizers(), available_profiles()))
     errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values()]
     for e in errors:
         print(f"wbcbench: error: {e}", file=sys.stderr)
     return 2 if errors else 0
+
+
+def _list_text(scenarios, kinds, controllers, robots, modes, tasks, stabilizers, sensors) -> str:
+    return (f"scenarios:   {', '.join(scenarios)}\nkinds:       {', '.join(kinds)}\n"
+            f"controllers: {', '.join(controllers)}\nrobots:      {', '.join(robots)}\n"
+            f"modes:       {', '.join(modes)}\ntasks:       {', '.join(tasks)}\n"
+            f"stabilizers: {', '.join(stabilizers)}\nsensors:     {', '.join(sensors)}")
 
 
 def _check_mujoco() -> None:
