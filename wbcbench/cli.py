@@ -79,6 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .viz.commands import add_subcommand as add_render, add_view_subcommand
     add_render(sub)
     add_view_subcommand(sub)
+    from .doctor import add_subcommand as add_doctor
+    add_doctor(sub)
     return p
 
 
@@ -193,6 +195,9 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return _cmd_list()
+        if args.command == "doctor":
+            from .doctor import run_command as run_doctor
+            return run_doctor(args)
         _check_mujoco()
         if args.command == "run":
             return _cmd_run(args)
