@@ -4,7 +4,7 @@ into a fresh virtual environment outside the repository, and `wbcbench run stand
 
 The fresh environment gets wbcbench from the wheel alone; its dependencies (MuJoCo, pinocchio, numba, ...) are
 the test environment's, made visible through a .pth line (which adds that directory, not its own .pth files: the
-checkout's editable install stays out), so the test needs no network. One test; about a minute."""
+checkout's editable install stays out), so the test needs no network. One test; about a minute. It builds what is committed (a clone of the checkout)."""
 
 from __future__ import annotations
 
@@ -50,9 +50,12 @@ def test_wheel_installs_in_a_fresh_venv_and_runs(tmp_path):
     pytest.importorskip("setuptools_scm", reason="setuptools-scm is not installed (pip install -e '.[test]')")
     if not (ROOT / ".git").exists():
         pytest.skip("not a git checkout: the version and the sdist's file list come from git")
-    dist = tmp_path / "dist"
+    # what is released is what is committed: a clone (its tags included), which also keeps the build's files
+    # (egg-info, wbcbench/_version.py) out of the checkout that the other tests import
+    src, dist = tmp_path / "src", tmp_path / "dist"
+    _sh("git", "clone", "--quiet", "--no-hardlinks", ROOT, src)
     # the build dependencies of pyproject.toml are this environment's (no isolation: no download)
-    _sh(sys.executable, "-m", "build", "--no-isolation", "--outdir", dist, ROOT, cwd=tmp_path)
+    _sh(sys.executable, "-m", "build", "--no-isolation", "--outdir", dist, src, cwd=tmp_path)
     wheels, sdists = sorted(dist.glob("wbcbench-*.whl")), sorted(dist.glob("wbcbench-*.tar.gz"))
     assert len(wheels) == 1 and len(sdists) == 1, sorted(p.name for p in dist.iterdir())
     version = wheels[0].name.split("-")[1]

@@ -52,7 +52,7 @@ def _version() -> str:
         from ._version import version
 
         return version
-    except ImportError:
+    except Exception:  # not built here (ImportError), or being rewritten by a build at this moment
         pass
     from importlib import metadata
 
