@@ -5,6 +5,7 @@ Runnable blocks are marked in the Markdown, on the line before the fence:
     <!-- run -->              a ```python block (run in one namespace per page, in page order) or a ```bash block
                               (each `wbcbench ...` line run as `python -m wbcbench.cli ...`, which must exit 0)
     <!-- run: file NAME -->   the block's text is written to NAME (a YAML file the next blocks use)
+    <!-- not run: REASON -->  a tutorial block that does not run here, and why (every tutorial block has one of these)
 Each page runs in a temporary directory of its own (with `examples/` linked in), in a fresh Python process."""
 
 from __future__ import annotations
@@ -128,6 +129,21 @@ def test_the_tutorials_have_runnable_code():
     for page in ("tutorials/your-controller.md", "tutorials/your-scenario.md", "tutorials/your-robot.md",
                  "tutorials/studies.md", "tutorials/teleoperation.md", "tutorials/watching.md"):
         assert page in names, f"{page} has no block marked <!-- run -->"
+
+
+def test_every_tutorial_block_is_run_or_says_why_not():
+    """A tutorial's code either runs in the tests or is marked `<!-- not run: REASON -->` (a fragment, a
+    long or interactive command, one that another test already runs): no block is left out silently."""
+    unmarked = []
+    for page in sorted((DOCS / "tutorials").glob("*.md")):
+        lines = page.read_text().splitlines()
+        inside = False
+        for i, line in enumerate(lines):
+            if line.startswith("```"):
+                if not inside and not re.match(r"<!--\s*(run\b|not run:\s*\S)", lines[i - 1] if i else ""):
+                    unmarked.append(f"{page.name}:{i + 1}")
+                inside = not inside
+    assert not unmarked, f"code blocks marked neither <!-- run --> nor <!-- not run: REASON -->: {unmarked}"
 
 
 DRIVER = textwrap.dedent('''
