@@ -136,3 +136,14 @@ def test_verdict_and_coloured_cells_seen_in_a_browser(tmp_path):
             assert colours == {"better": "rgb(200, 236, 200)", "worse": "rgb(246, 204, 204)"}
         finally:
             browser.close()
+
+
+def test_another_robot_is_not_compared_with_the_paper(g1):
+    res = build_results(_outcomes(), command="test", quick=False, jobs=1, robot=g1)
+    assert res["verdict"]["cells"] == {}  # no published number to compare with
+    md = to_markdown(res, [])
+    head = md.split("## Table 2", 1)[0]
+    assert "Robot g1: the published numbers are TALOS'" in head and "ahead of the paper" not in head
+    assert "Ranking on 20 cm" in head
+    tables = md.split("_▲", 1)[1].split("\n", 1)[1]
+    assert "▲" not in tables and "▼" not in tables

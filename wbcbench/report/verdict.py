@@ -118,7 +118,10 @@ def verdict_lines(res: dict) -> list[str]:
     """The verdict as Markdown list items (report.md; report.html renders the same lines)."""
     v = res.get("verdict") or verdict(res)
     lines = []
-    if not v["cells"]:
+    if res.get("robot"):
+        lines.append(f"Robot {res['robot'].get('name', '?')}: the published numbers are TALOS', so no cell is "
+                     "compared with the paper; the falls and the ranking below are ours alone.")
+    elif not v["cells"]:
         lines.append("No cell of the paper's Tables 2-7 was run: nothing to compare with the paper.")
     for controller, c in v["cells"].items():
         n = c[BETTER] + c[WORSE] + c[EQUAL]
