@@ -16,22 +16,28 @@
 See ``wbcbench/teleop/README.md`` for the formats and conventions.
 """
 
-from .bvh import BvhData, BvhJoint, BvhSkeleton, parse_bvh, read_bvh, write_bvh
-from .csv_poses import read_pose_csv, write_pose_csv
-from .human_model import HumanModel, estimate_segment_lengths
-from .loader import load_recording
-from .mvnx import read_mvnx, write_mvnx
-from .network import ImpairedLink, ImpairedRelay, ImpairedReplay, NetworkImpairment, parse_impairment
-from .prediction import PosePredictor
-from .protocol import Datagram, DatagramError, decode_datagram, encode_datagram
-from .receiver import ReceivedFrame, ReceiverStats, StreamStatus, UdpPoseReceiver
-from .recording import MocapRecording, PoseFrame
-from .registry import RecordingInfo, list_recordings, open_recording, recording_path
-from .retargeting import EFFECTORS, Calibration, PoseSource, Retargeter, TeleopSample, robot_workspaces
-from .sender import ReplaySender
-from .synthetic import generate_recordings
-from .umeyama import AlignmentError, SimilarityTransform, UmeyamaResult, umeyama
-from .workspace import ReachShell
+from .._lazy import lazy_exports
+
+# imported when first used, so that importing the package (or its `commands` module, for the command
+# line's parser) stays light
+__getattr__, __dir__ = lazy_exports(__name__, {
+    **dict.fromkeys(("BvhData", "BvhJoint", "BvhSkeleton", "parse_bvh", "read_bvh", "write_bvh"), "bvh"),
+    **dict.fromkeys(("read_pose_csv", "write_pose_csv"), "csv_poses"),
+    **dict.fromkeys(("HumanModel", "estimate_segment_lengths"), "human_model"),
+    **dict.fromkeys(("load_recording",), "loader"),
+    **dict.fromkeys(("read_mvnx", "write_mvnx"), "mvnx"),
+    **dict.fromkeys(("ImpairedLink", "ImpairedRelay", "ImpairedReplay", "NetworkImpairment", "parse_impairment"), "network"),
+    **dict.fromkeys(("PosePredictor",), "prediction"),
+    **dict.fromkeys(("Datagram", "DatagramError", "decode_datagram", "encode_datagram"), "protocol"),
+    **dict.fromkeys(("ReceivedFrame", "ReceiverStats", "StreamStatus", "UdpPoseReceiver"), "receiver"),
+    **dict.fromkeys(("MocapRecording", "PoseFrame"), "recording"),
+    **dict.fromkeys(("RecordingInfo", "list_recordings", "open_recording", "recording_path"), "registry"),
+    **dict.fromkeys(("EFFECTORS", "Calibration", "PoseSource", "Retargeter", "TeleopSample", "robot_workspaces"), "retargeting"),
+    **dict.fromkeys(("ReplaySender",), "sender"),
+    **dict.fromkeys(("generate_recordings",), "synthetic"),
+    **dict.fromkeys(("AlignmentError", "SimilarityTransform", "UmeyamaResult", "umeyama"), "umeyama"),
+    **dict.fromkeys(("ReachShell",), "workspace"),
+})
 
 __all__ = [
     "EFFECTORS",

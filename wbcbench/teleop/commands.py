@@ -25,8 +25,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import ConfigError, UnknownNameError, WbcError
 
 COMMAND = "teleop"
@@ -135,6 +133,8 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
     """
     import time as _time
 
+    import numpy as np
+
     from ..controllers.base import available_controllers
     from ..robots import Robot, load_robot
     from ..runner import run
@@ -190,6 +190,7 @@ def _label(mocap) -> str:
 
 def run_command(args: argparse.Namespace) -> int:
     """Execute `wbcbench teleop`. Domain errors propagate to the CLI (one line, exit 2)."""
+    import numpy as np
     from rich.console import Console
 
     console = Console()
