@@ -13,25 +13,41 @@
 * :class:`Retargeter`: ``references_at(t) -> {"left_hand", "right_hand", "head": pin.SE3}`` for the robot, with
   validity and workspace-clamping flags (:meth:`Retargeter.sample`).
 
+Sub-packages, by job: :mod:`.io` (recordings and their readers), :mod:`.human` (human model, retargeting, synthetic
+recordings), :mod:`.link` (datagrams, receiver, sender, network impairment, prediction), :mod:`.safety` (command
+filter), :mod:`.session` (the reference source, metrics, the ``wbcbench teleop`` command). The modules' former flat
+paths (``wbcbench.teleop.bvh``, ``wbcbench.teleop.commands`` ...) stay importable: they name the same module objects.
+
 See ``wbcbench/teleop/README.md`` for the formats and conventions.
 """
 
-from .bvh import BvhData, BvhJoint, BvhSkeleton, parse_bvh, read_bvh, write_bvh
-from .csv_poses import read_pose_csv, write_pose_csv
-from .human_model import HumanModel, estimate_segment_lengths
-from .loader import load_recording
-from .mvnx import read_mvnx, write_mvnx
-from .network import ImpairedLink, ImpairedRelay, ImpairedReplay, NetworkImpairment, parse_impairment
-from .prediction import PosePredictor
-from .protocol import Datagram, DatagramError, decode_datagram, encode_datagram
-from .receiver import ReceivedFrame, ReceiverStats, StreamStatus, UdpPoseReceiver
-from .recording import MocapRecording, PoseFrame
-from .registry import RecordingInfo, list_recordings, open_recording, recording_path
-from .retargeting import EFFECTORS, Calibration, PoseSource, Retargeter, TeleopSample, robot_workspaces
-from .sender import ReplaySender
-from .synthetic import generate_recordings
-from .umeyama import AlignmentError, SimilarityTransform, UmeyamaResult, umeyama
-from .workspace import ReachShell
+import importlib as _importlib
+import sys as _sys
+
+from .human import (EFFECTORS, AlignmentError, Calibration, HumanModel, PoseSource, RecordingInfo, Retargeter,
+                    SimilarityTransform, TeleopSample, UmeyamaResult, estimate_segment_lengths, generate_recordings,
+                    list_recordings, open_recording, recording_path, robot_workspaces, umeyama)
+from .human.workspace import ReachShell
+from .io import (BvhData, BvhJoint, BvhSkeleton, MocapRecording, PoseFrame, load_recording, parse_bvh, read_bvh,
+                 read_mvnx, read_pose_csv, write_bvh, write_mvnx, write_pose_csv)
+from .link import (Datagram, DatagramError, ImpairedLink, ImpairedRelay, ImpairedReplay, NetworkImpairment,
+                   PosePredictor, ReceivedFrame, ReceiverStats, ReplaySender, StreamStatus, UdpPoseReceiver,
+                   decode_datagram, encode_datagram, parse_impairment)
+
+#: The flat module paths of before the sub-packages -> where each module lives now (same module object).
+_MOVED = {
+    "recording": "io.recording", "segments": "io.segments", "bvh": "io.bvh", "mvnx": "io.mvnx",
+    "csv_poses": "io.csv_poses", "loader": "io.loader", "skeleton_map": "io.skeleton_map",
+    "human_model": "human.model", "umeyama": "human.umeyama", "workspace": "human.workspace",
+    "retargeting": "human.retargeting", "synthetic": "human.synthetic", "registry": "human.registry",
+    "protocol": "link.protocol", "receiver": "link.receiver", "sender": "link.sender", "network": "link.network",
+    "prediction": "link.prediction",
+    "source": "session.source", "metrics": "session.metrics", "commands": "session.commands",
+}
+for _old, _new in _MOVED.items():
+    _sys.modules[f"{__name__}.{_old}"] = _importlib.import_module(f".{_new}", __name__)
+    globals().setdefault(_old, _sys.modules[f"{__name__}.{_old}"])  # `umeyama` stays the function, as before
+del _old, _new
 
 __all__ = [
     "EFFECTORS",

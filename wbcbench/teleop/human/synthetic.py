@@ -21,8 +21,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from .bvh import write_bvh
-from .human_model import LINKS, HumanModel
+from ..io.bvh import write_bvh
+from .model import LINKS, HumanModel
 
 __all__ = ["Operator", "SyntheticMotion", "OPERATORS", "MOTIONS", "generate_recordings", "motion_configurations"]
 

@@ -6,7 +6,7 @@ any run directory, so that both give the same numbers.
 Alignment: log row i (the state after tick i) is compared with the reference of tick i - 1 (row 0: tick 0's),
 as the run-time metrics always did.
 
-Through an impaired link (a recording replayed through wbcbench/teleop/network.py's simulated link), the log
+Through an impaired link (a recording replayed through wbcbench/teleop/link/network.py's simulated link), the log
 also holds the hands' undelayed reference (`teleop_truth` channels: the recording's spline at the tick, what the
 robot should be doing now): the hand errors are then also measured against it (`*_true`), and the reference's
 own error against it (`reference_lag`: what the link and the prediction left in the target).
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..side import Side
+from ...side import Side
 from .source import HANDS, rotation_error, stats
 
 __all__ = ["EFFECTORS", "has_targets", "has_truth", "teleop_errors_from_log", "teleop_metrics_from_log"]

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .segments import KEYPOINTS, MVN_SEGMENT_IDS, canonical_name
 
 __all__ = ["REQUIRED", "SegmentMapping", "load_segment_map", "map_segments"]
@@ -150,7 +150,7 @@ def load_segment_map(path: str | Path, segments: Sequence[str] | None = None) ->
         ConfigError: unreadable file, an unknown canonical name, a segment the recording does not have, or a
             required segment missing (one line naming the file and the key).
     """
-    from ..config import load_yaml
+    from ...config import load_yaml
 
     path = Path(path)
     if not path.is_file():

@@ -10,8 +10,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ConfigError, UnknownNameError
-from . import _rotations as rot
+from ...errors import ConfigError, UnknownNameError
+from .. import _rotations as rot
 
 __all__ = ["MocapRecording", "PoseFrame"]
 
@@ -52,7 +52,7 @@ class MocapRecording:
         source: the file it was read from ("" when built in memory).
         frame_rate: nominal frame rate [Hz].
         times: (N,) strictly increasing timestamps [s].
-        segments: (S,) segment names, as in the file (see :mod:`wbcbench.teleop.segments` for the canonical ones).
+        segments: (S,) segment names, as in the file (see :mod:`wbcbench.teleop.io.segments` for the canonical ones).
         parents: (S,) index of each segment's parent in ``segments``, -1 for a root or when unknown.
         positions: (N, S, 3) world positions of the segment origins [m], in the recording's world frame (its
             axes are whatever the suit or the exporter used: BVH is usually y-up, Xsens z-up).

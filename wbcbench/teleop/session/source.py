@@ -8,9 +8,9 @@ to the wall clock for live streams, the signal-loss policy (hold, or return to t
 engagement blend from the robot's own poses, and the bookkeeping of valid / invalid ticks, losses and clamped
 effectors (`record_*`, `loss_events`, `clamped_ticks`).
 
-Streams (a live receiver, or a recording through the simulated impaired link of wbcbench/teleop/network.py,
+Streams (a live receiver, or a recording through the simulated impaired link of wbcbench/teleop/link/network.py,
 `network`): the newest frame can be extrapolated over its age (`predict`: velocity or spline,
-wbcbench/teleop/prediction.py, capped at `predict_horizon`) before the filter. Its age is exact on the simulated
+wbcbench/teleop/link/prediction.py, capped at `predict_horizon`) before the filter. Its age is exact on the simulated
 link (one clock); on a live stream, with no clock shared with the sender, it is the time since the frame's
 sending as far as the receiver can tell (its delay beyond the fastest delivery seen, plus the time since it
 arrived) plus `predict_latency`, the fixed one-way latency the receiver cannot observe (e.g. half the round trip).
@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..side import Side
-from ..types import PoseReference
-from .network import ImpairedReplay, NetworkImpairment
-from .prediction import DEFAULT_HORIZON, PosePredictor
-from .safety import CommandFilter, SafetyConfig
+from ...side import Side
+from ...types import PoseReference
+from ..link.network import ImpairedReplay, NetworkImpairment
+from ..link.prediction import DEFAULT_HORIZON, PosePredictor
+from ..safety.command_filter import CommandFilter, SafetyConfig
 
 __all__ = ["ANCHORS", "DEFAULT_ANCHOR", "DEFAULT_TARGETS", "HANDS", "REST_BLEND", "TeleopReferenceSource",
            "TeleopSourceConfig", "rotation_error", "stats"]
@@ -153,7 +153,7 @@ class TeleopReferenceSource:
 
     def setup(self, q0: np.ndarray) -> None:
         """Retarget, calibrate the anchor and precompute a recording's references, at the robot's start q0."""
-        from . import Retargeter
+        from ..human.retargeting import Retargeter
 
         self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion,
                                      segment_map=self.config.segment_map)

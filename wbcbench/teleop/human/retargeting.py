@@ -7,7 +7,7 @@ stream), which should show the operator standing, arms along the body (the robot
    frame's joint angles when the source has channels the model knows ("joint_angles"); otherwise fit the model to
    the segment positions ("fit");
 2. move the model rigidly so that its feet overlay the robot's feet in the robot's reference posture: the
-   :func:`~wbcbench.teleop.human_model.feet_frame` of the model's soles (ankles lowered by the ankle height)
+   :func:`~wbcbench.teleop.human.model.feet_frame` of the model's soles (ankles lowered by the ankle height)
    coincides with the feet frame of the robot's sole frames (:func:`robot_feet_frame`: midpoint of the soles,
    heading from the right sole to the left one, z the world vertical);
 3. estimate the rigid transform ``T_world_suit`` from the suit's world frame to the robot's world with Umeyama's
@@ -46,12 +46,12 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import ConfigError, WbcError
-from ..side import Side
-from . import _rotations as rot
-from .human_model import HumanModel, feet_frame
-from .recording import MocapRecording, PoseFrame
-from .segments import KEYPOINTS, canonical_name
+from ...errors import ConfigError, WbcError
+from ...side import Side
+from .. import _rotations as rot
+from .model import HumanModel, feet_frame
+from ..io.recording import MocapRecording, PoseFrame
+from ..io.segments import KEYPOINTS, canonical_name
 from .umeyama import SimilarityTransform, umeyama
 from .workspace import ReachShell, chain_joints, reach_shell
 
@@ -147,7 +147,7 @@ def robot_workspaces(
     robot: Any, *, samples: int = 2048, seed: int = 0, hand_margin: float = 0.0, head_margin: float = 0.10,
     head_tilt_margin: float = 0.10,
 ) -> dict[str, ReachShell]:
-    """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.workspace`)."""
+    """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.human.workspace`)."""
     model = robot.model
     torso_joint = model.frames[model.getFrameId(robot.profile.torso_frame)].parentJoint
     frames = _effector_frames(robot)
@@ -202,7 +202,7 @@ class Retargeter:
         self._source = source
         self.segment_mapping = None
         if segment_map is None and isinstance(source, MocapRecording):
-            from .skeleton_map import map_segments  # names first, then the skeleton's chains
+            from ..io.skeleton_map import map_segments  # names first, then the skeleton's chains
 
             self.segment_mapping = map_segments(source.segments, source.parents, source.source)
             segment_map = self.segment_mapping.names

@@ -7,9 +7,9 @@ UDP stream.
                     [--predict none|velocity|spline]
     wbcbench teleop --list
 
-`--net SPEC` impairs the operator's stream (wbcbench/teleop/network.py): a recording is replayed through the
+`--net SPEC` impairs the operator's stream (wbcbench/teleop/link/network.py): a recording is replayed through the
 link in simulated time, a udp:// stream passes through a loopback relay listening on HOST:PORT; `--predict`
-extrapolates the newest received pose over its age (wbcbench/teleop/prediction.py).
+extrapolates the newest received pose over its age (wbcbench/teleop/link/prediction.py).
 
 The session is a `teleop` scenario (wbcbench/scenarios/teleop_kind.py) run by the usual runner, with the
 self-collision geoms of the robot profile checked every tick (`SimOptions.self_collision = "detect"`, or
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, UnknownNameError, WbcError
+from ...errors import ConfigError, UnknownNameError, WbcError
 
 COMMAND = "teleop"
 DEFAULT_CONTROLLER = "tsid-teleop"
@@ -74,12 +74,12 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "worst lateness are counted in the summary (`realtime`) and logged (`lateness_ms`)")
     p.add_argument("--no-filter", action="store_true",
                    help="pass the operator's references to the controller unfiltered (no garbage, body, jump or "
-                        "speed filter; wbcbench/teleop/safety.py)")
+                        "speed filter; wbcbench/teleop/safety/command_filter.py)")
     p.add_argument("--net", default=None, metavar="SPEC",
                    help="impair the operator's stream, e.g. latency=50ms,jitter=5ms,loss=5%%,burst=3,reorder=2%%,"
                         "duplicate=1%%,corrupt=1%%,stall=0.5s@3s,seed=1: a recording is replayed through the link "
                         "in simulated time (reproducible); a udp:// stream passes through a loopback relay that "
-                        "listens on HOST:PORT (wbcbench/teleop/network.py)")
+                        "listens on HOST:PORT (wbcbench/teleop/link/network.py)")
     p.add_argument("--predict", default="none", choices=["none", "velocity", "spline"],
                    help="extrapolate the newest received operator pose over its age (streams and --net): "
                         "constant velocity, or a quadratic over the last frames (default none)")
@@ -90,13 +90,13 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                         "age (e.g. half the round trip) [s] (default 0)")
     p.add_argument("--overwrite", action="store_true", help="replace a run already in the --out directory")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
-    from ..viz.commands import add_view_options
+    from ...viz.commands import add_view_options
 
     add_view_options(p)  # --view: the robot and the operator's hand / head targets in the browser as it runs
 
 
 def list_text() -> str:
-    from . import list_recordings
+    from ..human.registry import list_recordings
 
     rows = [f"{r.name:<16} {r.duration:5.1f} s @ {r.frame_rate:g} Hz  operator {r.operator:<10} {r.description}"
             for r in list_recordings()]
@@ -104,8 +104,8 @@ def list_text() -> str:
 
 
 def _check_controller(name: str) -> None:
-    from ..controllers.base import available_controllers
-    from ..controllers.teleop import TSIDTeleop
+    from ...controllers.base import available_controllers
+    from ...controllers.teleop import TSIDTeleop
 
     ctrls = available_controllers()
     teleop = [n for n, c in ctrls.items() if issubclass(c, TSIDTeleop)]
@@ -135,12 +135,12 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
     """
     import time as _time
 
-    from ..controllers.base import available_controllers
-    from ..robots import Robot, load_robot
-    from ..runner import run
-    from ..scenarios.teleop_kind import TeleopScenario
-    from ..sim.model import ActuationMode, SimOptions
-    from ..sim.self_collision import SelfCollisionProbe
+    from ...controllers.base import available_controllers
+    from ...robots import Robot, load_robot
+    from ...runner import run
+    from ...scenarios.teleop_kind import TeleopScenario
+    from ...sim.model import ActuationMode, SimOptions
+    from ...sim.self_collision import SelfCollisionProbe
 
     if not (np.isfinite(speed) and speed > 0):
         raise ConfigError(f"--speed must be a finite number > 0, got {speed}", key="--speed")
@@ -209,14 +209,14 @@ def run_command(args: argparse.Namespace) -> int:
     if args.segment_map:
         kwargs["segment_map"] = str(Path(args.segment_map).resolve())
     if args.net is not None:
-        from .network import parse_impairment
+        from ..link.network import parse_impairment
 
         kwargs["network"] = parse_impairment(args.net, where="--net")
     for key, value in (("--predict-horizon", args.predict_horizon), ("--predict-latency", args.predict_latency)):
         if not (np.isfinite(value) and value >= 0):
             raise ConfigError(f"must be a duration >= 0 s, got {value}", key=key)
     kwargs.update(predict=args.predict, predict_horizon=args.predict_horizon, predict_latency=args.predict_latency)
-    from ..viz.commands import live_view_from
+    from ...viz.commands import live_view_from
 
     kwargs["view"] = live_view_from(args)
     try:
@@ -252,7 +252,7 @@ def render(console, summary: dict, run_dir) -> None:
         t.add_row("skeleton", f"segments by {sk.get('mapping')}; length unit {sk.get('length_unit') or 'metres'}; "
                               f"up {sk.get('up_axis')}")
     if s.get("realtime"):
-        from ..summary import pacing_text
+        from ...summary import pacing_text
 
         t.add_row("wall-clock pacing", pacing_text(s["realtime"]))
     st = s["step_time_us"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .bvh import read_bvh
 from .csv_poses import read_pose_csv
 from .mvnx import read_mvnx

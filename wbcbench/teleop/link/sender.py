@@ -13,10 +13,10 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .protocol import MAX_SEGMENTS, encode_datagram
-from .recording import MocapRecording
-from .segments import MVN_SEGMENT_IDS
+from ..io.recording import MocapRecording
+from ..io.segments import MVN_SEGMENT_IDS
 
 __all__ = ["ReplaySender", "recording_datagram"]
 

@@ -1,7 +1,7 @@
 """Segment names shared by the readers, the UDP stream and the retargeting.
 
 Canonical names are the 23 segments of the Xsens MVN body model (the suit used in paper 004), numbered 1..23 in
-MVN order; these numbers are the segment ids of the UDP pose stream (:mod:`wbcbench.teleop.protocol`). Readers
+MVN order; these numbers are the segment ids of the UDP pose stream (:mod:`wbcbench.teleop.link.protocol`). Readers
 keep the names found in the file; :func:`canonical_name` maps common aliases (BVH exports from other tools) to
 the canonical ones when the retargeting looks segments up.
 """

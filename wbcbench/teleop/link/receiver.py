@@ -1,4 +1,4 @@
-"""Live pose stream: a non-blocking UDP receiver of :mod:`wbcbench.teleop.protocol` datagrams.
+"""Live pose stream: a non-blocking UDP receiver of :mod:`wbcbench.teleop.link.protocol` datagrams.
 
 Call :meth:`UdpPoseReceiver.poll` once per control tick: it drains the socket without blocking, keeps the newest
 frame, and counts what it drops. Nothing a sender does (or fails to do) raises: datagrams that are lost,
@@ -32,10 +32,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .protocol import DatagramError, decode_datagram
-from .recording import PoseFrame
-from .segments import MVN_SEGMENT_IDS
+from ..io.recording import PoseFrame
+from ..io.segments import MVN_SEGMENT_IDS
 
 __all__ = ["StreamStatus", "ReceiverStats", "ReceivedFrame", "UdpPoseReceiver"]
 
@@ -61,7 +61,7 @@ class ReceiverStats:
         duplicates: repeated sequence numbers.
         reordered: late datagrams (older than the latest frame), dropped.
         lost: sequence numbers skipped and not (yet) received.
-        malformed: datagrams that failed to decode (see :mod:`wbcbench.teleop.protocol`).
+        malformed: datagrams that failed to decode (see :mod:`wbcbench.teleop.link.protocol`).
         restarts: sequence discontinuities taken as a sender restart.
         unknown_segments: segment entries with an id the receiver does not map (ignored).
         last_error: reason of the last malformed datagram ("" if none).
@@ -101,7 +101,7 @@ class UdpPoseReceiver:
 
     Args:
         port: UDP port; 0 picks a free one (read it back from :attr:`port`); None: no socket, datagrams come
-            only through :meth:`feed` (the simulated link of :mod:`wbcbench.teleop.network`).
+            only through :meth:`feed` (the simulated link of :mod:`wbcbench.teleop.link.network`).
         host: address to bind, default loopback ``127.0.0.1``.
         stale_after: seconds without an accepted frame before the status is ``stale`` (> 0).
         segment_ids: segment name -> id map of the stream (default: the 23 MVN segments).

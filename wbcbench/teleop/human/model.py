@@ -9,7 +9,7 @@ is placed under a fixed rotation (+90 deg about x, as example-robot-data's loade
 world is z-up, x forward, y to the left, while the BVH world of :meth:`HumanModel.bvh_skeleton` is the y-up frame
 before that rotation.
 
-Segments are named with the canonical MVN names (:mod:`wbcbench.teleop.segments`); :data:`SKELETON` maps each to a
+Segments are named with the canonical MVN names (:mod:`wbcbench.teleop.io.segments`); :data:`SKELETON` maps each to a
 model frame and its joints.
 
 Per-operator scaling (paper 004: "a script adapts the human model size to each new user"): :data:`LINKS` lists
@@ -34,10 +34,10 @@ import numpy.typing as npt
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from ..errors import ConfigError
-from .bvh import BvhJoint, BvhSkeleton
-from .recording import MocapRecording, PoseFrame
-from .segments import KEYPOINTS, canonical_name
+from ...errors import ConfigError
+from ..io.bvh import BvhJoint, BvhSkeleton
+from ..io.recording import MocapRecording, PoseFrame
+from ..io.segments import KEYPOINTS, canonical_name
 
 __all__ = [
     "SKELETON",
@@ -241,7 +241,7 @@ def estimate_segment_lengths(
     Args:
         recording: a recording with segment positions.
         segment_map: canonical name -> recording segment name; by default names are matched with
-            :func:`~wbcbench.teleop.segments.canonical_name`.
+            :func:`~wbcbench.teleop.io.segments.canonical_name`.
 
     Returns:
         link name -> length, for the links whose two segments the recording has (others are absent).

@@ -37,7 +37,7 @@ from xml.parsers import expat
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .recording import MocapRecording, parents_from_names
 from .segments import MVN_PARENTS
 

@@ -46,10 +46,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .receiver import UdpPoseReceiver
-from .recording import MocapRecording, PoseFrame
-from .segments import MVN_SEGMENT_IDS
+from ..io.recording import MocapRecording, PoseFrame
+from ..io.segments import MVN_SEGMENT_IDS
 from .sender import _check_loopback, recording_datagram
 
 __all__ = ["NET_KEYS", "ImpairedLink", "ImpairedRelay", "ImpairedReplay", "LinkStats", "NetworkImpairment",
@@ -180,7 +180,7 @@ def parse_impairment(spec: str | Mapping | NetworkImpairment | None, where: str 
     stalls = []
     for key, value in items:
         if key not in NET_KEYS:
-            from ..errors import did_you_mean
+            from ...errors import did_you_mean
 
             raise ConfigError(f"unknown key '{key}'{did_you_mean(key, NET_KEYS)}; keys: {', '.join(NET_KEYS)}",
                               key=where)

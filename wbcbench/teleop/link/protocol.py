@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import WbcError
+from ...errors import WbcError
 
 __all__ = [
     "MAGIC",

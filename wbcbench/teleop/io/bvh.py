@@ -49,8 +49,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ConfigError
-from . import _rotations as rot
+from ...errors import ConfigError
+from .. import _rotations as rot
 from .recording import MocapRecording
 
 __all__ = ["BvhJoint", "BvhSkeleton", "BvhData", "parse_bvh", "read_bvh", "write_bvh"]

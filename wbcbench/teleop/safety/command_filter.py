@@ -34,7 +34,7 @@ through untouched at up to twice their speed (their fastest hand: 3.5 m/s, 8 rad
 x2; a test checks it) and stop teleports and garbage.
 
 The usual tick needs none of this: `_screen` decides it per effector in one compiled call, and `pass_rows` for all
-the effectors of a recording's stacked rows at once (wbcbench/teleop/source.py), leaving the same state as
+the effectors of a recording's stacked rows at once (wbcbench/teleop/session/source.py), leaving the same state as
 `__call__` would.
 """
 
@@ -45,8 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..jit import njit
-from ..side import Side
+from ...jit import njit
+from ...side import Side
 
 __all__ = ["FILTER_KINDS", "CommandFilter", "SafetyConfig", "wrist_speed"]
 

@@ -24,7 +24,7 @@ from collections import deque
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["DEFAULT_HORIZON", "PREDICTORS", "PosePredictor"]
 

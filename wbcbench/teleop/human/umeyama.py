@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import WbcError
+from ...errors import WbcError
 
 __all__ = ["AlignmentError", "SimilarityTransform", "UmeyamaResult", "umeyama"]
 

@@ -10,7 +10,7 @@ Format::
     0.0,LeftHand,...
 
 * ``t``: time [s], non-decreasing; rows with the same ``t`` form one frame;
-* ``segment``: segment name (canonical MVN names recommended, see :mod:`wbcbench.teleop.segments`);
+* ``segment``: segment name (canonical MVN names recommended, see :mod:`wbcbench.teleop.io.segments`);
 * ``x, y, z``: world position of the segment origin [m];
 * ``qx, qy, qz, qw``: world orientation, unit quaternion, scalar last (normalised on read if within 1 %).
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .recording import MocapRecording, parents_from_names
 from .segments import MVN_PARENTS
 

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 __all__ = ["ReachShell", "chain_joints", "reach_shell"]
 

@@ -5,15 +5,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ConfigError, UnknownNameError
-from .bvh import read_bvh
-from .recording import MocapRecording
+from ...errors import ConfigError, UnknownNameError
+from ..io.bvh import read_bvh
+from ..io.recording import MocapRecording
 from .synthetic import MOTIONS, OPERATORS
 
 __all__ = ["RECORDINGS_DIR", "RecordingInfo", "list_recordings", "recording_path", "open_recording"]
 
 #: Where the shipped recordings live.
-RECORDINGS_DIR = Path(__file__).parent / "recordings"
+RECORDINGS_DIR = Path(__file__).parent.parent / "recordings"
 
 
 @dataclass(frozen=True)
@@ -24,7 +24,7 @@ class RecordingInfo:
         name: registry key.
         description: one line.
         path: the file.
-        operator: synthetic operator (see :data:`~wbcbench.teleop.synthetic.OPERATORS`).
+        operator: synthetic operator (see :data:`~wbcbench.teleop.human.synthetic.OPERATORS`).
         duration: [s].
         frame_rate: [Hz].
     """
