@@ -53,7 +53,7 @@ from ...errors import ConfigError
 from .. import _rotations as rot
 from .recording import MocapRecording
 
-__all__ = ["BvhJoint", "BvhSkeleton", "BvhData", "parse_bvh", "read_bvh", "write_bvh"]
+__all__ = ["BvhJoint", "BvhSkeleton", "BvhData", "bvh_recording", "parse_bvh", "read_bvh", "write_bvh"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -198,6 +198,14 @@ class _Tokens:
     def peek(self) -> str | None:
         return self.items[self.pos][0] if self.pos < len(self.items) else None
 
+    def name(self, what: str) -> tuple[str, int]:
+        """A joint name: the rest of its line (3ds Max Biped names hold spaces: ``JOINT Bip01 L Thigh``)."""
+        tok, line = self.next(what)
+        while self.pos < len(self.items) and self.items[self.pos][1] == line and self.items[self.pos][0] != "{":
+            tok = f"{tok} {self.items[self.pos][0]}"
+            self.pos += 1
+        return tok, line
+
 
 def _parse_joint(tokens: _Tokens, name: str, parent: int, joints: list[BvhJoint], line: int) -> None:
     if any(j.name == name for j in joints):
@@ -232,7 +240,7 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, joints: list[BvhJoint]
         if upper == "}":
             break
         if upper == "JOINT":
-            child, cline = tokens.next("a joint name")
+            child, cline = tokens.name("a joint name")
             _parse_joint(tokens, child, index, joints, cline)
         elif upper == "END":
             tokens.expect("Site")
@@ -272,7 +280,7 @@ def parse_bvh(path: str | Path) -> BvhData:
         tok, line = tokens.next("'ROOT'")
         if tok.upper() != "ROOT":
             raise tokens.error(f"expected 'ROOT', found {tok!r}", line)
-        name, nline = tokens.next("a root name")
+        name, nline = tokens.name("a root name")
         _parse_joint(tokens, name, -1, joints, nline)
     if not joints:
         raise tokens.error("the hierarchy has no joint", motion_line + 1)
@@ -357,7 +365,11 @@ def read_bvh(path: str | Path, *, length_unit: float = 0.01, up_axis: str = "y")
     """
     if not (math.isfinite(length_unit) and length_unit > 0.0):
         raise ConfigError(f"length_unit must be > 0, got {length_unit!r}", file=str(path))
-    data = parse_bvh(path)
+    return bvh_recording(parse_bvh(path), str(path), length_unit=length_unit, up_axis=up_axis)
+
+
+def bvh_recording(data: BvhData, source: str, *, length_unit: float = 0.01, up_axis: str = "y") -> MocapRecording:
+    """The :class:`~wbcbench.teleop.MocapRecording` of parsed BVH content (:func:`read_bvh` without the file)."""
     skeleton, motion = data.skeleton, data.motion
     positions, rotations = skeleton.forward_kinematics(motion, length_unit)
     orientations = rot.from_matrix(rotations)
@@ -368,7 +380,7 @@ def read_bvh(path: str | Path, *, length_unit: float = 0.01, up_axis: str = "y")
     angles = np.radians(motion[:, rotation_columns])
     times = np.arange(motion.shape[0]) * data.frame_time
     return MocapRecording(
-        source=str(path),
+        source=source,
         frame_rate=1.0 / data.frame_time,
         times=times,
         segments=tuple(j.name for j in skeleton.joints),

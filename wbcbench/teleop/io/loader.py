@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ConfigError
-from .bvh import read_bvh
+from .bvh import bvh_recording, parse_bvh, read_bvh
+from .conventions import LENGTH_UNITS, detect_conventions
 from .csv_poses import read_pose_csv
 from .mvnx import read_mvnx
 from .recording import MocapRecording
+from .skeleton_map import map_segments
 
 __all__ = ["LENGTH_UNITS", "RECORDING_SUFFIXES", "detect_length_unit", "load_recording", "parse_length_unit"]
 
@@ -19,8 +21,6 @@ __all__ = ["LENGTH_UNITS", "RECORDING_SUFFIXES", "detect_length_unit", "load_rec
 RECORDING_SUFFIXES = {".bvh": read_bvh, ".mvnx": read_mvnx, ".csv": read_pose_csv}
 
 
-#: Length units a BVH file may use: name -> metres per unit.
-LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
 #: [m] the vertical extent of a standing adult's joints (ankle or toe to head joint), for the unit detection
 _STANDING_EXTENT = 1.6
 
@@ -65,8 +65,11 @@ def parse_length_unit(text: str | float) -> float | str:
 
 
 def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_axis: str = "auto") -> MocapRecording:
-    """Read a ``.bvh``, ``.mvnx`` or pose ``.csv`` file. A BVH file's length unit and up axis are detected from
-    its skeleton (:func:`detect_length_unit`) unless given; ``length_unit_note`` says what was used.
+    """Read a ``.bvh``, ``.mvnx`` or pose ``.csv`` file. Its conventions are detected from the data
+    (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit and up axis, unless
+    given; for every format the forward axis, rest pose, rotation orders and naming family) and kept in the
+    recording's ``conventions`` (``conventions["line"]``: one line saying what was found); ``length_unit_note``
+    says which unit was used.
 
     Raises:
         ConfigError: unknown suffix, missing file, or any reader error (one line naming the file).
@@ -83,12 +86,31 @@ def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_ax
     if up_axis not in ("auto", "x", "y", "z"):
         raise ConfigError(f"up axis '{up_axis}': use auto, x, y or z", key="--up-axis")
     if reader is not read_bvh:
-        return reader(path)
+        rec = reader(path)
+        conv = detect_conventions(rec, mapping=_mapping(rec), length_unit=1.0, up_axis=up_axis, unit_method="file")
+        return dataclasses.replace(rec, conventions=conv.as_dict())
     unit = parse_length_unit(length_unit)
-    raw = read_bvh(path, length_unit=1.0, up_axis="y" if up_axis == "auto" else up_axis)
+    data = parse_bvh(path)
+    raw = bvh_recording(data, str(path), length_unit=1.0, up_axis="y" if up_axis == "auto" else up_axis)
+    conv = detect_conventions(raw, skeleton=data.skeleton, mapping=_mapping(raw), up_axis=up_axis,
+                              length_unit=None if unit == "auto" else unit,
+                              unit_method="detected" if unit == "auto" else "given")
     if unit == "auto":
-        unit, note, axis = detect_length_unit(raw, up_axis)
+        unit = conv.length_unit
+        note = (f"{conv.unit_name or f'{unit:.4g} m per unit'} (detected: stature {conv.stature_m:.2f} m, "
+                f"confidence {conv.unit_confidence:.2f})")
     else:
-        axis = raw.up_axis if up_axis == "auto" else up_axis
         note = f"{unit:g} m per unit (given)"
-    return dataclasses.replace(raw, positions=np.asarray(raw.positions) * unit, up_axis=axis, length_unit_note=note)
+    if not (np.isfinite(unit) and unit > 0):
+        raise ConfigError("cannot detect the length unit: the skeleton has no size", file=str(path),
+                          key="--length-unit")
+    return dataclasses.replace(raw, positions=np.asarray(raw.positions) * unit, up_axis=conv.up_axis,
+                               length_unit_note=note, conventions=conv.as_dict())
+
+
+def _mapping(recording: MocapRecording):
+    """The recording's segment mapping (names, then hierarchy), or None when neither finds every segment."""
+    try:
+        return map_segments(recording.segments, recording.parents, recording.source)
+    except ConfigError:
+        return None

@@ -62,6 +62,9 @@ class MocapRecording:
         joint_angles: (N, J) joint angles [rad] (J may be 0).
         up_axis: the recording's vertical axis, "x", "y" or "z" (informative: the alignment does not use it).
         length_unit_note: how a BVH file's length unit was chosen (detected or given), "" for other formats.
+        conventions: what :func:`~wbcbench.teleop.io.conventions.detect_conventions` found in the data (length
+            unit and its confidence, up and forward axes, rotation orders, rest pose, naming family), as plain
+            values; empty when the recording was not read through :func:`~wbcbench.teleop.load_recording`.
 
     Raises:
         ConfigError: inconsistent shapes, non-increasing or non-finite times, non-unit quaternions (the message
@@ -79,6 +82,7 @@ class MocapRecording:
     joint_angles: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     up_axis: str = "z"
     length_unit_note: str = ""
+    conventions: Mapping = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         err = self._error
@@ -200,7 +204,7 @@ class MocapRecording:
             source=source, frame_rate=self.frame_rate, times=self.times, segments=self.segments,
             positions=self.positions, orientations=self.orientations, parents=self.parents,
             joint_names=self.joint_names, joint_angles=self.joint_angles, up_axis=self.up_axis,
-            length_unit_note=self.length_unit_note,
+            length_unit_note=self.length_unit_note, conventions=self.conventions,
         )
 
     def __repr__(self) -> str:

@@ -188,6 +188,20 @@ def _label(mocap) -> str:
     return Path(getattr(mocap, "source", "") or "mocap").stem or "mocap"
 
 
+def conventions_line(mocap: str, length_unit="auto", up_axis: str = "auto", segment_map: str | None = None) -> str:
+    """What is detected in a recording file's data (unit, axes, rest pose, names: one line), "" for a shipped
+    recording's name or a live stream. Errors in the file propagate (one line, exit 2)."""
+    from ..io.loader import RECORDING_SUFFIXES, load_recording
+
+    path = Path(mocap)
+    if mocap.startswith("udp://") or path.suffix.lower() not in RECORDING_SUFFIXES:
+        return ""
+    line = load_recording(path, length_unit=length_unit, up_axis=up_axis).conventions.get("line", "")
+    if line and segment_map:
+        line += f"; segments from {segment_map} (given)"
+    return line
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Execute `wbcbench teleop`. Domain errors propagate to the CLI (one line, exit 2)."""
     from rich.console import Console
@@ -216,6 +230,9 @@ def run_command(args: argparse.Namespace) -> int:
         if not (np.isfinite(value) and value >= 0):
             raise ConfigError(f"must be a duration >= 0 s, got {value}", key=key)
     kwargs.update(predict=args.predict, predict_horizon=args.predict_horizon, predict_latency=args.predict_latency)
+    line = conventions_line(args.mocap, args.length_unit, args.up_axis, args.segment_map)
+    if line:
+        print(line, flush=True)
     from ...viz.commands import live_view_from
 
     kwargs["view"] = live_view_from(args)

@@ -213,7 +213,8 @@ class TeleopReferenceSource:
         method = "file" if self.config.segment_map is not None else (m.method if m is not None else "names")
         names = self.config.segment_map if self.config.segment_map is not None else (m.names if m else None)
         return {"length_unit": getattr(self.source, "length_unit_note", "") or None,
-                "up_axis": getattr(self.source, "up_axis", None), "mapping": method, "segments": names}
+                "up_axis": getattr(self.source, "up_axis", None), "mapping": method, "segments": names,
+                "conventions": dict(getattr(self.source, "conventions", None) or {}) or None}
 
     def _set_anchor(self, references: dict) -> None:
         """Calibration of the `offset` / `rest` anchors on one retargeted frame (the operator at rest)."""
