@@ -9,6 +9,7 @@ import numpy as np
 
 from ...errors import ConfigError
 from .bvh import bvh_recording, parse_bvh, read_bvh
+from .c3d import read_c3d
 from .conventions import LENGTH_UNITS, detect_conventions
 from .csv_poses import read_pose_csv
 from .mvnx import read_mvnx
@@ -18,7 +19,7 @@ from .skeleton_map import map_segments
 __all__ = ["LENGTH_UNITS", "RECORDING_SUFFIXES", "detect_length_unit", "load_recording", "parse_length_unit"]
 
 #: Suffix -> reader.
-RECORDING_SUFFIXES = {".bvh": read_bvh, ".mvnx": read_mvnx, ".csv": read_pose_csv}
+RECORDING_SUFFIXES = {".bvh": read_bvh, ".mvnx": read_mvnx, ".csv": read_pose_csv, ".c3d": read_c3d}
 
 
 #: [m] the vertical extent of a standing adult's joints (ankle or toe to head joint), for the unit detection
@@ -65,7 +66,7 @@ def parse_length_unit(text: str | float) -> float | str:
 
 
 def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_axis: str = "auto") -> MocapRecording:
-    """Read a ``.bvh``, ``.mvnx`` or pose ``.csv`` file. Its conventions are detected from the data
+    """Read a ``.bvh``, ``.mvnx``, pose ``.csv`` or ``.c3d`` (Plug-in Gait markers) file. Its conventions are detected from the data
     (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit and up axis, unless
     given; for every format the forward axis, rest pose, rotation orders and naming family) and kept in the
     recording's ``conventions`` (``conventions["line"]``: one line saying what was found); ``length_unit_note``
