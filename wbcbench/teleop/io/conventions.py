@@ -124,13 +124,19 @@ _FAMILIES: tuple[tuple[str, re.Pattern], ...] = (
 )
 
 
+#: names several families share (CMU, Mixamo without its prefix, Rokoko, Axis Neuron: LeftUpLeg, LeftArm ...) count
+#: less than a family's own
+_SHARED = ("Rokoko/Axis Neuron",)
+
+
 def naming_family(segments: Sequence[str]) -> str:
-    """The naming family whose patterns match most segment names (ties: the first in the table), else "generic"."""
-    best, hits = "generic", 0
+    """The naming family whose patterns match most segment names, a family's own names counting five times the
+    names several families share (ties: the first in the table), else "generic"."""
+    best, score = "generic", 0
     for family, pattern in _FAMILIES:
-        n = sum(1 for s in segments if pattern.search(s.strip()))
-        if n > hits:
-            best, hits = family, n
+        n = sum(1 for s in segments if pattern.search(s.strip())) * (1 if family in _SHARED else 5)
+        if n > score:
+            best, score = family, n
     return best
 
 
