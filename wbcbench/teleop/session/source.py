@@ -31,8 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ...errors import ConfigError
 from ...side import Side
 from ...types import PoseReference
+from ..human.locomotion import fix_feet
+from ..io.recording import MocapRecording
 from ..link.network import ImpairedReplay, NetworkImpairment
 from ..link.prediction import DEFAULT_HORIZON, PosePredictor
 from ..safety.command_filter import CommandFilter, SafetyConfig
@@ -135,6 +138,7 @@ class TeleopSourceConfig:
     predict: str = "none"
     predict_horizon: float = DEFAULT_HORIZON
     predict_latency: float = 0.0
+    locomotion: str = "auto"
 
 
 class TeleopReferenceSource:
@@ -155,6 +159,9 @@ class TeleopReferenceSource:
         """Retarget, calibrate the anchor and precompute a recording's references, at the robot's start q0."""
         from ..human.retargeting import Retargeter
 
+        self.operator_motion = None
+        if not self.live and isinstance(self.source, MocapRecording):
+            self.source, self.operator_motion = self._fixed_feet(self.source)
         self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion,
                                      segment_map=self.config.segment_map)
         self.reference_poses = {k: pin.SE3(v) for k, v in self.retargeter.reference_poses.items()}
@@ -207,6 +214,19 @@ class TeleopReferenceSource:
             index = {e: i for i, e in enumerate(DEFAULT_TARGETS)}
             self._row_tasks = tuple((index[e], tuple(tasks)) for e, tasks in self.task_names.items())
 
+    def _fixed_feet(self, recording: MocapRecording):
+        """The recording with the operator's walk and turns taken out (`locomotion`, human/locomotion.py)."""
+        from ..io.skeleton_map import map_segments
+
+        names = self.config.segment_map
+        if names is None:
+            try:
+                names = map_segments(recording.segments, recording.parents, recording.source).names
+            except ConfigError:
+                return recording, None  # the retargeting says what is missing
+        up = (recording.conventions or {}).get("up") or f"+{recording.up_axis}"
+        return fix_feet(recording, names, up, self.config.locomotion)
+
     def skeleton_summary(self) -> dict:
         """How the source's skeleton was read: the length unit, the up axis and the segment mapping."""
         m = self.retargeter.segment_mapping
@@ -214,7 +234,8 @@ class TeleopReferenceSource:
         names = self.config.segment_map if self.config.segment_map is not None else (m.names if m else None)
         return {"length_unit": getattr(self.source, "length_unit_note", "") or None,
                 "up_axis": getattr(self.source, "up_axis", None), "mapping": method, "segments": names,
-                "conventions": dict(getattr(self.source, "conventions", None) or {}) or None}
+                "conventions": dict(getattr(self.source, "conventions", None) or {}) or None,
+                "operator_motion": self.operator_motion.as_dict() if self.operator_motion is not None else None}
 
     def _set_anchor(self, references: dict) -> None:
         """Calibration of the `offset` / `rest` anchors on one retargeted frame (the operator at rest)."""
