@@ -176,7 +176,8 @@ def test_each_naming_family_is_named_and_mapped(tmp_path, family):
     assert c["unit_name"] == "cm" and c["up"] == "+y" and c["forward"] == "+z" and c["rest_pose"] == "T", c["line"]
 
 
-@pytest.mark.parametrize("unit,name", [(1.0, "m"), (0.01, "cm"), (0.001, "mm"), (0.0254, "in")])
+@pytest.mark.parametrize("unit,name", [(1.0, "m"), (0.01, "cm"), (0.001, "mm"), (0.0254, "in"),
+                                       (0.0254 / 0.45, "cmu-asf")])
 @pytest.mark.parametrize("frame", sorted(FRAMES))
 def test_unit_and_axes_are_detected(tmp_path, unit, name, frame):
     path = write_skeleton(tmp_path / "x.bvh", "mixamo", unit=unit, frame=frame, rest="A")
@@ -192,7 +193,7 @@ def test_unit_and_axes_are_detected(tmp_path, unit, name, frame):
 
 
 def test_an_odd_scale_falls_back_to_the_stature(tmp_path):
-    path = write_skeleton(tmp_path / "x.bvh", "mvn", unit=0.0254 / 0.45, rest="down")
+    path = write_skeleton(tmp_path / "x.bvh", "mvn", unit=0.17, rest="down")  # no standard unit within x1.6
     c = load_recording(path).conventions
     assert c["unit_name"] == "" and c["unit_confidence"] == 0.0 and c["rest_pose"] == "other"
     assert c["stature_m"] == pytest.approx(1.70)

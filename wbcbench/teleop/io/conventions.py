@@ -6,7 +6,8 @@ rotation order per joint, rest pose and the segment naming family.
   about 0.94 of the stature) and, when the segments are identified, the limbs' lengths against adult proportions
   (upper arm 0.186, forearm 0.146, thigh 0.245, shank 0.246 of the stature; Winter, *Biomechanics and Motor
   Control of Human Movement*, 4th ed., Fig. 4.1); the limb lengths are medians over the frames, so that a sitting
-  or crouching operator does not shrink. The unit is the standard one (m, dm, cm, mm, in, ft) that puts the
+  or crouching operator does not shrink. The unit is the standard one (m, dm, cm, mm, in, ft, and the CMU
+  database's 1/0.45 inch) that puts the
   stature closest to an adult's 1.70 m, if one is within a factor 1.6; else the scale that makes it 1.70 m. Its
   confidence is that unit's posterior probability among the standard units under a log-normal prior on the
   stature (sigma 0.15 in log, or the estimates' spread if larger).
@@ -35,8 +36,9 @@ import numpy as np
 __all__ = ["HUMAN_STATURE", "Conventions", "detect_conventions", "naming_family",
            "rotation_orders", "stature_estimates"]
 
-#: Length units a file may use: name -> metres per unit.
-LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
+#: Length units a file may use: name -> metres per unit ("cmu-asf": the CMU database's ASF unit, 1/0.45 inch,
+#: kept by BVH conversions of it).
+LENGTH_UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048, "cmu-asf": 0.0254 / 0.45}
 #: [m] the stature the unit detection assumes (adult).
 HUMAN_STATURE = 1.70
 #: standing extent (ankle or toe to head joint) / stature
