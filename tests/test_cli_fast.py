@@ -88,6 +88,6 @@ def test_lazy_packages_keep_their_public_names():
 
     assert callable(compare) and compare.__module__ == "wbcbench.report.compare"
     assert callable(reproduce) and reproduce.__module__ == "wbcbench.report.reproduce"
-    assert callable(umeyama) and umeyama.__module__ == "wbcbench.teleop.umeyama"
+    assert callable(umeyama) and umeyama.__module__ == "wbcbench.teleop.human.umeyama"
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         report.nope  # noqa: B018

@@ -22,10 +22,9 @@ class _LazyPackage(types.ModuleType):
 
     def __setattr__(self, name: str, value) -> None:
         exports = self.__dict__.get("_EXPORTS", {})
-        if (name in exports and isinstance(value, types.ModuleType)
-                and value.__name__ == f"{self.__name__}.{name}"):
-            # the submodule is being bound by the import system: bind the export instead (loading it from the
-            # submodule that has just been imported)
+        if name in exports and isinstance(value, types.ModuleType) and hasattr(value, name):
+            # a submodule (or a module found under that name) is being bound by the import system: bind the export
+            # instead (loading it from the module that has just been imported)
             value = getattr(value, name)
         super().__setattr__(name, value)
 
