@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,docs,dart]'
+	$(BIN)/python -m pip install --quiet -e '.[test,docs,dart,c3d]'
 	touch $(STAMP)
 
 # The flagship comparison: the paper's controller x scenario matrix, shortened walks, with the report
