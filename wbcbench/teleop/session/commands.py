@@ -41,6 +41,7 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--list", action="store_true", help="list the shipped recordings and exit")
     p.add_argument("--controller", "-c", default=DEFAULT_CONTROLLER, help=f"default {DEFAULT_CONTROLLER}")
     p.add_argument("--robot", "-r", default="talos", help="robot name or profile YAML path (default: talos)")
+    p.add_argument("--engine", default="mujoco", help="physics engine: mujoco (default), dart, a plugin's")
     p.add_argument("--mode", "-m", default=None, help="spd (default), position or torque")
     p.add_argument("--speed", type=float, default=1.0, help="replay speed factor for recordings (default 1)")
     p.add_argument("--no-repulsors", action="store_true", help="drop the self-collision repulsor tasks")
@@ -119,13 +120,14 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
                 duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
                 quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, view=None,
-                **params):
+                engine: str = "mujoco", **params):
     """Run one teleoperation session; returns the runner's `RunResult`.
 
     `view`: a live view (`wbcbench.viz.live.LiveView`) to show the robot and the retargeted targets in, or None.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
-    `reach_cap`: False turns tsid-teleop's out-of-reach caps off.
+    `reach_cap`: False turns tsid-teleop's out-of-reach caps off. `engine`: the physics engine
+    (`wbcbench.sim.engines`).
     Other keyword arguments are `teleop` scenario params (e.g. `proportion`, `engage_time`, `feedforward`).
 
     Raises:
@@ -167,7 +169,7 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
     try:
         result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=overwrite, realtime=realtime,
-                     sim_options=SimOptions(self_collision=self_collision), probes=probes)
+                     sim_options=SimOptions(self_collision=self_collision), probes=probes, engine=engine)
     finally:
         close = getattr(scen.source, "close", None)
         if scen.live and close is not None:
@@ -213,7 +215,8 @@ def run_command(args: argparse.Namespace) -> int:
         return 0
     if args.mocap is None:
         raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
-    kwargs = dict(robot=args.robot, controller=args.controller, mode=args.mode, speed=args.speed,
+    kwargs = dict(robot=args.robot, engine=args.engine, controller=args.controller, mode=args.mode,
+                  speed=args.speed,
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer,
                   reach_cap=not args.no_reach_cap, duration=args.duration,
                   out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
