@@ -17,7 +17,26 @@ HEAVY = ("numpy", "pinocchio", "mujoco", "numba", "scipy", "matplotlib", "wbcben
          "wbcbench.runner")
 
 
+def _in_a_fresh_interpreter(check) -> None:
+    """Run `check` (a function of this module) in a new interpreter: the registries there hold the built-ins alone,
+    whatever other tests of this process registered (a crash-test controller, a test correction...)."""
+    code = (f"import sys; sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+            f"import test_cli_fast as t\nt.{check.__name__}()\nprint('ok')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stderr[-3000:]
+
+
 def test_catalogue_names_are_the_registries():
+    _in_a_fresh_interpreter(check_catalogue_names_are_the_registries)
+
+
+def test_list_prints_the_same_on_the_fast_and_the_registry_path():
+    if catalogue.has_plugins():
+        pytest.skip("plugins are installed in this environment: `list` takes the registry path anyway")
+    _in_a_fresh_interpreter(check_list_prints_the_same_on_both_paths)
+
+
+def check_catalogue_names_are_the_registries():
     from wbcbench.controllers.base import builtin_controllers
     from wbcbench.robots.profile import builtin_robots
     from wbcbench.scenarios import available_scenarios
@@ -46,18 +65,24 @@ def test_catalogue_names_are_the_registries():
     assert catalogue.engines() == [engine_label(e) for e in ENGINES]
 
 
-def test_list_prints_the_same_on_the_fast_and_the_registry_path(capsys, monkeypatch):
-    if catalogue.has_plugins():
-        pytest.skip("plugins are installed in this environment: `list` takes the registry path anyway")
-    assert cli.main(["list"]) == 0
-    fast = capsys.readouterr().out
-    monkeypatch.setattr(catalogue, "has_plugins", lambda: True)
-    assert cli.main(["list"]) == 0
-    assert capsys.readouterr().out == fast
-    monkeypatch.undo()
-    fast_help = cli.build_parser().format_help()
-    monkeypatch.setattr(catalogue, "has_plugins", lambda: True)
-    assert cli.build_parser().format_help() == fast_help
+def check_list_prints_the_same_on_both_paths():
+    import contextlib
+    import io
+
+    def listed() -> str:
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            assert cli.main(["list"]) == 0
+        return buf.getvalue()
+
+    fast, fast_help = listed(), cli.build_parser().format_help()
+    has_plugins = catalogue.has_plugins
+    catalogue.has_plugins = lambda: True
+    try:
+        assert listed() == fast
+        assert cli.build_parser().format_help() == fast_help
+    finally:
+        catalogue.has_plugins = has_plugins
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["list"], ["run", "--help"]])
