@@ -210,6 +210,34 @@ def test_run_with_and_without_the_switch(tmp_path):
     hidden = [k for k in log_on if k.startswith("hidden_deflection.")]
     assert "hidden_deflection.leg_left_2_joint:hip_flex" in hidden
     assert not [k for k in log_off if k.startswith("hidden_deflection.")]
-    assert set(log_on) - set(hidden) - {k for k in log_on if k.startswith("base_estimate_error.")} == set(log_off)
+    extra = {k for k in log_on if k.startswith(("hidden_deflection.", "true_foot_", "base_estimate_error."))}
+    assert set(log_on) - extra == set(log_off)  # the nominal columns are kept; hidden ones are extra channels
+    assert "landing" in on.summary["metrics"]
     assert not off.summary["fell"] and not on.summary["fell"]
     assert abs(log_on["q.z"][-1] - log_off["q.z"][-1]) < 0.01
+
+
+def test_landing_errors_on_a_synthetic_log():
+    """One planned touch-down at t = 1.0 s; the foot lands 20 ms early, 1 cm ahead and 5 mm to the left."""
+    from wbcbench.metrics.landing import landing_errors
+    from wbcbench.robots import Side
+
+    t = np.arange(0, 2.0, 1e-3)
+    n = len(t)
+    log = {"t": t}
+    for s, y in ((Side.LEFT, 0.1), (Side.RIGHT, -0.1)):
+        log[f"in_contact_ref_{s.value}"] = np.ones(n)
+        log[f"contact_{s.value}.fz"] = np.full(n, 400.0)
+        log[f"foot_ref_{s.value}.x"] = np.full(n, np.nan)
+        log[f"foot_ref_{s.value}.y"] = np.full(n, np.nan)
+    swing = (t >= 0.5) & (t < 1.0)
+    log["in_contact_ref_left"][swing] = 0.0
+    log["contact_left.fz"][(t >= 0.5) & (t < 0.98)] = 0.0
+    log["foot_ref_left.x"][swing] = 0.2
+    log["foot_ref_left.y"][swing] = 0.1
+    feet = {Side.LEFT: np.tile([0.21, 0.105, 0.0], (n, 1)), Side.RIGHT: np.tile([0.0, -0.1, 0.0], (n, 1))}
+    out = landing_errors(log, feet)
+    (e,) = out["events"]
+    assert e["side"] == "left" and e["dt_s"] == pytest.approx(-0.02)
+    assert e["dx_m"] == pytest.approx(0.01) and e["dy_m"] == pytest.approx(0.005)
+    assert out["summary"]["max_xy_m"] == pytest.approx(math.hypot(0.01, 0.005))

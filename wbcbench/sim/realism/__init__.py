@@ -162,14 +162,20 @@ def load_realism(preset: "str | Path | Realism", robot) -> Realism:
 
 
 class RealismProbe:
-    """Logs the hidden joints' deflections (channel `hidden_deflection`, one component per hidden joint, in
-    MuJoCo's order: `<joint>:drive`, `<joint>:hip_flex`) for metrics; the controller never sees them."""
+    """Logs, for metrics only (the controller never sees them): the hidden joints' deflections (channel
+    `hidden_deflection`, one component per hidden joint in MuJoCo's order: `<joint>:drive`, `<joint>:hip_flex`)
+    and the foot frames' true positions (`true_foot_left`, `true_foot_right`: x, y, z, from the sole geoms, as of
+    the last physics step's kinematics), which the logged q (the encoders' motor side) cannot give. Its metrics:
+    the largest hip deflections and the landing errors (`wbcbench.metrics.landing`)."""
 
     def attach(self, sim) -> dict[str, list[str]]:
         import mujoco
 
+        from ..model import sole_geom_name
+        from ...robots import Side
+
         m = sim.model
-        self._data = sim
+        self._sim = sim
         names, adr = [], []
         for j in range(m.njnt):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or ""
@@ -177,16 +183,27 @@ class RealismProbe:
                 names.append(name)
                 adr.append(int(m.jnt_qposadr[j]))
         self._adr = np.array(adr, dtype=np.int64)
-        return {"hidden_deflection": names} if names else {}
+        sole = sim.robot.profile.sole
+        self._offset = np.array([sole.center[0], sole.center[1], sole.thickness / 2])  # sole centre in foot frame
+        self._soles = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s)) for s in Side]
+        channels = {"hidden_deflection": names} if names else {}
+        channels.update({f"true_foot_{s.value}": ["x", "y", "z"] for s in Side})
+        return channels
 
     def values(self) -> list:
-        if not len(self._adr):
-            return []
-        return [self._data.data.qpos[self._adr]]
+        d = self._sim.data
+        feet = [d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ self._offset for g in self._soles]
+        return ([d.qpos[self._adr]] if len(self._adr) else []) + feet
 
     def metrics(self, log: dict) -> dict:
+        from ...metrics.landing import landing_errors
+        from ...robots import Side
+
         out = {}
         for k, v in log.items():
             if k.startswith("hidden_deflection.") and k.endswith(":hip_flex"):
                 out[f"max_abs_{k.split('.', 1)[1].replace(':', '_')}_rad"] = float(np.max(np.abs(v))) if len(v) else 0.0
+        if "t" in log and len(log["t"]) > 1:
+            feet = {s: np.stack([np.asarray(log[f"true_foot_{s.value}.{a}"]) for a in "xyz"], axis=1) for s in Side}
+            out["landing"] = landing_errors(log, feet)["summary"]
         return out
