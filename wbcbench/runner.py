@@ -184,6 +184,8 @@ def _build(cfg: RunConfig) -> _Parts:
     ctrl, controller = _controller(cfg, robot, spec)
     if cfg.realism is not None:  # the hidden actuator chains and flexibilities, in the simulator only
         from .sim.realism import load_realism
+        if cfg.engine != "mujoco":
+            raise ConfigError(f"a realism preset needs the mujoco engine, not '{cfg.engine}'", key="--realism")
         options = replace(options, realism=load_realism(cfg.realism, robot))
     model_error = cfg.model_error
     if isinstance(model_error, (str, Path)):
