@@ -241,3 +241,19 @@ def test_landing_errors_on_a_synthetic_log():
     assert e["side"] == "left" and e["dt_s"] == pytest.approx(-0.02)
     assert e["dx_m"] == pytest.approx(0.01) and e["dy_m"] == pytest.approx(0.005)
     assert out["summary"]["max_xy_m"] == pytest.approx(math.hypot(0.01, 0.005))
+
+
+def test_an_empty_preset_changes_no_nominal_column(tmp_path, robot):
+    """The switch's machinery with no mechanism in it (an empty preset: the probe, the model-building path) leaves
+    every nominal log column bit-identical to the run without the switch."""
+    from wbcbench.recorder import read_log
+    from wbcbench.runner import run
+
+    empty = preset(robot, {})
+    run("stand", "tsid-torque", duration=0.1, out=tmp_path / "off")
+    run("stand", "tsid-torque", duration=0.1, out=tmp_path / "empty", realism=empty)
+    off, on = read_log(tmp_path / "off" / "log.parquet"), read_log(tmp_path / "empty" / "log.parquet")
+    assert set(off) <= set(on)
+    for k in off:
+        if k != "controller_time_us":
+            np.testing.assert_array_equal(on[k], off[k], err_msg=k)
