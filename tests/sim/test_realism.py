@@ -94,6 +94,12 @@ def test_hip_flexibility_deflects_and_is_hidden(robot):
     ideal = Simulator(robot, mode="position")
     assert sim.model.nq == ideal.model.nq + 2
     assert sim.measure().q.shape == ideal.measure().q.shape == (robot.nq,)
+    # on the hip roll joint's axis, through its origin (in the link above it)
+    for side in ("left", "right"):
+        a, b = _jid(sim, f"leg_{side}_2_joint"), _jid(sim, f"leg_{side}_2_joint:hip_flex")
+        np.testing.assert_allclose(sim.data.xaxis[b], sim.data.xaxis[a], atol=1e-12)
+        np.testing.assert_allclose(sim.data.xanchor[b], sim.data.xanchor[a], atol=1e-12)
+        assert sim.model.jnt_bodyid[b] == sim.model.body_parentid[sim.model.jnt_bodyid[a]]
     q = robot.q0[7:].copy()
     q[robot.joint_names.index("leg_left_2_joint")] += 0.05  # push the left foot outwards: a roll moment at the hips
     sim.apply(Command(q=q, v=np.zeros(robot.na)))
