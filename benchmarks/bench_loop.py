@@ -4,6 +4,11 @@ in microseconds per tick, and the real-time factor of the whole loop.
 
     .venv/bin/python benchmarks/bench_loop.py [--scenario walk-20cm] [--controller tsid-torque]
     .venv/bin/python benchmarks/bench_loop.py --against ../other-checkout [--rounds 3] [--core 0]
+    .venv/bin/python benchmarks/bench_loop.py --scenario stand --realism talos-real [--rounds 3]
+
+`--realism PRESET` (without --against) times the run with the realism switch off and on, alternating round by round
+in this process, and prints the ratio on / off (the cost of the hidden actuator chains; choose a scenario that
+does not fall with the preset, e.g. stand, so that both runs have the same ticks).
 
 The run is a normal `wbcbench.run` (log written to a temporary directory), after a 0.3 s warm-up run of the same
 pair in the same process (loading the compiled kernels is not a tick's cost); physics is timed by wrapping
@@ -50,7 +55,7 @@ class _Clock:
         return {}
 
 
-def measure(scenario: str, controller: str) -> dict:
+def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
     """One run; the split per tick [us] and the real-time factor. Wall time as the run loop measures it, and
     CPU time of the loop's thread (`time.thread_time`: what another process on the same core does not add)."""
     from wbcbench.controllers.base import make_controller
@@ -60,7 +65,7 @@ def measure(scenario: str, controller: str) -> dict:
     from wbcbench.sim.simulator import Simulator
 
     with tempfile.TemporaryDirectory() as tmp:  # load the compiled kernels and warm the caches first
-        run(scenario, controller, duration=0.3, out=Path(tmp) / "warm-up")
+        run(scenario, controller, duration=0.3, out=Path(tmp) / "warm-up", realism=realism)
     robot = load_robot("talos")
     scen = load_scenario(scenario, robot)
     ctrl = make_controller(controller, robot, None, scen.spec.control_dt)
@@ -86,7 +91,7 @@ def measure(scenario: str, controller: str) -> dict:
     Simulator.step = timed_step
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock])
+            result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock], realism=realism)
     finally:
         Simulator.step = step
     s = result.summary
@@ -132,6 +137,23 @@ def against(args) -> None:
         print()
 
 
+def realism_ratio(args) -> None:
+    """The realism switch's cost: off and on alternately, the median over the rounds and the ratio on / off."""
+    rounds = {"off": [], "on": []}
+    for r in range(args.rounds):
+        rounds["off"].append(measure(args.scenario, args.controller))
+        rounds["on"].append(measure(args.scenario, args.controller, args.realism))
+        print(f"  round {r + 1}/{args.rounds} done", flush=True)
+    med = {side: {k: float(np.median([x[k] for x in v])) for k in v[0] if k != "fell"} | {"fell": any(x["fell"] for x in v)}
+           for side, v in rounds.items()}
+    print(f"{args.controller} on {args.scenario}, realism {args.realism}; median over {args.rounds} rounds [us per tick]")
+    for side in med:
+        print(_line(side, med[side]))
+    on, off = med["on"], med["off"]
+    print(f"  on/off: physics {on['cpu_physics_us'] / off['cpu_physics_us']:.2f}, "
+          f"tick {on['cpu_tick_us'] / off['cpu_tick_us']:.2f} (CPU); tick {on['tick_us'] / off['tick_us']:.2f} (wall)")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenario", default="walk-20cm")
@@ -140,7 +162,11 @@ def main() -> None:
     p.add_argument("--against", default=None, help="another checkout to time in the same run (e.g. previous main)")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--core", default="0", help="CPU core to pin to with --against ('' for none; default 0)")
+    p.add_argument("--realism", default=None, help="time the run with this realism preset against the switch off")
     args = p.parse_args()
+    if args.realism and not args.against:
+        realism_ratio(args)
+        return
     if args.against:
         against(args)
         return

@@ -47,6 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--model-error", default=None, metavar="FILE.yaml",
                    help="how the simulated robot differs from the controller's model (masses, payloads, friction, "
                         "ground softness; see wbcbench/sim/model_error.py)")
+    r.add_argument("--realism", default=None, metavar="PRESET",
+                   help="the simulated robot's hidden hardware: actuator chains (friction, drive elasticity, torque "
+                        "loop), hip flexibility, sensors; talos-real or a preset YAML (wbcbench/sim/realism)")
     r.add_argument("--predict-falls", action="store_true",
                    help="log the predicted-fall signal (capture point vs support polygon, tilt rate) every tick")
     r.add_argument("--safe-stop", action="store_true",
@@ -121,7 +124,7 @@ def _cmd_run(args) -> int:
     kwargs = dict(taskset=args.taskset, sensors=args.sensors, seed=args.seed, model_error=args.model_error,
                   faults=faults, predict_falls=args.predict_falls, safe_stop=args.safe_stop,
                   overwrite=args.overwrite, realtime=args.realtime, probes=[view] if view else [],
-                  engine=args.engine)
+                  engine=args.engine, realism=args.realism)
     try:
         if args.quiet:
             result = run(args.scenario, args.controller, args.robot, args.mode, args.duration, args.out, **kwargs)

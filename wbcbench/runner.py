@@ -86,6 +86,7 @@ class RunConfig:
     branch: BranchPoint | None = None
     hooks: tuple = ()
     engine: str = "mujoco"
+    realism: object = None
 
 
 def run(scenario: str | Scenario, controller: str | Controller, robot: str | Robot = "talos",
@@ -94,7 +95,7 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
         probes: Sequence = (), taskset: str | Path | None = None, sensors=None, seed: int = 0,
         model_error=None, faults: Sequence = (), predict_falls: bool = False, safe_stop: bool = False,
         overwrite: bool = False, realtime: bool = False, branch: BranchPoint | None = None,
-        hooks: Sequence = (), engine: str = "mujoco") -> RunResult:
+        hooks: Sequence = (), engine: str = "mujoco", realism=None) -> RunResult:
     """Run one scenario with one controller; returns the summary (and the log, read back).
 
     `controller` is a registered name, or a controller already built for this robot at the scenario's
@@ -107,10 +108,11 @@ def run(scenario: str | Scenario, controller: str | Controller, robot: str | Rob
     `hooks`: the caller's own part in each tick, `wbcbench.loop.Hook` objects or `(phase, callable(tick))`
     pairs, called after the built-in work of their phases (`wbcbench.loop` documents the phases).
     `engine`: the physics engine (`wbcbench.sim.engines`: mujoco, dart or a plugin's).
+    `realism`: the simulated robot's hidden hardware (`wbcbench.sim.realism`: a preset name, file or `Realism`).
     """
     return run_config(RunConfig(scenario, controller, robot, mode, duration, out, progress, sim_options,
                                 tuple(probes), taskset, sensors, seed, model_error, tuple(faults), predict_falls,
-                                safe_stop, overwrite, realtime, branch, tuple(hooks), engine))
+                                safe_stop, overwrite, realtime, branch, tuple(hooks), engine, realism))
 
 
 def run_config(cfg: RunConfig) -> RunResult:
@@ -154,7 +156,7 @@ def _run(cfg: RunConfig) -> RunResult:
     loop.prepare(int(round(duration / p.spec.control_dt)), duration)
     outcome = loop.execute(_reset(p))
     summary = _summary(cfg, p, loop, outcome, hooks)
-    log = _add_metrics(summary, loop.run_dir, loop.recorder, p, cfg.probes)
+    log = _add_metrics(summary, loop.run_dir, loop.recorder, p, hooks["probes"].probes)
     try:
         if outcome.error:
             (loop.run_dir / "error.txt").write_text(outcome.error)
@@ -180,6 +182,11 @@ def _build(cfg: RunConfig) -> _Parts:
         raise ConfigError(f"control_dt {spec.control_dt} must be a multiple of the physics timestep "
                           f"{options.timestep}", file=spec.file, key="control_dt")
     ctrl, controller = _controller(cfg, robot, spec)
+    if cfg.realism is not None:  # the hidden actuator chains and flexibilities, in the simulator only
+        from .sim.realism import load_realism
+        if cfg.engine != "mujoco":
+            raise ConfigError(f"a realism preset needs the mujoco engine, not '{cfg.engine}'", key="--realism")
+        options = replace(options, realism=load_realism(cfg.realism, robot))
     model_error = cfg.model_error
     if isinstance(model_error, (str, Path)):
         from .config import Section, load_yaml
@@ -195,8 +202,8 @@ def _build(cfg: RunConfig) -> _Parts:
         raise ConfigError(f"cannot build the MuJoCo model: {str(exc).splitlines()[0]}",
                           file=robot.profile.file) from None
     # what the controller sees: the simulator's measurement through the sensor model (ideal: unchanged)
-    sensing = make_sensor_model(cfg.sensors if cfg.sensors is not None else spec.sensors, robot, spec.control_dt,
-                                cfg.seed)
+    sensors = cfg.sensors if cfg.sensors is not None else getattr(options.realism, "sensors", None) or spec.sensors
+    sensing = make_sensor_model(sensors, robot, spec.control_dt, cfg.seed)
     injector = FaultInjector(tuple(cfg.faults) + tuple(spec.faults), robot, spec.control_dt)
     return _Parts(robot, scen, spec, options, substeps, ctrl, controller, model_error, sim, sensing, injector)
 
@@ -255,6 +262,7 @@ def _config(cfg: RunConfig, p: _Parts) -> dict:
             "sensors": {**p.sensing.profile.__dict__, "seed": cfg.seed},
             "model_error": {"spec": p.model_error.__dict__ if p.model_error is not None else None,
                             "applied": p.sim.model_error},
+            **({"realism": options.realism.describe()} if options.realism is not None else {}),
             "versions": _versions()}
 
 
@@ -274,7 +282,7 @@ def _make_loop(cfg: RunConfig, p: _Parts, run_dir: Path, config: dict) -> tuple[
 
     loop = RunLoop(plant=sim, controller=p.ctrl, scenario=p.scen, recorder=rec, layout=layout,
                    dt=p.spec.control_dt, substeps=p.substeps, run_dir=run_dir, progress=cfg.progress, com=com)
-    hooks = {"probes": ProbeHook(cfg.probes), "sensors": SensorHook(p.sensing),
+    hooks = {"probes": ProbeHook(cfg.probes + _realism_probes(p)), "sensors": SensorHook(p.sensing),
              "faults": FaultHook(p.injector) if p.injector.enabled else None,
              "fall": FallHook(robot, cfg.safe_stop) if (cfg.predict_falls or cfg.safe_stop) else None,
              "branch": BranchHook(cfg.branch, config) if cfg.branch is not None else None,
@@ -291,6 +299,11 @@ def _make_loop(cfg: RunConfig, p: _Parts, run_dir: Path, config: dict) -> tuple[
         # load the compiled kernel now: loading it at the first row group holds the interpreter for milliseconds
         com_columns(np.empty((0, len(rec.columns))))
     return loop, hooks
+
+
+def _realism_probes(p: _Parts) -> tuple:
+    from .sim.realism import RealismProbe
+    return (RealismProbe(),) if p.options.realism is not None else ()
 
 
 def _setup_scenario(p: _Parts) -> float:

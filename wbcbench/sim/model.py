@@ -48,6 +48,7 @@ class SimOptions:
     self_collision: str = "off"
     visuals: bool = False
     extra: dict = field(default_factory=dict)
+    realism: object = None  # a `wbcbench.sim.realism.Realism` (actuator chains, hip flexibility) or None: ideal
 
     def __post_init__(self) -> None:
         if self.self_collision not in SELF_COLLISION_MODES:
@@ -185,6 +186,48 @@ def _visual_scene(spec: mujoco.MjSpec) -> None:
     mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = FLOOR_MATERIAL
 
 
+def _realism_joints(spec: mujoco.MjSpec, robot: Robot, realism) -> None:
+    """The preset's hidden mechanisms (wbcbench/sim/realism): motor-side friction on each actuated joint, a hidden
+    `<joint>:drive` spring-damper in series (harmonic-drive elasticity) and `<joint>:hip_flex` (hip flexibility),
+    each in the joint's body on its axis through its origin; the named joint stays the motor side (encoder)."""
+    joints = {j.name: j for j in spec.joints}
+    hinge = mujoco.mjtJoint.mjJNT_HINGE
+
+    def series(j, suffix: str, stiffness: float, damping: float) -> None:
+        h = j.parent.add_joint(name=f"{j.name}:{suffix}", type=hinge, pos=list(j.pos), axis=list(j.axis))
+        h.stiffness = [stiffness, 0.0, 0.0]  # (MuJoCo 4: linear coefficient first)
+        h.damping = [damping, 0.0, 0.0]
+        h.armature = 0.0
+
+    for i, name in enumerate(robot.joint_names):
+        j = joints[name]
+        if j.type != hinge:
+            raise ConfigError(f"joint '{name}' is not a hinge; the actuator model handles hinges only",
+                              file=realism.file, key="actuators")
+        j.frictionloss = j.frictionloss + realism.coulomb[i]
+        if realism.coulomb[i] > 0:  # near-hard stiction: MuJoCo's default soft friction lets a joint creep below
+            j.solref_friction = [2.0 * spec.option.timestep, 1.0]  # break-away (mrad/s); as stiff as is stable
+            j.solimp_friction = [0.999, 0.9999, 0.001, 0.5, 2.0]
+        damping = np.array(j.damping, dtype=float).reshape(-1)
+        damping[0] += realism.viscous[i]
+        j.damping = damping
+        if realism.stiffness[i] > 0:
+            series(j, "drive", realism.stiffness[i], realism.damping[i])
+    if realism.hip is not None:
+        # in the parent link (the structure above the hip joint), on the hip joint's axis through its origin
+        # expressed there: a separate body from the drive's, so the two compliances stay distinct degrees of freedom
+        # (two massless hinges on one axis in one body would make the inertia matrix singular)
+        for name in realism.hip.joints:
+            j = joints[name]
+            body = j.parent
+            R = pin.Quaternion(*np.asarray(body.quat, dtype=float)).toRotationMatrix()  # (w, x, y, z)
+            h = body.parent.add_joint(name=f"{name}:hip_flex", type=hinge,
+                                      pos=list(np.asarray(body.pos, dtype=float) + R @ np.asarray(j.pos, dtype=float)),
+                                      axis=list(R @ np.asarray(j.axis, dtype=float)))
+            h.stiffness = [realism.hip.stiffness, 0.0, 0.0]
+            h.damping = [realism.hip.damping, 0.0, 0.0]
+
+
 def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
                        options: SimOptions | None = None) -> mujoco.MjModel:
     """Compile the MuJoCo model of `robot` standing in `terrain`, with actuators for `mode`."""
@@ -224,6 +267,8 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
             continue
         jid = pmodel.getJointId(j.name)
         j.armature = float(pmodel.armature[pmodel.idx_vs[jid]])
+    if options.realism is not None:
+        _realism_joints(spec, robot, options.realism)
 
     if check:
         _self_collision_geoms(spec, check)
@@ -270,6 +315,8 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
     # actuators, one per actuated joint, in pinocchio order
     kp, kd = robot.profile.position_gains.resolve(robot.joint_names, robot.profile.file)
     effort = robot.effort_limit
+    if options.realism is not None:  # the current limit, where the preset has one below the URDF's
+        effort = np.minimum(effort, np.asarray(options.realism.torque_limit, dtype=float))
     for i, jname in enumerate(robot.joint_names):
         a = spec.add_actuator(name=jname, target=jname, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.forcelimited = True

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from ..errors import UnknownNameError
+from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
@@ -41,6 +41,37 @@ def _f64(x) -> np.ndarray:
     return _NONE if x is None else np.asarray(x, dtype=np.float64)
 
 
+class TorqueLoop:
+    """The low-level torque loop of a realism preset (torque mode): the command through a pure delay of whole
+    physics steps and a first-order lag (exact discretization of the bandwidth), minus the torque sensor's noise
+    (the loop makes the sensor's reading follow the reference), clipped to the torque limit."""
+
+    def __init__(self, spec, dt: float, limit: np.ndarray):
+        self.delay = int(round(spec.delay / dt))
+        self.alpha = 1.0 - math.exp(-2.0 * math.pi * spec.bandwidth * dt) if spec.bandwidth > 0 else 1.0
+        self.noise = float(spec.sensor_noise)
+        self.seed = int(spec.seed)
+        self.limit = np.asarray(limit, dtype=float)
+        self.reset()
+
+    def reset(self) -> None:
+        n = len(self.limit)
+        self.rng = np.random.default_rng(self.seed)
+        self.buf = np.zeros((self.delay + 1, n))
+        self.k = 0
+        self.out = np.zeros(n)
+        self.target = np.zeros(n)
+
+    def next(self) -> np.ndarray:
+        """The torque delivered during the next physics step."""
+        buf = self.buf
+        buf[self.k] = self.target
+        self.k = (self.k + 1) % len(buf)
+        self.out += self.alpha * (buf[self.k] - self.out)  # buf[k]: the command of `delay` steps ago
+        tau = self.out - self.rng.normal(0.0, self.noise, len(self.out)) if self.noise > 0 else self.out
+        return np.clip(tau, -self.limit, self.limit)
+
+
 class Simulator:
     """TALOS (or any profiled robot) in MuJoCo.
 
@@ -67,6 +98,15 @@ class Simulator:
         self.dt = float(self.model.opt.timestep)
         self.kp, self.kd = robot.profile.position_gains.resolve(robot.joint_names, robot.profile.file)
         self.effort = robot.effort_limit
+        realism = self.options.realism
+        self._torque_loop = None
+        if realism is not None:  # the hidden actuator chains (wbcbench/sim/realism)
+            if self.mode is ActuationMode.SPD:
+                raise ConfigError("a realism preset needs torque or position mode (the SPD law assumes the "
+                                  "nominal joints)", file=realism.file, key="--mode")
+            self.effort = np.minimum(self.effort, np.asarray(realism.torque_limit, dtype=float))
+            if self.mode is _TORQUE and realism.torque_loop is not None:
+                self._torque_loop = TorqueLoop(realism.torque_loop, float(self.model.opt.timestep), self.effort)
         self._kd_over_kp = self.kd / self.kp  # position mode: the servo's velocity reference enters as kd/kp v
         self.set_pushes(pushes)
         self._sole_geoms = {s: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s))
@@ -135,6 +175,8 @@ class Simulator:
         self.bridge.v_to_mj(q, np.zeros(self.robot.nv) if v is None else v, self.data.qvel)
         self._tick = 0
         self._command = Command(tau=np.zeros(self.robot.na), q=q[7:].copy(), v=np.zeros(self.robot.na))
+        if self._torque_loop is not None:
+            self._torque_loop.reset()
         mujoco.mj_forward(self.model, self.data)
 
     def true_q(self) -> np.ndarray:
@@ -276,6 +318,9 @@ class Simulator:
         ctrl = self._data_views()[6]
         act = self._act
         if self.mode is _TORQUE:
+            if self._torque_loop is not None:  # the loop sets ctrl at each physics step
+                self._torque_loop.target[:] = command.tau if command.tau is not None else 0.0
+                return
             ctrl[act] = command.tau if command.tau is not None else 0.0
         elif self.mode is ActuationMode.POSITION:
             v = command.v if command.v is not None else 0.0
@@ -307,6 +352,8 @@ class Simulator:
                         xf[bid, :3] += p.force
             if self.mode is ActuationMode.SPD:
                 self.data.ctrl[self._act] = self._spd_torque()
+            elif self._torque_loop is not None:
+                self.data.ctrl[self._act] = self._torque_loop.next()
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
 

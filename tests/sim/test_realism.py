@@ -1,0 +1,265 @@
+"""The realism switch (wbcbench/sim/realism): each hidden mechanism acts, the controller's view keeps the nominal
+layout, bad presets are one-line errors, and without the switch nothing changes."""
+
+import json
+import math
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+from wbcbench.config import Section
+from wbcbench.errors import ConfigError
+from wbcbench.robots import load_robot
+from wbcbench.sim.model import SimOptions
+from wbcbench.sim.realism import TorqueLoop as LoopSpec, load_realism, parse_realism
+from wbcbench.sim.simulator import Simulator, TorqueLoop
+from wbcbench.types import Command
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("talos")
+
+
+def preset(robot, data, file="test-preset.yaml"):
+    return parse_realism(Section(data, file), robot)
+
+
+def _jid(sim, name):
+    return mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+
+def _qadr(sim, name):
+    return int(sim.model.jnt_qposadr[_jid(sim, name)])
+
+
+def test_shipped_preset_parses_with_sources(robot):
+    r = load_realism("talos-real", robot)
+    i = robot.joint_names.index("leg_left_4_joint")
+    assert r.stiffness[i] > 0 and r.coulomb[i] > 0 and r.sensors == "talos-like"
+    assert r.hip is not None and r.hip.stiffness == 973.0
+    assert r.torque_loop is not None and r.torque_loop.delay > 0
+    text = (load_realism.__globals__["PRESET_DIR"] / "talos-real.yaml").read_text()
+    assert "UNPUBLISHED" in text and "973" in text  # values carry their source or say they have none
+
+
+def test_drive_deflection_is_torque_over_stiffness_and_unseen_by_the_encoder(robot):
+    """Standing in position mode (servo on the motor side), loaded by the robot's weight: at rest each drive's
+    deflection equals the transmitted torque over its stiffness, and the link's angle relative to its parent is
+    the encoder's reading plus that deflection."""
+    K = 30000.0
+    r = preset(robot, {"actuators": {"leg_*": {"stiffness": K, "damping": 200.0}}})
+    sim = Simulator(robot, mode="position", options=SimOptions(realism=r))
+    sim.apply(Command(q=robot.q0[7:].copy(), v=np.zeros(robot.na)))
+    sim.step(1500)
+    assert not sim.fall_status().fell
+    tau = sim.applied_torque()
+    meas = sim.measure()
+    loaded = [n for i, n in enumerate(robot.joint_names) if n.startswith("leg_") and abs(tau[i]) > 20.0]
+    assert {"leg_left_4_joint", "leg_right_4_joint"} <= set(loaded)  # the knees carry the robot's weight
+    for name in loaded:
+        i = robot.joint_names.index(name)
+        delta = sim.data.qpos[_qadr(sim, f"{name}:drive")]
+        # the link lags the motor by torque / stiffness (deflection = link - motor)
+        assert -delta == pytest.approx(tau[i] / K, rel=0.02, abs=2e-6)
+        # the encoder reads the motor side
+        motor = sim.data.qpos[_qadr(sim, name)]
+        assert meas.q[7 + i] == motor
+        assert abs(delta) > 1e-4
+    # the link side: the knee link's rotation relative to the thigh is motor + deflection about the joint axis
+    m, d = sim.model, sim.data
+    mujoco.mj_kinematics(m, d)  # the link poses of the current qpos (mj_step leaves those of the step before)
+    j = _jid(sim, "leg_left_4_joint")
+    child, parent = m.jnt_bodyid[j], m.body_parentid[m.jnt_bodyid[j]]
+    R = d.xmat[parent].reshape(3, 3).T @ d.xmat[child].reshape(3, 3)
+    R0 = np.zeros(9)
+    mujoco.mju_quat2Mat(R0, m.body_quat[child])
+    Rrel = R0.reshape(3, 3).T @ R
+    axis = m.jnt_axis[j]
+    angle = math.atan2(np.dot(axis, [Rrel[2, 1] - Rrel[1, 2], Rrel[0, 2] - Rrel[2, 0], Rrel[1, 0] - Rrel[0, 1]]) / 2,
+                       (np.trace(Rrel) - 1) / 2)
+    i = robot.joint_names.index("leg_left_4_joint")
+    assert angle == pytest.approx(meas.q[7 + i] + d.qpos[_qadr(sim, "leg_left_4_joint:drive")], abs=1e-9)
+
+
+def test_hip_flexibility_deflects_and_is_hidden(robot):
+    """The hip spring (in series, above the hip roll joint) deflects under load; the measurement keeps the
+    nominal layout."""
+    r = preset(robot, {"hip_flexibility": {"joints": ["leg_left_2_joint", "leg_right_2_joint"],
+                                           "stiffness": 973.0, "damping": 50.0}})
+    sim = Simulator(robot, mode="position", options=SimOptions(realism=r))
+    ideal = Simulator(robot, mode="position")
+    assert sim.model.nq == ideal.model.nq + 2
+    assert sim.measure().q.shape == ideal.measure().q.shape == (robot.nq,)
+    # on the hip roll joint's axis, through its origin (in the link above it)
+    for side in ("left", "right"):
+        a, b = _jid(sim, f"leg_{side}_2_joint"), _jid(sim, f"leg_{side}_2_joint:hip_flex")
+        np.testing.assert_allclose(sim.data.xaxis[b], sim.data.xaxis[a], atol=1e-12)
+        np.testing.assert_allclose(sim.data.xanchor[b], sim.data.xanchor[a], atol=1e-12)
+        assert sim.model.jnt_bodyid[b] == sim.model.body_parentid[sim.model.jnt_bodyid[a]]
+    q = robot.q0[7:].copy()
+    q[robot.joint_names.index("leg_left_2_joint")] += 0.05  # push the left foot outwards: a roll moment at the hips
+    sim.apply(Command(q=q, v=np.zeros(robot.na)))
+    sim.step(800)
+    left = sim.data.qpos[_qadr(sim, "leg_left_2_joint:hip_flex")]
+    assert abs(left) > 1e-3  # N m over 973 N m/rad: a milliradian or more
+
+
+def test_torque_loop_lags_a_step_by_its_delay():
+    dt, delay, bw = 1e-3, 0.003, 50.0
+    loop = TorqueLoop(LoopSpec(bandwidth=bw, delay=delay), dt, np.full(2, 100.0))
+    out = []
+    loop.target[:] = 10.0
+    for _ in range(10):
+        out.append(loop.next()[0])
+    alpha = 1 - math.exp(-2 * math.pi * bw * dt)
+    assert out[:3] == [0.0, 0.0, 0.0]  # nothing before the delay
+    assert out[3] == pytest.approx(10 * alpha)  # then the first-order response
+    assert out[9] == pytest.approx(10 * (1 - (1 - alpha) ** 7))
+    assert loop.next()[0] < 10.0
+    # the limit holds
+    loop.target[:] = 1e6
+    for _ in range(20):
+        tau = loop.next()
+    assert tau[0] == 100.0
+
+
+def test_torque_loop_acts_in_the_simulator(robot):
+    r = preset(robot, {"torque_loop": {"bandwidth": 100.0, "delay": 0.002, "sensor_noise": 0.0}})
+    sim = Simulator(robot, mode="torque", options=SimOptions(realism=r))
+    tau = np.zeros(robot.na)
+    tau[robot.joint_names.index("leg_left_4_joint")] = 50.0
+    sim.apply(Command(tau=tau))
+    applied = []
+    for _ in range(4):
+        sim.step(1)
+        applied.append(sim.applied_torque()[robot.joint_names.index("leg_left_4_joint")])
+    assert applied[0] == 0.0 and applied[1] == 0.0 and 0.0 < applied[2] < applied[3] < 50.0
+
+
+def test_friction_holds_a_joint_below_break_away(robot):
+    """No gravity: an elbow torque below the Coulomb friction does not move the joint; above it, it does."""
+    r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}})
+    moved = {}
+    for torque in (8.0, 13.0):
+        sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
+        tau = np.zeros(robot.na)
+        i = robot.joint_names.index("arm_left_4_joint")
+        tau[i] = torque
+        q0 = sim.measure().q[7 + i]
+        sim.apply(Command(tau=tau))
+        sim.step(200)
+        moved[torque] = abs(sim.measure().q[7 + i] - q0)
+    assert moved[8.0] < 1e-4
+    assert moved[13.0] > 1e-2
+
+
+def test_preset_errors_name_file_and_key(robot):
+    with pytest.raises(ConfigError, match=r"p.yaml: key 'actuators.leg_\*.stiffness': must be >= 0"):
+        preset(robot, {"actuators": {"leg_*": {"stiffness": -1.0}}}, "p.yaml")
+    with pytest.raises(ConfigError, match=r"p.yaml: key 'actuators.arm_left_7_joint.coulomb'.*torque limit"):
+        preset(robot, {"actuators": {"arm_left_7_joint": {"coulomb": 10.0}}}, "p.yaml")
+    with pytest.raises(ConfigError, match=r"key 'actuators.leg_left_9_joint'.*unknown joint"):
+        preset(robot, {"actuators": {"leg_left_9_joint": {"coulomb": 1.0}}}, "p.yaml")
+    with pytest.raises(ConfigError, match=r"key 'hip_flexibility.joints\[0\]'.*unknown joint 'hip'"):
+        preset(robot, {"hip_flexibility": {"joints": ["hip"], "stiffness": 973.0}}, "p.yaml")
+    with pytest.raises(ConfigError, match=r"key 'torque_loop.latency': unknown key"):
+        preset(robot, {"torque_loop": {"latency": 0.001}}, "p.yaml")
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "wbcbench.cli", "run", "stand", "-c", "tsid-torque", "-d", "0.01",
+                           *args], capture_output=True, text=True)
+
+
+def _one_line(proc, *needles):
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+@pytest.mark.parametrize("body, needles", [
+    ("actuators:\n  'leg_*': {stiffness: -5}\n", ["actuators.leg_*.stiffness", ">= 0"]),
+    ("actuators:\n  arm_left_7_joint: {coulomb: 50}\n", ["actuators.arm_left_7_joint.coulomb", "torque limit"]),
+    ("hip_flexibility: {joints: [leg_left_7_joint], stiffness: 973}\n", ["hip_flexibility.joints[0]",
+                                                                          "leg_left_7_joint"]),
+])
+def test_cli_bad_preset_is_one_line_exit_2(tmp_path, body, needles):
+    f = tmp_path / "mine.yaml"
+    f.write_text(body)
+    _one_line(_cli("--realism", str(f), "--out", str(tmp_path / "run")), str(f), *needles)
+
+
+def test_cli_unknown_preset(tmp_path):
+    _one_line(_cli("--realism", "talos-fake", "--out", str(tmp_path / "run")), "--realism", "talos-fake",
+              "talos-real")
+
+
+def test_run_with_and_without_the_switch(tmp_path):
+    """A short run: with the switch, config.json records the preset and the hidden joints are extra columns;
+    without it, neither (the nominal columns are the same)."""
+    from wbcbench.recorder import read_log
+    from wbcbench.runner import run
+
+    off = run("stand", "tsid-torque", duration=0.05, out=tmp_path / "off")
+    on = run("stand", "tsid-torque", duration=0.05, out=tmp_path / "on", realism="talos-real")
+    c_off = json.loads((tmp_path / "off" / "config.json").read_text())
+    c_on = json.loads((tmp_path / "on" / "config.json").read_text())
+    assert "realism" not in c_off
+    assert c_on["realism"]["name"] == "talos-real" and c_on["sensors"]["name"] == "talos-like"
+    log_off, log_on = read_log(tmp_path / "off" / "log.parquet"), read_log(tmp_path / "on" / "log.parquet")
+    hidden = [k for k in log_on if k.startswith("hidden_deflection.")]
+    assert "hidden_deflection.leg_left_2_joint:hip_flex" in hidden
+    assert not [k for k in log_off if k.startswith("hidden_deflection.")]
+    extra = {k for k in log_on if k.startswith(("hidden_deflection.", "true_foot_", "base_estimate_error."))}
+    assert set(log_on) - extra == set(log_off)  # the nominal columns are kept; hidden ones are extra channels
+    assert "landing" in on.summary["metrics"]
+    assert not off.summary["fell"] and not on.summary["fell"]
+    assert abs(log_on["q.z"][-1] - log_off["q.z"][-1]) < 0.01
+
+
+def test_landing_errors_on_a_synthetic_log():
+    """One planned touch-down at t = 1.0 s; the foot lands 20 ms early, 1 cm ahead and 5 mm to the left."""
+    from wbcbench.metrics.landing import landing_errors
+    from wbcbench.robots import Side
+
+    t = np.arange(0, 2.0, 1e-3)
+    n = len(t)
+    log = {"t": t}
+    for s, y in ((Side.LEFT, 0.1), (Side.RIGHT, -0.1)):
+        log[f"in_contact_ref_{s.value}"] = np.ones(n)
+        log[f"contact_{s.value}.fz"] = np.full(n, 400.0)
+        log[f"foot_ref_{s.value}.x"] = np.full(n, np.nan)
+        log[f"foot_ref_{s.value}.y"] = np.full(n, np.nan)
+    swing = (t >= 0.5) & (t < 1.0)
+    log["in_contact_ref_left"][swing] = 0.0
+    log["contact_left.fz"][(t >= 0.5) & (t < 0.98)] = 0.0
+    log["foot_ref_left.x"][swing] = 0.2
+    log["foot_ref_left.y"][swing] = 0.1
+    feet = {Side.LEFT: np.tile([0.21, 0.105, 0.0], (n, 1)), Side.RIGHT: np.tile([0.0, -0.1, 0.0], (n, 1))}
+    out = landing_errors(log, feet)
+    (e,) = out["events"]
+    assert e["side"] == "left" and e["dt_s"] == pytest.approx(-0.02)
+    assert e["dx_m"] == pytest.approx(0.01) and e["dy_m"] == pytest.approx(0.005)
+    assert out["summary"]["max_xy_m"] == pytest.approx(math.hypot(0.01, 0.005))
+
+
+def test_an_empty_preset_changes_no_nominal_column(tmp_path, robot):
+    """The switch's machinery with no mechanism in it (an empty preset: the probe, the model-building path) leaves
+    every nominal log column bit-identical to the run without the switch."""
+    from wbcbench.recorder import read_log
+    from wbcbench.runner import run
+
+    empty = preset(robot, {})
+    run("stand", "tsid-torque", duration=0.1, out=tmp_path / "off")
+    run("stand", "tsid-torque", duration=0.1, out=tmp_path / "empty", realism=empty)
+    off, on = read_log(tmp_path / "off" / "log.parquet"), read_log(tmp_path / "empty" / "log.parquet")
+    assert set(off) <= set(on)
+    for k in off:
+        if k != "controller_time_us":
+            np.testing.assert_array_equal(on[k], off[k], err_msg=k)

@@ -1,0 +1,209 @@
+"""The simulated robot as hardware is (`--realism PRESET`): actuator chains and structural flexibility that the
+controller never sees (it keeps the nominal pinocchio model; the measurement keeps the nominal joint layout).
+
+A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections:
+
+    sensors: talos-like          # the sensor profile used unless the run names one (--sensors)
+    actuators:                   # joint-name pattern (fnmatch) -> parameters; later patterns override earlier
+      "leg_*": {coulomb: N m, viscous: N m s/rad, stiffness: N m/rad, damping: N m s/rad, torque_limit: N m}
+    torque_loop: {bandwidth: Hz, delay: s, sensor_noise: N m, seed: int}   # torque mode only
+    hip_flexibility: {joints: [hip joint names], stiffness: N m/rad, damping: N m s/rad}
+
+How each mechanism is simulated, and why this way:
+
+- Harmonic-drive elasticity (`stiffness` > 0): a hidden hinge `<joint>:drive` is added to the joint's MuJoCo body,
+  on the same axis through the same point, with the drive's stiffness and damping (MuJoCo joint spring). The
+  nominal joint is the motor side (rotor inertia through the gear ratio: its armature; the actuator; the
+  encoder), the hidden joint is the deflection, and the link angle is their sum. The two coordinates (motor
+  angle, deflection) describe the two-inertia chain exactly: the armature sits on the motor coordinate only, the
+  link's inertia on the sum. MuJoCo integrates the spring and damper with the rest of the dynamics (its
+  implicit-in-velocity integrator treats the damping implicitly), so no explicitly integrated motor state at the
+  control rate is needed and nothing is lagged by one step. Cost: one more degree of freedom per elastic joint.
+- Friction: MuJoCo's `frictionloss` (Coulomb, a constraint: the joint sticks below the break-away torque; its
+  solver parameters are made near-hard, as stiff as the physics step allows, so that a joint below break-away
+  creeps by micro-radians rather than milliradians per second) and `damping` (viscous) on the motor side.
+- Current/torque limit: the actuator's force range (the smaller of the profile's effort limit and the preset's).
+- Torque loop (torque mode): the commanded torque reaches the joint through a pure delay and a first-order lag
+  of the given bandwidth; the loop servoes the joint torque sensor's reading, so the sensor's noise enters the
+  delivered torque (with the opposite sign). Computed in `Simulator.step` at the physics rate.
+- Position mode: the servo PD (the profile's gains) acts on the nominal joint, i.e. on the motor side.
+- Hip flexibility: a hidden hinge `<hip joint>:hip_flex` with stiffness and damping in the hip joint's body, on
+  that joint's axis (a passive spring in series), unseen by the encoders.
+
+The hidden joints are logged only as extra channels for metrics (`hidden_deflection`, `RealismProbe`).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...config import Section, load_yaml
+from ...errors import ConfigError, UnknownNameError
+
+PRESET_DIR = Path(__file__).parent
+
+
+def preset_names() -> list[str]:
+    return sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
+
+
+@dataclass(frozen=True)
+class TorqueLoop:
+    """The low-level torque loop of torque mode: bandwidth [Hz] (0: none), pure delay [s], sensor noise [N m]."""
+
+    bandwidth: float = 0.0
+    delay: float = 0.0
+    sensor_noise: float = 0.0
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class HipFlexibility:
+    joints: tuple[str, ...] = ()
+    stiffness: float = 973.0
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class Realism:
+    """A parsed preset, resolved per joint (robot joint order)."""
+
+    name: str
+    file: str | None
+    joints: tuple[str, ...]
+    sensors: str | None = None
+    coulomb: tuple[float, ...] = ()
+    viscous: tuple[float, ...] = ()
+    stiffness: tuple[float, ...] = ()
+    damping: tuple[float, ...] = ()
+    torque_limit: tuple[float, ...] = ()   # inf: the profile's effort limit only
+    torque_loop: TorqueLoop | None = None
+    hip: HipFlexibility | None = None
+    raw: dict = field(default_factory=dict, compare=False)
+
+    def describe(self) -> dict:
+        """For config.json: the preset's name and file and its resolved values."""
+        return {"name": self.name, "file": self.file, "sensors": self.sensors,
+                "joints": {j: {"coulomb": c, "viscous": v, "stiffness": k, "damping": d,
+                               "torque_limit": (None if not np.isfinite(t) else t)}
+                           for j, c, v, k, d, t in zip(self.joints, self.coulomb, self.viscous, self.stiffness,
+                                                       self.damping, self.torque_limit)},
+                "torque_loop": self.torque_loop.__dict__ if self.torque_loop else None,
+                "hip_flexibility": ({"joints": list(self.hip.joints), "stiffness": self.hip.stiffness,
+                                     "damping": self.hip.damping} if self.hip else None)}
+
+
+_ACT_KEYS = ("coulomb", "viscous", "stiffness", "damping", "torque_limit")
+
+
+def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
+    """A preset's mapping for `robot` (errors name the file and key)."""
+    joints = list(robot.joint_names)
+    effort = np.asarray(robot.effort_limit, dtype=float)
+    n = len(joints)
+    vals = {k: np.zeros(n) for k in _ACT_KEYS}
+    vals["torque_limit"][:] = np.inf
+    sensors = sec.raw("sensors", None)
+    if sensors is not None and not isinstance(sensors, str):
+        raise sec.error("sensors", f"must be a sensor profile name or file, got {sensors!r}")
+    act = sec.section("actuators", {})
+    for pattern in list(act.data):
+        group = act.section(pattern)
+        hit = [i for i, j in enumerate(joints) if fnmatch.fnmatchcase(j, str(pattern))]
+        if not hit:
+            raise UnknownNameError("joint (or pattern matching no joint)", str(pattern), joints, file=sec.file,
+                                   key=act.key(str(pattern)))
+        for k in _ACT_KEYS:
+            if group.has(k):
+                vals[k][hit] = group.float(k, min=0.0) if k != "torque_limit" else group.float(k, positive=True)
+        group.finish()
+        # friction above what the motor can give: the joint could never move
+        limit = np.minimum(effort, vals["torque_limit"])
+        bad = [i for i in hit if vals["coulomb"][i] >= limit[i]]
+        if bad:
+            raise act.error(f"{pattern}.coulomb", f"Coulomb friction {vals['coulomb'][bad[0]]} N m of "
+                            f"{joints[bad[0]]} is not below its torque limit {limit[bad[0]]} N m")
+    act.finish()
+    loop = None
+    if sec.has("torque_loop"):
+        ls = sec.section("torque_loop")
+        loop = TorqueLoop(ls.float("bandwidth", 0.0, min=0.0), ls.float("delay", 0.0, min=0.0),
+                          ls.float("sensor_noise", 0.0, min=0.0), ls.int("seed", 0, min=0))
+        ls.finish()
+    hip = None
+    if sec.has("hip_flexibility"):
+        hs = sec.section("hip_flexibility")
+        names = hs.list("joints")
+        for k, j in enumerate(names):
+            if j not in joints:
+                raise UnknownNameError("joint", str(j), joints, file=sec.file, key=hs.key(f"joints[{k}]"))
+        hip = HipFlexibility(tuple(names), hs.float("stiffness", positive=True), hs.float("damping", 0.0, min=0.0))
+        hs.finish()
+    sec.finish()
+    return Realism(name or Path(sec.file or "realism").stem, sec.file, tuple(joints), sensors,
+                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, dict(sec.data))
+
+
+def load_realism(preset: "str | Path | Realism", robot) -> Realism:
+    """A shipped preset by name (`talos-real`), a preset YAML file, or a `Realism` (returned as is)."""
+    if isinstance(preset, Realism):
+        return preset
+    text = str(preset)
+    path = Path(text)
+    if not (text.endswith((".yaml", ".yml")) or path.is_file()):
+        if text not in preset_names():
+            raise UnknownNameError("realism preset", text, preset_names(), key="--realism")
+        path = PRESET_DIR / f"{text}.yaml"
+    return parse_realism(Section(load_yaml(path), str(path)), robot, path.stem)
+
+
+class RealismProbe:
+    """Logs, for metrics only (the controller never sees them): the hidden joints' deflections (channel
+    `hidden_deflection`, one component per hidden joint in MuJoCo's order: `<joint>:drive`, `<joint>:hip_flex`)
+    and the foot frames' true positions (`true_foot_left`, `true_foot_right`: x, y, z, from the sole geoms, as of
+    the last physics step's kinematics), which the logged q (the encoders' motor side) cannot give. Its metrics:
+    the largest hip deflections and the landing errors (`wbcbench.metrics.landing`)."""
+
+    def attach(self, sim) -> dict[str, list[str]]:
+        import mujoco
+
+        from ..model import sole_geom_name
+        from ...robots import Side
+
+        m = sim.model
+        self._sim = sim
+        names, adr = [], []
+        for j in range(m.njnt):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or ""
+            if name.endswith((":drive", ":hip_flex")):
+                names.append(name)
+                adr.append(int(m.jnt_qposadr[j]))
+        self._adr = np.array(adr, dtype=np.int64)
+        sole = sim.robot.profile.sole
+        self._offset = np.array([sole.center[0], sole.center[1], sole.thickness / 2])  # sole centre in foot frame
+        self._soles = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s)) for s in Side]
+        channels = {"hidden_deflection": names} if names else {}
+        channels.update({f"true_foot_{s.value}": ["x", "y", "z"] for s in Side})
+        return channels
+
+    def values(self) -> list:
+        d = self._sim.data
+        feet = [d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ self._offset for g in self._soles]
+        return ([d.qpos[self._adr]] if len(self._adr) else []) + feet
+
+    def metrics(self, log: dict) -> dict:
+        from ...metrics.landing import landing_errors
+        from ...robots import Side
+
+        out = {}
+        for k, v in log.items():
+            if k.startswith("hidden_deflection.") and k.endswith(":hip_flex"):
+                out[f"max_abs_{k.split('.', 1)[1].replace(':', '_')}_rad"] = float(np.max(np.abs(v))) if len(v) else 0.0
+        if "t" in log and len(log["t"]) > 1:
+            feet = {s: np.stack([np.asarray(log[f"true_foot_{s.value}.{a}"]) for a in "xyz"], axis=1) for s in Side}
+            out["landing"] = landing_errors(log, feet)["summary"]
+        return out
