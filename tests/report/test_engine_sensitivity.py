@@ -4,6 +4,7 @@ each engine, which hold and which flip, and fallen cells ranked last."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +59,23 @@ def test_reproduce_engines_needs_two_known_engines(tmp_path):
         reproduce_engines(tmp_path, ["mujoco"])
     with pytest.raises(WbcError, match="unknown engine 'odee'"):
         reproduce_engines(tmp_path, ["mujoco", "odee"])
+
+
+def test_reproduce_realism_puts_the_ideal_and_the_realistic_robot_side_by_side(tmp_path):
+    """`reproduce --realism talos-real` on one cell: both reports, the comparison's files, the preset in the
+    realistic runs' config and command; an unknown preset fails before anything runs."""
+    from wbcbench.report.reproduce import reproduce_realism
+
+    reports, sens = reproduce_realism(tmp_path, "talos-real", quick=True, jobs=1, progress=False, sanity=False,
+                                      controllers=["tsid-torque"], scenarios=["walk-20cm"], keyframes=False)
+    ideal, real = reports
+    assert sens["engines"] == ["ideal", "talos-real"] and (tmp_path / "real-robot.md").exists()
+    assert "--realism talos-real" in real.results["command"] and "--realism" not in ideal.results["command"]
+    cfg = json.loads((Path(real.outcomes[0].run_dir) / "config.json").read_text())
+    assert "realism" in cfg
+    assert "realism" not in json.loads((Path(ideal.outcomes[0].run_dir) / "config.json").read_text())
+    rows = [r for r in sens["tables"]["table2"]["rows"] if r["controller"] == "tsid-torque"]
+    assert rows and all(r["status"]["ideal"] == "ok" for r in rows)
+    with pytest.raises(WbcError):
+        reproduce_realism(tmp_path / "bad", "no-such-preset", quick=True, jobs=1, progress=False, sanity=False,
+                          controllers=["tsid-torque"], scenarios=["walk-20cm"], keyframes=False)

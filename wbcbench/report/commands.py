@@ -39,6 +39,10 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--sensors", default=None,
                    help="also run the paper's walk, platforms and stairs under this sensor profile (e.g. talos-like)")
     r.add_argument("--engine", default="mujoco", help="physics engine of every run: mujoco (default), dart, a plugin's")
+    r.add_argument("--realism", default=None, metavar="PRESET",
+                   help="the matrix on the ideal robot (OUT/ideal/) and on this realistic one (OUT/<preset>/, e.g. "
+                        "talos-real: actuator chains, hip flexibility, talos-like sensors) side by side "
+                        "(OUT/real-robot.md, .html, .json)")
     r.add_argument("--engines", default=None, metavar="E1,E2",
                    help="the matrix on each engine (OUT/<engine>/) and an engine-sensitivity section beside them "
                         "(OUT/engine-sensitivity.md, .html, .json), the first engine the reference")
@@ -67,6 +71,17 @@ def run_command(args: argparse.Namespace) -> int:
                       controllers=args.controllers.split(",") if args.controllers else None,
                       scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
                       keyframes=not args.no_keyframes, video=args.video, robot=args.robot)
+        if args.realism:
+            if args.engines:
+                raise WbcError("--realism and --engines: one comparison at a time")
+            from .reproduce import reproduce_realism
+
+            reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine, **kwargs)
+            for r in reports:
+                n_ok = sum(o.status == "ok" for o in r.outcomes)
+                console.print(f"{r.out_dir.name}: {len(r.outcomes)} cells, {n_ok} ok; report {r.out_dir / 'report.md'}")
+            console.print(f"ideal vs realistic: {Path(args.out) / 'real-robot.md'}, {Path(args.out) / 'real-robot.html'}")
+            return 0
         if args.engines:
             from .reproduce import reproduce_engines
 

@@ -1,4 +1,5 @@
-"""Engine sensitivity: the paper's tables reproduced on several physics engines, side by side.
+"""Engine sensitivity: the paper's tables reproduced on several physics engines, side by side (and, with the same
+comparison, the ideal robot beside a realistic one: `reproduce --realism`).
 
 `reproduce --engines mujoco,dart` runs the whole matrix once per engine (each a complete report in OUT/<engine>/)
 and then writes OUT/engine-sensitivity.md, .html and .json from the engines' results.json: every table cell on
@@ -117,10 +118,10 @@ def _fmt(v) -> str:
     return f"{v:.4g}"
 
 
-def to_markdown(sens: dict) -> str:
+def to_markdown(sens: dict, title: str = "Engine sensitivity") -> str:
     engines, ref = sens["engines"], sens["reference"]
-    lines = ["# Engine sensitivity", "",
-             f"The paper's tables on {', '.join(engines)} (each engine's full report in its own folder). "
+    lines = [f"# {title}", "",
+             f"The paper's tables on {', '.join(engines)} (each one's full report in its own folder). "
              f"Relative differences are to {ref}. Rankings: best first; a fallen cell ranks last.", ""]
     for key, t in sens["tables"].items():
         lines += [f"## {key}: {t['title']}", "", t["summary"], ""]
@@ -143,12 +144,12 @@ def to_markdown(sens: dict) -> str:
     return "\n".join(lines)
 
 
-def to_html(sens: dict) -> str:
+def to_html(sens: dict, title: str = "Engine sensitivity") -> str:
     """The Markdown's content as a plain HTML page (tables as tables)."""
-    out = ["<!doctype html><html><head><meta charset='utf-8'><title>Engine sensitivity</title>"
+    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
            "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
            "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}</style></head><body>"]
-    for line in to_markdown(sens).splitlines():
+    for line in to_markdown(sens, title).splitlines():
         if line.startswith("# "):
             out.append(f"<h1>{html.escape(line[2:])}</h1>")
         elif line.startswith("## "):
@@ -169,11 +170,13 @@ def to_html(sens: dict) -> str:
     return body + "</body></html>"
 
 
-def write(results: dict[str, dict], out_dir: str | Path) -> dict:
-    """Write engine-sensitivity.json, .md and .html into `out_dir`; returns the comparison."""
+def write(results: dict[str, dict], out_dir: str | Path, *, stem: str = "engine-sensitivity",
+          title: str = "Engine sensitivity") -> dict:
+    """Write STEM.json, .md and .html into `out_dir`; returns the comparison. The same comparison serves any set
+    of variants of the matrix (engines; the ideal and a realistic robot: `reproduce --realism`)."""
     out = Path(out_dir)
     sens = engine_sensitivity(results)
-    (out / "engine-sensitivity.json").write_text(json.dumps(sens, indent=1, allow_nan=False))
-    (out / "engine-sensitivity.md").write_text(to_markdown(sens))
-    (out / "engine-sensitivity.html").write_text(to_html(sens))
+    (out / f"{stem}.json").write_text(json.dumps(sens, indent=1, allow_nan=False))
+    (out / f"{stem}.md").write_text(to_markdown(sens, title))
+    (out / f"{stem}.html").write_text(to_html(sens, title))
     return sens

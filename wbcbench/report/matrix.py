@@ -64,6 +64,7 @@ class Job:
         video: also render the run's video (RUN_DIR/video.mp4) where it ran.
         robot: the robot profile the job runs on.
         engine: the physics engine the job runs on (`wbcbench.sim.engines`).
+        realism: the realism preset of the simulated robot (`wbcbench.sim.realism`), None for the ideal robot.
     """
 
     section: str
@@ -77,6 +78,7 @@ class Job:
     video: bool = False
     robot: str = "talos"
     engine: str = "mujoco"
+    realism: str | None = None
 
     @property
     def name(self) -> str:

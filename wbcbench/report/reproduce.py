@@ -90,7 +90,7 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     try:
         result = run(job.scenario_run, job.controller, job.robot, None, job.duration_cap_s, run_dir,
                      progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True,
-                     engine=job.engine)
+                     engine=job.engine, realism=job.realism)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
     except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)
@@ -269,7 +269,8 @@ def key_frames(outcomes: list[RunOutcome], out_dir: Path) -> list[dict]:
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
               scenarios: list[str] | None = None, ray: str | None = None, keyframes: bool = True,
-              video: bool = False, robot: str = "talos", engine: str = "mujoco") -> ReportResult:
+              video: bool = False, robot: str = "talos", engine: str = "mujoco",
+              realism: str | None = None) -> ReportResult:
     """Run the paper's matrix (and the sanity section) in parallel processes, then write the report.
 
     Args:
@@ -291,6 +292,8 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
             numbers only (the published ones are TALOS'), its profile's scenario sizes stated.
         engine: the physics engine of every run (`wbcbench.sim.engines`); several engines side by side:
             `reproduce_engines`.
+        realism: a realism preset (`wbcbench.sim.realism`) for every run; beside the ideal robot:
+            `reproduce_realism`.
 
     Returns:
         ReportResult; the full run's wall time is in results["wall_time_s"].
@@ -308,6 +311,12 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     from ..sim.engines import engine_class
 
     engine_class(engine)  # an unknown or missing engine fails before anything runs
+    if realism is not None:  # a bad preset fails before anything runs
+        from ..sim.realism import load_realism
+
+        if engine != "mujoco":
+            raise WbcError(f"--realism needs the mujoco engine, not '{engine}'")
+        load_realism(realism, robot_obj)
     if sensors is not None:
         from ..sensing import load_sensor_profile
 
@@ -330,16 +339,18 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
 
         plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
                 for j in plan]
-    if robot != "talos" or engine != "mujoco":
+    if robot != "talos" or engine != "mujoco" or realism is not None:
         from dataclasses import replace
 
-        plan = [replace(j, robot=robot, engine=engine) for j in plan]
+        plan = [replace(j, robot=robot, engine=engine, realism=realism) for j in plan]
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
     command = "reproduce --quick" if quick else "reproduce"
     if robot != "talos":
         command += f" --robot {robot}"
     if engine != "mujoco":
         command += f" --engine {engine}"
+    if realism is not None:
+        command += f" --realism {realism}"
     if sensors:
         command += f" --sensors {sensors}"
     if controllers:
@@ -369,6 +380,25 @@ def reproduce_engines(out_dir: str | Path, engines: list[str], **kwargs) -> tupl
     reports = [reproduce(out / e, engine=e, **kwargs) for e in engines]
     sens = sensitivity.write({e: r.results for e, r in zip(engines, reports)}, out)
     return reports, sens
+
+
+def reproduce_realism(out_dir: str | Path, realism: str, **kwargs) -> tuple[list[ReportResult], dict]:
+    """`reproduce` on the ideal robot (OUT/ideal/) and on the realistic one (OUT/<preset name>/), then the two
+    side by side (OUT/real-robot.md, .html, .json): which cells change, which controller falls, the rankings on
+    each (paper 000's future work, "evaluate the three controllers on the real robot", as far as simulation
+    goes)."""
+    from ..sim.realism import load_realism
+    from . import engines as comparison
+    from .runs import cached_robot
+
+    load_realism(realism, cached_robot(kwargs.get("robot", "talos")))  # a bad preset fails before anything runs
+    label = Path(str(realism)).stem
+    out = Path(out_dir)
+    ideal = reproduce(out / "ideal", **kwargs)
+    real = reproduce(out / label, realism=realism, **kwargs)
+    sens = comparison.write({"ideal": ideal.results, label: real.results}, out, stem="real-robot",
+                            title=f"The ideal robot and {label}")
+    return [ideal, real], sens
 
 
 def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
