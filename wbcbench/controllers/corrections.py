@@ -267,7 +267,7 @@ def _builtin(name: str) -> type[Correction]:
 def _plugins():
     from ..plugins import discover
 
-    return discover(GROUP, set(BUILTIN_CORRECTIONS) | set(_REGISTERED))
+    return discover(GROUP, set(BUILTIN_CORRECTIONS) | set(_REGISTERED), Correction)
 
 
 def available_corrections() -> dict[str, str]:

@@ -57,7 +57,6 @@ from ..stabilizers._kernels import reference_split
 from ..stabilizers.teleop import GRAVITY, reference_wrench_targets
 from ..tasks import SelfCollisionTask
 from ..types import ActuationMode, Command, Measurement, References
-from .base import register
 from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
@@ -147,7 +146,6 @@ def teleop_taskset(robot: Robot, *, repulsors: bool = True) -> TaskSetSpec:
     return spec
 
 
-@register
 class TSIDTeleop(InverseDynamicsController):
     """Teleoperation controller (module docstring).
 

@@ -153,8 +153,15 @@ class RobotProfile:
     min_body_inertia: float = 0.0
 
 
+#: the built-in robots: name -> its profile, a file of wbcbench/robots/profiles
+BUILTIN_ROBOTS: dict[str, str] = {
+    "g1": "g1.yaml",
+    "talos": "talos.yaml",
+}
+
+
 def builtin_robots() -> list[str]:
-    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+    return sorted(BUILTIN_ROBOTS)
 
 
 def plugin_robots() -> dict[str, Path]:
@@ -289,8 +296,10 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
     if p.suffix in (".yaml", ".yml"):
         path = p
     else:
-        path = PROFILE_DIR / f"{name_or_path}.yaml"
-        if not path.exists():
+        builtin = BUILTIN_ROBOTS.get(str(name_or_path))
+        if builtin is not None:
+            path = PROFILE_DIR / builtin
+        else:
             plugins = plugin_robots()
             if str(name_or_path) in plugins:
                 path = plugins[str(name_or_path)]

@@ -51,7 +51,7 @@ from ..tasks.placements import ForwardKinematics
 from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
 from . import _kernels as _k
 from ._kernels import feet_measurement, filter_measurement, reference_split
-from .base import Stabilizer, register_stabilizer
+from .base import Stabilizer
 
 _SIDES = tuple(Side)  # iterating the enum itself costs a microsecond a loop
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
@@ -357,7 +357,6 @@ def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: 
     return split_to_local(F, feet, centres)
 
 
-@register_stabilizer
 class TeleopStabilizer(Stabilizer):
     """The enabled strategies of a `TeleopStabilizerSpec` (task-set `stabilizer: {type: force}`).
 
