@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import ConfigError, PlanningError
 from ..recorder import channel
 from ..robots import Side
-from ..types import PointReference, PoseReference, References
+from ..types import GRAVITY, PointReference, PoseReference, References
 from .base import Scenario
 
 
@@ -40,7 +40,7 @@ class SwayScenario(Scenario):
         a = self.amplitude
         com, acc = self.com0 + a * s, -a * w * w * s
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
-        zmp = np.array([*(com[:2] - (com[2] - self.ground) / 9.81 * acc[:2]), self.ground])
+        zmp = np.array([*(com[:2] - (com[2] - self.ground) / GRAVITY * acc[:2]), self.ground])
         return References(t=t, contacts=frozenset(Side), com=PointReference(com, a * w * c, acc), zmp=zmp)
 
     def metrics(self, log):
@@ -91,7 +91,7 @@ class OneFootScenario(Scenario):
             feet[self.swing] = PoseReference.translating(p0 + u * up, up * du / self.lift_time,
                                                          up * ddu / self.lift_time ** 2)
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
-        zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / 9.81 * com_acc[:2]), self.ground_height()])
+        zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / GRAVITY * com_acc[:2]), self.ground_height()])
         return References(t=t, contacts=contacts, com=PointReference(com, com_vel, com_acc), feet=feet, zmp=zmp,
                           lift_off=lift_off)
 

@@ -48,7 +48,7 @@ from ..estimation import FootMass
 from ..estimation._validate import cross
 from ..side import Side
 from ..tasks.placements import ForwardKinematics
-from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
+from ..types import GRAVITY, Measurement, ModelFeedback, PointReference, PoseReference, References
 from . import _kernels as _k
 from ._kernels import feet_measurement, filter_measurement, reference_split
 from .base import Stabilizer
@@ -72,7 +72,6 @@ __all__ = [
     "TeleopStabilizer",
 ]
 
-GRAVITY = 9.81
 _ZERO3 = np.zeros(3)
 _ZERO6 = np.zeros(6)
 _EYE3 = np.eye(3)
