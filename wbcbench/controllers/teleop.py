@@ -53,8 +53,7 @@ from ..jit import njit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
-from ..stabilizers._kernels import reference_split
-from ..stabilizers.teleop import reference_wrench_targets
+from ..stabilizers.teleop import reference_split, reference_wrench_targets
 from ..tasks import SelfCollisionTask
 from ..types import GRAVITY, ActuationMode, Command, Measurement, References
 from .inverse_dynamics import QP_OK, InverseDynamicsController

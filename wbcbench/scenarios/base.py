@@ -135,11 +135,17 @@ def _plugins() -> list:
     return discover(GROUP, {*BUILTIN_KINDS, *_KINDS}, Scenario)
 
 
+def builtin_kinds() -> dict[str, type[Scenario]]:
+    """The built-in scenario kinds and those registered in Python (`register_kind`), by name."""
+    out = dict(_KINDS)
+    out.update({name: kind_class(name) for name in BUILTIN_KINDS})
+    return out
+
+
 def available_kinds() -> dict[str, type[Scenario]]:
     """Scenario kinds by name: the built-in ones, those registered in Python and the `wbcbench.scenarios` entry
     points (wbcbench/plugins.py)."""
-    out = dict(_KINDS)
-    out.update({name: kind_class(name) for name in BUILTIN_KINDS})
+    out = builtin_kinds()
     for p in _plugins():
         if p.error is None:
             out[p.name] = p.obj

@@ -44,8 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..config import Section
-from ..estimation import FootMass
-from ..estimation._validate import cross
+from ..estimation import FootMass, cross
 from ..side import Side
 from ..tasks.placements import ForwardKinematics
 from ..types import GRAVITY, Measurement, ModelFeedback, PointReference, PoseReference, References
@@ -57,6 +56,7 @@ _SIDES = tuple(Side)  # iterating the enum itself costs a microsecond a loop
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 __all__ = [
+    "reference_split",
     "AdmittanceGains",
     "ZmpDistributorGains",
     "TeleopStabilizerSpec",
