@@ -14,8 +14,7 @@ import numpy as np
 from ..config import Section, load_yaml
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
-from ..sim.push import Push, parse_push
-from ..scene import Terrain, parse_terrain
+from ..scene import Push, Terrain, parse_push, parse_terrain
 from ..types import PointReference, References
 
 SCENARIO_DIR = Path(__file__).parent
