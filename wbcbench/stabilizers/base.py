@@ -22,8 +22,8 @@ from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..types import Measurement, ModelFeedback, References
 
-__all__ = ["BUILTIN_STABILIZERS", "MissingReferenceError", "Stabilizer", "StabilizerConfig", "available_stabilizers", "make_stabilizer",
-           "parse_stabilizer", "register_stabilizer", "stabilizer_class"]
+__all__ = ["BUILTIN_STABILIZERS", "MissingReferenceError", "Stabilizer", "StabilizerConfig", "available_stabilizers",
+           "make_stabilizer", "parse_stabilizer", "register_stabilizer", "stabilizer_class"]
 
 
 class MissingReferenceError(ConfigError):
