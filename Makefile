@@ -4,12 +4,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test bench reproduce clean
+.PHONY: run test bench reproduce docs clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,dart]'
+	$(BIN)/python -m pip install --quiet -e '.[test,docs,dart,c3d]'
 	touch $(STAMP)
 
 # The flagship comparison: the paper's controller x scenario matrix, shortened walks, with the report
@@ -24,9 +24,13 @@ reproduce: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto --dist loadfile
 
+# the documentation site into site/ (mkdocs.yml); --strict: a broken link or a missing reference fails the build
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sim.py
 	$(BIN)/python benchmarks/bench_controllers.py
 
 clean:
-	rm -rf $(VENV) runs reports
+	rm -rf $(VENV) runs reports site

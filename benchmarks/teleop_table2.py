@@ -35,7 +35,7 @@ def one(job: dict) -> dict:
     t0 = time.perf_counter()
     result = run_session(job["recording"], speed=job["speed"], repulsors=job["repulsors"],
                          stabilizer=job["stabilizer"], mode=job["mode"], duration=job["duration"],
-                         out=job["out"], quiet=True, anchor=job["anchor"])
+                         out=job["out"], quiet=True, anchor=job["anchor"], engine=job.get("engine", "mujoco"))
     s = result.summary
     m = s.get("metrics", {})
     log = result.log
@@ -83,6 +83,7 @@ def main(argv=None) -> int:
     ap.add_argument("--stabilizer", choices=["on", "off", "both"], default="off")
     ap.add_argument("--speed", type=float, default=1.0)
     ap.add_argument("--mode", default="spd")
+    ap.add_argument("--engine", default="mujoco", help="physics engine (mujoco, dart: paper 004's own)")
     ap.add_argument("--anchor", nargs="+", choices=["absolute", "offset", "rest"], default=["rest"],
                     help="one table per anchor (default rest; absolute is the paper's plain overlay)")
     ap.add_argument("--duration", type=float, default=None, help="cut every replay to this many seconds")
@@ -98,14 +99,15 @@ def main(argv=None) -> int:
             for stab in ([False, True] if args.stabilizer == "both" else [args.stabilizer == "on"]):
                 conds.append((anchor, rep, stab))
     jobs = [{"recording": n, "speed": args.speed, "repulsors": rep, "stabilizer": stab, "mode": args.mode,
-             "duration": args.duration, "anchor": anchor,
+             "duration": args.duration, "anchor": anchor, "engine": args.engine,
              "out": str(out / "runs" / (f"{n}-{anchor}-x{args.speed:g}-rep_{'on' if rep else 'off'}"
                                         f"-stab_{'on' if stab else 'off'}"))}
             for anchor, rep, stab in conds for n in names]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(one, jobs))
-    lines = [f"# Paper 004 Table II on the shipped recordings (speed {args.speed:g}, mode {args.mode})", "",
+    lines = [f"# Paper 004 Table II on the shipped recordings (speed {args.speed:g}, mode {args.mode}, engine "
+             f"{args.engine})", "",
              "Hand position error [m] and rotation error ||I - R_ref R^-1||_F, mean / std / min / max over both "
              "hands and every control tick; then over the ticks whose reference lies outside the robot's body "
              "(gripper centre farther than r_rep + r_frame from every repulsion point). CoM excursion: horizontal distance "

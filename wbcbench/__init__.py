@@ -17,7 +17,6 @@ import sys
 if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-__version__ = "0.1.0"
 
 _EXPORTS = {
     # running
@@ -49,7 +48,27 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS) + ["__version__"]
 
 
+def _version() -> str:
+    """The installed version: written by setuptools-scm at build time (wbcbench/_version.py), else the
+    distribution's metadata, else unknown (a source tree neither built nor installed)."""
+    try:
+        from ._version import version
+
+        return version
+    except Exception:  # not built here (ImportError), or being rewritten by a build at this moment
+        pass
+    from importlib import metadata
+
+    try:
+        return metadata.version("wbcbench")
+    except metadata.PackageNotFoundError:
+        return "0.0.0+unknown"
+
+
 def __getattr__(name: str):
+    if name == "__version__":
+        globals()["__version__"] = value = _version()
+        return value
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'wbcbench' has no attribute '{name}'")

@@ -10,6 +10,11 @@ from .errors import WbcError
 
 
 def _lists() -> tuple[list[str], list[str], list[str], list[str]]:
+    from . import catalogue
+
+    if not catalogue.has_plugins():  # the shipped names alone, without importing the registries (fast --help)
+        return (catalogue.scenarios(), list(catalogue.BUILTIN_CONTROLLERS), catalogue.robots(),
+                list(catalogue.MODES))
     from .controllers.base import available_controllers
     from .robots import available_robots
     from .scenarios import available_scenarios
@@ -76,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .viz.commands import add_subcommand as add_render, add_view_subcommand
     add_render(sub)
     add_view_subcommand(sub)
+    from .doctor import add_subcommand as add_doctor
+    add_doctor(sub)
     return p
 
 
@@ -138,6 +145,13 @@ def _cmd_run(args) -> int:
 
 def _cmd_list() -> int:
     """The registries, each entry with where it comes from; broken plugins one line each on stderr (exit 2)."""
+    from . import catalogue
+
+    if not catalogue.has_plugins():  # the shipped names alone, without importing the registries
+        print(_list_text(catalogue.scenarios(), catalogue.BUILTIN_KINDS, catalogue.BUILTIN_CONTROLLERS,
+                         catalogue.robots(), catalogue.MODES, catalogue.TASK_TYPES, catalogue.STABILIZERS,
+                         catalogue.sensor_profiles(), catalogue.CORRECTIONS, catalogue.engines()))
+        return 0
     from .controllers.base import available_controllers, builtin_controllers, controller_plugin_errors
     from .controllers.corrections import BUILTIN_CORRECTIONS, available_corrections, correction_plugin_errors
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
@@ -159,16 +173,22 @@ def _cmd_list() -> int:
                    for n, o in available_corrections().items()]
     plug = plugin_robots()
     robots = builtin_robots() + [f"{n} [{p}]" for n, p in sorted(plug.items())]
-    print(f"scenarios:   {', '.join(s)}\nkinds:       {', '.join(kinds)}\ncontrollers: {', '.join(ctrls)}\n"
-          f"robots:      {', '.join(robots)}\nmodes:       {', '.join(m)}\n"
-          f"tasks:       {', '.join(task_types())}\nstabilizers: {', '.join(available_stabilizers())}\n"
-          f"corrections: {', '.join(corrections)}\nsensors:     {', '.join(available_profiles())}\n"
-          f"engines:     {', '.join(engine_label(e) for e in available_engines())}")
+    print(_list_text(s, kinds, ctrls, robots, m, task_types(), available_stabilizers(), available_profiles(),
+                     corrections, [engine_label(e) for e in available_engines()]))
     errors = [*controller_plugin_errors().values(), *kind_plugin_errors().values(), *robot_plugin_errors().values(),
               *correction_plugin_errors().values(), *engine_plugin_errors().values()]
     for e in errors:
         print(f"wbcbench: error: {e}", file=sys.stderr)
     return 2 if errors else 0
+
+
+def _list_text(scenarios, kinds, controllers, robots, modes, tasks, stabilizers, sensors, corrections,
+               engines) -> str:
+    return (f"scenarios:   {', '.join(scenarios)}\nkinds:       {', '.join(kinds)}\n"
+            f"controllers: {', '.join(controllers)}\nrobots:      {', '.join(robots)}\n"
+            f"modes:       {', '.join(modes)}\ntasks:       {', '.join(tasks)}\n"
+            f"stabilizers: {', '.join(stabilizers)}\ncorrections: {', '.join(corrections)}\n"
+            f"sensors:     {', '.join(sensors)}\nengines:     {', '.join(engines)}")
 
 
 def _check_mujoco() -> None:
@@ -187,6 +207,9 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "list":
             return _cmd_list()
+        if args.command == "doctor":
+            from .doctor import run_command as run_doctor
+            return run_doctor(args)
         _check_mujoco()
         if args.command == "run":
             return _cmd_run(args)

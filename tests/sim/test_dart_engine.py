@@ -233,3 +233,17 @@ def test_position_servo_is_clipped_to_the_effort_limit(talos):
     tau = sim.applied_torque()
     assert np.all(np.abs(tau) <= talos.effort_limit + 1e-9)
     assert abs(tau[knee]) == pytest.approx(talos.effort_limit[knee])
+
+
+def test_teleoperation_on_dart(tmp_path):
+    """Paper 004's engine: a shipped recording replayed through tsid-teleop (SPD low level) on DART, self-collisions
+    counted on the kinematic copy: no fall, the hands within the paper's Table II mean error."""
+    from wbcbench.teleop.commands import run_session
+
+    res = run_session("reach_forward", repulsors=False, stabilizer=False, duration=2.0, start=0.8,
+                      out=tmp_path / "t", engine="dart")
+    s = res.summary
+    assert not s["fell"]
+    assert json.loads((tmp_path / "t" / "config.json").read_text())["engine"] == "dart"
+    assert s["metrics"]["hand_position_error_m"]["mean"] < 0.034
+    assert s["metrics"]["self_collisions"] == 0

@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 from wbcbench.errors import WbcError
 from wbcbench.teleop import load_recording, write_mvnx, write_pose_csv
 from wbcbench.teleop.protocol import decode_datagram, encode_datagram
+from wbcbench.teleop.registry import RECORDINGS_DIR
 
-RECORDINGS = Path(load_recording.__code__.co_filename).parent / "recordings"
+RECORDINGS = RECORDINGS_DIR
 
 
 def fuzz(n):

@@ -170,7 +170,7 @@ def test_load_recording_dispatches_on_suffix(tmp_path):
     _same_poses(load_recording(tmp_path / "a.csv"), load_recording(tmp_path / "a.mvnx"))
     with pytest.raises(ConfigError) as info:
         load_recording(tmp_path / "a.fbx")
-    assert_one_line_error(info, "a.fbx", "unknown recording format '.fbx'", ".bvh, .csv, .mvnx")
+    assert_one_line_error(info, "a.fbx", "unknown recording format '.fbx'", ".bvh, .c3d, .csv, .mvnx")
     with pytest.raises(ConfigError) as info:
         load_recording(tmp_path / "missing.csv")
     assert_one_line_error(info, "missing.csv", "no such file")

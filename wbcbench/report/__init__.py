@@ -7,10 +7,16 @@
 - `paper`: the published numbers of paper 000, Tables 2-8 (`PAPER_TABLES`).
 """
 
-from .compare import CompareRow, compare, compare_rows
-from .paper import PAPER_CITATION, PAPER_TABLES, MetricSpec, PaperTable, paper_value
-from .reproduce import ReportResult, report, reproduce, write_report
-from .runs import ERROR, FELL, MISSING, OK, ReportError, RunOutcome, load_run
+from .._lazy import lazy_exports
+
+# imported when first used, so that importing the package (or its `commands` module, for the command
+# line's parser) stays light
+__getattr__, __dir__ = lazy_exports(__name__, {
+    **dict.fromkeys(("CompareRow", "compare", "compare_rows"), "compare"),
+    **dict.fromkeys(("PAPER_CITATION", "PAPER_TABLES", "MetricSpec", "PaperTable", "paper_value"), "paper"),
+    **dict.fromkeys(("ReportResult", "report", "reproduce", "write_report"), "reproduce"),
+    **dict.fromkeys(("ERROR", "FELL", "MISSING", "OK", "ReportError", "RunOutcome", "load_run"), "runs"),
+})
 
 __all__ = [
     "ERROR",

@@ -4,6 +4,7 @@ paper's ("ours" / "paper"), the fast walk, the sanity section, the figures and t
 from __future__ import annotations
 
 import html
+import re
 from dataclasses import dataclass, field
 
 from .figures import FigureInfo
@@ -19,6 +20,25 @@ class RenderTable:
     header: list[str]
     rows: list[list[str]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: the paper's table it reproduces ("table2" ...), whose cells are judged against the paper; "" for others
+    table_id: str = ""
+    #: a warning printed above the table (Table 8 measured with parallel jobs)
+    flag: str = ""
+
+    def judgements(self, judge_timing: bool = True) -> list[list[str | None]]:
+        """Per cell: better / worse / equal than the paper for an "X ours" cell followed by its "X paper" cell,
+        else None (`verdict.judge_text`; Table 8's only when `judge_timing`)."""
+        from .verdict import TIME_TABLE, higher_is_better, judge_text
+
+        out = [[None] * len(self.header) for _ in self.rows]
+        if not self.table_id or (self.table_id == TIME_TABLE and not judge_timing):
+            return out
+        pairs = [i for i, h in enumerate(self.header[:-1])
+                 if h.endswith(" ours") and self.header[i + 1] == h[:-len(" ours")] + " paper"]
+        for r, row in enumerate(self.rows):
+            for i in pairs:
+                out[r][i] = judge_text(row[i], row[i + 1], higher_is_better(self.table_id))
+        return out
 
 
 def fmt(v, unit: str = "") -> str:
@@ -68,7 +88,7 @@ def _stats_table(res: dict, tid: str, groups: list[tuple[str, str]]) -> RenderTa
     t = res["tables"][tid]
     first = "Body" if any(g for g, _ in groups) else "Control scheme"
     header = [first, "Axis"] + [f"{c} {w}" for c in ("Average", "Std", "Peaks") for w in ("ours", "paper")]
-    table = RenderTable(f"Table {t['number']}: {t['title']} [m]", header)
+    table = RenderTable(f"Table {t['number']}: {t['title']} [m]", header, table_id=tid)
     for controller, per_scen in t["values"].items():
         for scenario, row in per_scen.items():
             for label, prefix in groups:
@@ -90,7 +110,7 @@ def _energy_table(res: dict) -> RenderTable:
     metrics = [("E_m", "E_m [J]"), ("E_m_plus", "E_m+ [J]"), ("C_et", "C_et [J/kg/m]"), ("C_mt", "C_mt [J/kg/m]")]
     header = ["Control scheme", "Simulation"] + [f"{lab} {w}" for _, lab in metrics for w in ("ours", "paper")]
     header += ["C_et ours (model mass)", "C_mt ours (model mass)"]
-    table = RenderTable(f"Table {t['number']}: {t['title']}", header)
+    table = RenderTable(f"Table {t['number']}: {t['title']}", header, table_id="table6")
     for label, vals in t["paper_reference_rows"].items():
         cells = []
         for key, _ in metrics:
@@ -112,7 +132,7 @@ def _pgm_table(res: dict) -> RenderTable:
     metrics = [("pgm.double_support", "Double S."), ("pgm.single_support", "Single S."),
                ("pgm.flying_foot", "Flying F.")]
     header = ["Control scheme", "Simulation"] + [f"{lab} {w}" for _, lab in metrics for w in ("ours", "paper")]
-    table = RenderTable(f"Table {t['number']}: {t['title']}", header)
+    table = RenderTable(f"Table {t['number']}: {t['title']}", header, table_id="table7")
     for label, vals in t["paper_reference_rows"].items():
         cells = []
         for key, _ in metrics:
@@ -133,7 +153,14 @@ def _time_table(res: dict) -> RenderTable:
     t = res["tables"]["table8"]
     scen = ["walk-20cm", "walk-60cm", "platforms", "stairs"]
     header = ["Control scheme", "Statistic"] + [f"{SCENARIO_LABELS[s]} {w}" for s in scen for w in ("ours", "paper")]
-    table = RenderTable(f"Table {t['number']}: {t['title']} [ms]", header)
+    table = RenderTable(f"Table {t['number']}: {t['title']} [ms]", header, table_id="table8")
+    from .verdict import timing_comparable
+
+    if not timing_comparable(res):
+        table.flag = (f"Measured with {res['jobs']} parallel jobs: these times include the other runs' "
+                      "interference and are not compared with the paper's (wbcbench reproduce --jobs 1 for that)."
+                      if res.get("jobs") else
+                      "The parallelism of these runs is not known: their times are not compared with the paper's.")
     for controller, per_scen in t["values"].items():
         for stat, key in (("Average", "compute_time_ms.mean"), ("Peaks", "compute_time_ms.peak")):
             cells = []
@@ -318,15 +345,23 @@ def to_markdown(res: dict, figures: list[FigureInfo]) -> str:
     def esc(s: str) -> str:
         return s.replace("|", "\\|").replace("\n", " ")
 
-    out = ["# wbcbench: reproduction of the TALOS whole-body controller benchmark", "", *_preamble(res), ""]
+    from .verdict import LEGEND, MARKS, timing_comparable, verdict_lines
+
+    out = ["# wbcbench: reproduction of the TALOS whole-body controller benchmark", "",
+           "## Verdict", "", *[f"- {line}" for line in verdict_lines(res)], "", f"_{LEGEND}_", "",
+           *_preamble(res), ""]
     if res.get("errors"):
         out += ["## Errors", ""] + [f"- {esc(e)}" for e in res["errors"]] + [""]
     for t in build_tables(res) + [_runs_table(res)]:
         out += [f"## {t.title}", ""]
+        if t.flag:
+            out += [f"**Not judged.** {esc(t.flag)}", ""]
         if t.rows:
+            marks = t.judgements(judge_timing=timing_comparable(res))
             out.append("| " + " | ".join(esc(h) for h in t.header) + " |")
             out.append("|" + "---|" * len(t.header))
-            out += ["| " + " | ".join(esc(c) for c in row) + " |" for row in t.rows]
+            out += ["| " + " | ".join(esc(c) + (f" {MARKS[m]}" if m in MARKS else "") for c, m in zip(row, mk))
+                    + " |" for row, mk in zip(t.rows, marks)]
         else:
             out.append("(no runs)")
         out += [""] + [f"_{esc(n)}_" for n in t.notes] + ([""] if t.notes else [])
@@ -358,16 +393,33 @@ def to_html(res: dict, figures: list[FigureInfo]) -> str:
            "th,td{border:1px solid #bbb;padding:3px 7px;text-align:right}"
            "td:first-child,th:first-child,td.txt{text-align:left}"
            "th.ours,td.ours{background:#eef6ee}th.paper,td.paper{background:#f2f2f8}"
-           "td.missing{color:#a33}p.note{font-size:12px;color:#444}img{max-width:100%}")
+           "td.missing{color:#a33}p.note{font-size:12px;color:#444}img{max-width:100%}"
+           "td.better{background:#c8ecc8;font-weight:bold}td.worse{background:#f6cccc}"
+           "div.verdict{border:2px solid #446;border-radius:6px;padding:0.3em 1em;background:#f7f7fb}"
+           "p.flag{background:#fff3cd;border-left:4px solid #d9a400;padding:4px 8px}"
+           "span.swatch{display:inline-block;width:1.2em;margin:0 0.3em}")
     out = ["<!DOCTYPE html>", "<html><head><meta charset='utf-8'>",
            "<title>wbcbench reproduction report</title>", f"<style>{css}</style></head><body>",
            "<h1>wbcbench: reproduction of the TALOS whole-body controller benchmark</h1>"]
+    from .verdict import timing_comparable, verdict_lines
+
+    def bold(text: str) -> str:  # the verdict's Markdown **bold** and `code`, escaped
+        return re.sub(r"`([^`]+)`", r"<code>\1</code>", re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", e(text)))
+
+    out += ["<div class='verdict' id='verdict'><h2>Verdict</h2><ul>"]
+    out += [f"<li>{bold(line)}</li>" for line in verdict_lines(res)]
+    out += ["</ul><p class='note legend'>Cells: <span class='swatch' style='background:#c8ecc8'>&nbsp;</span>ours "
+            "better than the paper's, <span class='swatch' style='background:#f6cccc'>&nbsp;</span>worse (lower is "
+            "better for errors, energy, costs of transport and compute time; higher for the PGM); uncoloured: "
+            "equal at the printed precision, or nothing to compare.</p></div>"]
     out += [f"<p>{e(line)}</p>".replace("**ours**", "<b>ours</b>").replace("**paper**", "<b>paper</b>")
             for line in _preamble(res) if line]
     if res.get("errors"):
         out += ["<h2>Errors</h2><ul>"] + [f"<li>{e(x)}</li>" for x in res["errors"]] + ["</ul>"]
     for t in build_tables(res) + [_runs_table(res)]:
         out.append(f"<h2>{e(t.title)}</h2>")
+        if t.flag:
+            out.append(f"<p class='flag'><b>Not judged.</b> {e(t.flag)}</p>")
         if not t.rows:
             out.append("<p>(no runs)</p>")
         else:
@@ -376,12 +428,15 @@ def to_html(res: dict, figures: list[FigureInfo]) -> str:
                 cls = "ours" if h.endswith(" ours") else "paper" if h.endswith(" paper") else ""
                 out.append(f"<th class='{cls}'>{e(h)}</th>")
             out.append("</tr>")
-            for row in t.rows:
+            marks = t.judgements(judge_timing=timing_comparable(res))
+            for row, mk in zip(t.rows, marks):
                 out.append("<tr>")
-                for h, c in zip(t.header, row, strict=True):
+                for h, c, m in zip(t.header, row, mk, strict=True):
                     cls = "ours" if h.endswith(" ours") else "paper" if h.endswith(" paper") else "txt"
                     if c in (MISSING_VALUE, ERROR_VALUE):
                         cls += " missing"
+                    if m in ("better", "worse"):
+                        cls += f" {m}"
                     out.append(f"<td class='{cls}'>{e(c)}</td>")
                 out.append("</tr>")
             out.append("</table>")

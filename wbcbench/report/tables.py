@@ -113,6 +113,9 @@ def build_results(outcomes: list[RunOutcome], *, command: str, quick: bool | Non
               for o in outcomes if o.metrics and o.metrics.get("teleop")}
     if teleop:
         results["teleop"] = teleop
+    from .verdict import verdict
+
+    results["verdict"] = verdict(json_ready(results))
     return json_ready(results)
 
 

@@ -188,8 +188,9 @@ class DartSimulator:
         self.robot = robot
         self.mode = ActuationMode(mode)
         self.options = options or SimOptions()
-        if self.options.self_collision != "off":
-            raise ConfigError("self-collision checking needs the mujoco engine", key="self_collision")
+        if self.options.self_collision == "physical":  # "detect" counts on a kinematic MuJoCo copy: engine-free
+            raise ConfigError("self_collision 'physical' (collision geometry in the simulated robot) needs the mujoco "
+                              "engine; 'detect' works with any", key="self_collision")
         self.terrain = terrain or Terrain()
         self.model_error = {}
         self.dt = float(self.options.timestep)

@@ -168,6 +168,23 @@ def _visual_geoms(spec: mujoco.MjSpec, robot: Robot, body_of_joint: dict) -> Non
         geom.rgba = list(color) if color.size == 4 and color[3] > 0 else [0.7, 0.7, 0.7, 1.0]
 
 
+FLOOR_MATERIAL = "wbcbench_floor"
+"""The floor's material in a model built with visuals (a checker of 0.5 m squares)."""
+
+
+def _visual_scene(spec: mujoco.MjSpec) -> None:
+    """What a picture needs and the dynamics never see (models built with visuals only): a sky that fades from blue
+    at the zenith to white at the horizon, and a checker floor of 0.5 m squares, so that motion and depth read."""
+    spec.add_texture(name="wbcbench_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.55, 0.72, 0.92], rgb2=[0.97, 0.98, 1.0],
+                     width=64, height=384)
+    spec.add_texture(name=FLOOR_MATERIAL, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.86, 0.86, 0.84], rgb2=[0.74, 0.75, 0.74],
+                     width=64, height=64)
+    mat = spec.add_material(name=FLOOR_MATERIAL, texrepeat=[1.0, 1.0], texuniform=True, emission=0.35)
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = FLOOR_MATERIAL
+
+
 def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
                        options: SimOptions | None = None) -> mujoco.MjModel:
     """Compile the MuJoCo model of `robot` standing in `terrain`, with actuators for `mode`."""
@@ -212,6 +229,7 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         _self_collision_geoms(spec, check)
     if options.visuals:
         _visual_geoms(spec, robot, body_of_joint)
+        _visual_scene(spec)
 
     # sole boxes and F/T sites
     sole = robot.profile.sole
@@ -241,6 +259,8 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
         floor.friction = [terrain.friction, 0.005, 0.0001]
         floor.rgba = [0.5, 0.5, 0.5, 1]
+        if options.visuals:
+            floor.material = FLOOR_MATERIAL
     for i, b in enumerate(terrain.boxes):
         g = spec.worldbody.add_geom(name=b.name or f"terrain_{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
                                     size=[s / 2 for s in b.size], pos=list(b.center), quat=_rpy_quat(b.rpy))

@@ -14,7 +14,8 @@ controller, mode, time).
 Rendering needs an OpenGL backend, which MuJoCo picks when it is imported: `MUJOCO_GL=egl` (set by
 `import wbcbench` when unset and there is no display: headless, Mesa's EGL works in software) or `osmesa`; when
 none can be created the error says so in one line. Multisampling, shadows and reflections are off: in software
-OpenGL they tripled the time of a frame.
+OpenGL they tripled the time of a frame. The scene is the visual model's (`SimOptions(visuals=True)`): a sky that
+fades from blue to white at the horizon and a checker floor of 0.5 m squares, so that motion and depth read.
 
 Speed (software OpenGL draws every triangle on the CPU): the visual meshes are drawn from simplified copies
 (vertex clustering on a 1.5 cm grid that keeps differently facing surfaces apart, `simplify_meshes`: TALOS'
@@ -71,7 +72,7 @@ class Overlays:
         return cls(False, False, False, False, False)
 
 
-_MODEL_FORMAT = 1
+_MODEL_FORMAT = 2
 """Version of `_visual_model`'s changes to the simulation model: bump it when they change (cache key)."""
 _MODELS: dict = {}
 """Visual models built or read in this process, by cache key (`_visual_model` hands out copies)."""
@@ -129,8 +130,9 @@ def _visual_model(robot, terrain, mesh_cell: float):
         if model.geom_bodyid[g] != 0:
             continue
         plane = model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
-        # a lighter ground, so that the overlays and the robot stand out
-        model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if plane else (0.65, 0.55, 0.45, 1.0)
+        # a lighter ground, so that the overlays and the robot stand out (a textured floor keeps its checker)
+        if model.geom_matid[g] < 0:
+            model.geom_rgba[g] = (0.78, 0.78, 0.74, 1.0) if plane else (0.65, 0.55, 0.45, 1.0)
         if plane and not model.geom_size[g, :2].all():  # infinite: MuJoCo draws a fine grid out to the far plane
             model.geom_size[g] = (_FLOOR_HALF_SIZE_M, _FLOOR_HALF_SIZE_M, 10.0)
     if mesh_cell > 0:
@@ -283,8 +285,9 @@ class _Renderer:
         self.options.geomgroup[0] = 1  # terrain, soles
         self.options.geomgroup[VISUAL_GROUP] = 1
         flags = self.scene.flags
-        for f in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION, mujoco.mjtRndFlag.mjRND_SKYBOX):
+        for f in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
             flags[f] = 0
+        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 1  # the model's sky gradient (a model without one: black)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
         az, el, dist = _VIEWS[camera]
@@ -390,8 +393,8 @@ class _Renderer:
                 self._arrow(p, p + f / 1000.0, 0.015, [1.0, 0.9, 0.1, 0.9])  # 1 m per 1000 N
 
     def _caption(self, img: np.ndarray, t: float) -> None:
-        """The caption drawn in place on the image's top band (only that band goes through PIL; white on black:
-        the same in RGB and BGR)."""
+        """The caption drawn in place on the image's top band (only that band goes through PIL; dark grey on light
+        grey: the same in RGB and BGR)."""
         from PIL import Image, ImageDraw
 
         cfg = self.replay.config
@@ -401,8 +404,8 @@ class _Renderer:
             from PIL import ImageFont
 
             self._font = ImageFont.load_default_imagefont()
-        band = Image.new("RGB", (img.shape[1], _CAPTION_ROWS))
-        ImageDraw.Draw(band).text((6, 3), text, fill=(255, 255, 255), font=self._font)
+        band = Image.new("RGB", (img.shape[1], _CAPTION_ROWS), (236, 236, 236))
+        ImageDraw.Draw(band).text((6, 3), text, fill=(25, 25, 25), font=self._font)
         img[:_CAPTION_ROWS] = np.asarray(band)
 
     def close(self) -> None:

@@ -1,0 +1,221 @@
+"""C3D marker files (Vicon, Qualisys, OptiTrack exports) through ``ezc3d``: Plug-in Gait markers -> the segment
+poses of the retargeting's canonical segments.
+
+Markers are matched by label, case-insensitive, a subject prefix (``Name:LASI``) dropped. The full-body Plug-in
+Gait set is needed (``LWRB``/``RWRB``, ``LFIN``/``RFIN``, ``LTHI``, ``LTIB``, ``LHEE`` are optional)::
+
+    head    LFHD RFHD LBHD RBHD            thorax  C7 T10 CLAV STRN
+    pelvis  LASI RASI and LPSI RPSI or SACR
+    arms    LSHO LELB LWRA (LWRB LFIN), and R...
+    legs    LKNE LANK LTOE, and R...
+
+Segment origins, in the marker data's frame (positions converted to metres from ``POINT:UNITS``):
+
+* Pelvis: the mid-point of the ASIS; pelvis frame y from RASI to LASI, x from the PSIS (or SACR) mid-point
+  towards the ASIS one, made orthogonal; hip joint centres by Harrington et al. (2007, J. Biomech. 40:595)
+  from the pelvis width PW (ASIS distance) and depth PD: x = -0.24 PD - 9.9 mm, y = +-(0.33 PW + 7.3 mm),
+  z = -0.30 PW - 10.9 mm;
+* T8: the centroid of C7, T10, CLAV and STRN; Neck: the mid-point of C7 and CLAV; thorax up: from the T10/STRN
+  mid-point to the C7/CLAV one;
+* Head: the centroid of the four head markers, 10 cm down the head frame (x from the back markers to the front
+  ones, y from right to left); the head's orientation is that frame;
+* shoulder centre: SHO 5 cm down the thorax; wrist centre: WRA/WRB mid-point (WRA if WRB is missing); elbow,
+  knee and ankle centres: the lateral marker moved medially by half a typical joint width plus a marker
+  radius (elbow 4.2 cm, knee 5.7 cm, ankle 4.2 cm), perpendicular to the proximal segment (Plug-in Gait's
+  chord function, without the subject's measured widths);
+* hands: origin the wrist centre, y from the finger marker to the wrist (else along the forearm), x from the
+  thumb-side to the little-finger-side wrist marker made orthogonal; other segments: z along the segment,
+  y the body's left made orthogonal.
+
+A marker's gap (no data, or a negative residual) is NaN: the segments built from it are invalid in that frame.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import ConfigError
+from .. import _rotations as rot
+from .recording import MocapRecording
+
+__all__ = ["C3D_REQUIRED", "read_c3d", "write_c3d"]
+
+#: markers a C3D file must label (the pelvis also needs LPSI+RPSI or SACR)
+C3D_REQUIRED = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "CLAV", "STRN", "LASI", "RASI",
+                "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA", "LKNE", "LANK", "LTOE", "RKNE", "RANK", "RTOE")
+_UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254}
+_R_ELBOW, _R_KNEE, _R_ANKLE, _SHOULDER_DROP, _HEAD_DROP = 0.042, 0.057, 0.042, 0.05, 0.10
+_PARENTS = {"Pelvis": None, "T8": "Pelvis", "Neck": "T8", "Head": "Neck",
+            "LeftUpperArm": "T8", "LeftForeArm": "LeftUpperArm", "LeftHand": "LeftForeArm",
+            "RightUpperArm": "T8", "RightForeArm": "RightUpperArm", "RightHand": "RightForeArm",
+            "LeftUpperLeg": "Pelvis", "LeftLowerLeg": "LeftUpperLeg", "LeftFoot": "LeftLowerLeg",
+            "LeftToe": "LeftFoot",
+            "RightUpperLeg": "Pelvis", "RightLowerLeg": "RightUpperLeg", "RightFoot": "RightLowerLeg",
+            "RightToe": "RightFoot"}
+
+
+def _ezc3d(file: str):
+    try:
+        import ezc3d
+    except ImportError:
+        raise ConfigError("reading C3D needs ezc3d: pip install 'wbcbench[c3d]'", file=file) from None
+    return ezc3d
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return v / n
+
+
+def _perp(v: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """v without its component along the unit vectors `axis` (both (N, 3))."""
+    return v - np.sum(v * axis, axis=-1, keepdims=True) * axis
+
+
+def _frame(x_hint: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations with y along `y` and x the component of `x_hint` orthogonal to it."""
+    y = _unit(y)
+    x = _unit(_perp(x_hint, y))
+    return np.stack([x, y, np.cross(x, y)], axis=-1)
+
+
+def _frame_z(z: np.ndarray, y_hint: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations with z along `z` and y the component of `y_hint` orthogonal to it."""
+    z = _unit(z)
+    y = _unit(_perp(y_hint, z))
+    return np.stack([np.cross(y, z), y, z], axis=-1)
+
+
+def _medial(lateral: np.ndarray, proximal: np.ndarray, towards: np.ndarray, radius: float) -> np.ndarray:
+    """A joint centre: the lateral marker moved by `radius` towards `towards`, perpendicular to the proximal
+    segment (from the marker to `proximal`)."""
+    axis = _unit(proximal - lateral)
+    return lateral + radius * _unit(_perp(towards - lateral, axis))
+
+
+def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dict, dict]:
+    """(segment -> (N, 3) origin, segment -> (N, 3, 3) orientation) from Plug-in Gait markers (module docstring);
+    `m`: marker label (upper case) -> (N, 3) positions [m]."""
+    missing = [k for k in C3D_REQUIRED if k not in m]
+    if not ("SACR" in m or ("LPSI" in m and "RPSI" in m)):
+        missing.append("LPSI+RPSI or SACR")
+    if missing:
+        raise ConfigError(f"C3D: Plug-in Gait markers {missing} not found (labels: {', '.join(sorted(m)[:12])}"
+                          f"{', ...' if len(m) > 12 else ''}); the full-body Plug-in Gait set is needed",
+                          file=file or None)
+    asis = 0.5 * (m["LASI"] + m["RASI"])
+    back = m["SACR"] if "SACR" in m else 0.5 * (m["LPSI"] + m["RPSI"])
+    R_pelvis = _frame(asis - back, m["LASI"] - m["RASI"])  # y left; x forward; z up
+    pw = np.linalg.norm(m["LASI"] - m["RASI"], axis=-1)
+    pd = np.linalg.norm(asis - back, axis=-1)
+    x, y, z = (R_pelvis[..., k] for k in range(3))
+    pos: dict[str, np.ndarray] = {"Pelvis": asis}
+    for side, sign in (("Left", 1.0), ("Right", -1.0)):
+        pos[f"{side}UpperLeg"] = (asis + ((-0.24 * pd - 0.0099)[:, None] * x)
+                                  + (sign * (0.33 * pw + 0.0073))[:, None] * y + (-0.30 * pw - 0.0109)[:, None] * z)
+    top, bottom = 0.5 * (m["C7"] + m["CLAV"]), 0.5 * (m["T10"] + m["STRN"])
+    up = _unit(top - bottom)
+    pos["T8"] = 0.25 * (m["C7"] + m["T10"] + m["CLAV"] + m["STRN"])
+    pos["Neck"] = top
+    front, rear = 0.5 * (m["LFHD"] + m["RFHD"]), 0.5 * (m["LBHD"] + m["RBHD"])
+    R_head = _frame(front - rear, 0.5 * (m["LFHD"] + m["LBHD"]) - 0.5 * (m["RFHD"] + m["RBHD"]))
+    head_x, head_left = R_head[..., 0], R_head[..., 1]
+    head_up = np.cross(head_x, head_left)
+    pos["Head"] = 0.25 * (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"]) - _HEAD_DROP * head_up
+    rots: dict[str, np.ndarray] = {"Pelvis": R_pelvis,
+                                   "Head": np.stack([head_x, head_up, np.cross(head_x, head_up)], axis=-1)}
+    left = y
+    for side, s in (("Left", "L"), ("Right", "R")):
+        other = "R" if s == "L" else "L"
+        shoulder = m[f"{s}SHO"] - _SHOULDER_DROP * up
+        wrist = 0.5 * (m[f"{s}WRA"] + m[f"{s}WRB"]) if f"{s}WRB" in m else m[f"{s}WRA"]
+        elbow = _medial(m[f"{s}ELB"], shoulder, pos["T8"], _R_ELBOW)
+        hip = pos[f"{side}UpperLeg"]
+        knee = _medial(m[f"{s}KNE"], hip, m[f"{other}KNE"], _R_KNEE)
+        ankle = _medial(m[f"{s}ANK"], knee, m[f"{other}ANK"], _R_ANKLE)
+        pos.update({f"{side}UpperArm": shoulder, f"{side}ForeArm": elbow, f"{side}Hand": wrist,
+                    f"{side}LowerLeg": knee, f"{side}Foot": ankle, f"{side}Toe": m[f"{s}TOE"]})
+        hand_y = wrist - m[f"{s}FIN"] if f"{s}FIN" in m else elbow - wrist
+        hand_x = (m[f"{s}WRA"] - m[f"{s}WRB"]) if f"{s}WRB" in m else np.cross(hand_y, left)
+        rots[f"{side}Hand"] = _frame(hand_x, hand_y)
+    distal = {p: c for c, p in _PARENTS.items() if p is not None and not c.endswith("Toe")}
+    distal.pop("Pelvis", None)
+    for seg, parent in _PARENTS.items():
+        if seg not in rots:  # z along the segment, towards its proximal end (the toes: along the foot)
+            axis = pos[seg] - pos[distal[seg]] if seg in distal else pos[seg] - pos[parent]
+            rots[seg] = _frame_z(axis, left)
+    return pos, rots
+
+
+def read_c3d(path: str | Path) -> MocapRecording:
+    """Read a C3D marker file (Plug-in Gait markers) into a :class:`~wbcbench.teleop.MocapRecording` of the
+    canonical segments (module docstring); positions in metres.
+
+    Raises:
+        ConfigError: ezc3d missing, an unreadable file, no frames, an unknown unit, or missing markers (one line
+            naming the file).
+    """
+    file = str(path)
+    ezc3d = _ezc3d(file)
+    try:
+        c = ezc3d.c3d(file, extract_forceplat_data=False)
+    except Exception as exc:  # ezc3d raises plain RuntimeError / IOError on malformed files
+        raise ConfigError(f"not a readable C3D file ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})",
+                          file=file) from None
+    point = c["parameters"]["POINT"]
+    labels = [str(s).strip() for s in point["LABELS"]["value"]]
+    for extra in ("LABELS2", "LABELS3"):
+        if extra in point:
+            labels += [str(s).strip() for s in point[extra]["value"]]
+    units = str((point.get("UNITS", {}).get("value") or ["mm"])[0]).strip().lower() or "mm"
+    if units not in _UNITS:
+        raise ConfigError(f"C3D: unknown POINT:UNITS '{units}'; known: {', '.join(_UNITS)}", file=file)
+    rate = float(np.asarray(point["RATE"]["value"]).ravel()[0])
+    data = np.asarray(c["data"]["points"], dtype=float)  # (4, P, N)
+    if data.ndim != 3 or data.shape[2] == 0:
+        raise ConfigError("C3D: no point frames", file=file)
+    if not (np.isfinite(rate) and rate > 0):
+        raise ConfigError(f"C3D: POINT:RATE must be > 0, got {rate}", file=file)
+    xyz = np.transpose(data[:3], (2, 1, 0)) * _UNITS[units]  # (N, P, 3)
+    residuals = c["data"].get("meta_points", {}).get("residuals")
+    if residuals is not None and np.asarray(residuals).shape == (1, xyz.shape[1], xyz.shape[0]):
+        xyz[np.asarray(residuals)[0].T < 0] = np.nan
+    markers: dict[str, np.ndarray] = {}
+    for k, label in enumerate(labels[: xyz.shape[1]]):
+        key = label.rsplit(":", 1)[-1].strip().upper()
+        if key and key not in markers:
+            markers[key] = xyz[:, k]
+    pos, rots = segments_from_markers(markers, file)
+    names = tuple(_PARENTS)
+    positions = np.stack([pos[s] for s in names], axis=1)
+    R = np.stack([rots[s] for s in names], axis=1)
+    bad = ~np.isfinite(R).all(axis=(2, 3))
+    R[bad] = np.eye(3)
+    quats = rot.from_matrix(R)
+    quats[bad] = np.nan
+    positions[~np.isfinite(positions).all(axis=-1)] = np.nan
+    n = positions.shape[0]
+    return MocapRecording(source=file, frame_rate=rate, times=np.arange(n) / rate, segments=names,
+                          positions=positions, orientations=quats,
+                          parents=tuple(-1 if p is None else names.index(p) for p in _PARENTS.values()),
+                          up_axis="xyz"[int(np.argmax(np.abs(np.nanmean(pos["Neck"] - pos["Pelvis"], axis=0))))])
+
+
+def write_c3d(path: str | Path, markers: dict[str, np.ndarray], rate: float, units: str = "mm") -> Path:
+    """Write marker trajectories (label -> (N, 3) [m]; NaN: a gap) to a C3D file in `units` (for tests and
+    examples)."""
+    ezc3d = _ezc3d(str(path))
+    labels = list(markers)
+    xyz = np.stack([markers[k] for k in labels], axis=1) / _UNITS[units]  # (N, P, 3)
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rate)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = tuple(labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = [units]
+    pts = np.ones((4, len(labels), xyz.shape[0]))
+    pts[:3] = np.transpose(xyz, (2, 1, 0))
+    c["data"]["points"] = pts
+    c.write(str(path))
+    return Path(path)

@@ -1,0 +1,101 @@
+"""Teleoperation metrics (paper 004 Table II statistics) from a run's log alone: the ground-truth configuration
+and the hand and head references the controller was handed (the runner logs them: `target_<task>` channels,
+position and rotation matrix). Used by the `teleop` scenario kind at the end of a run and by `wbcbench report` on
+any run directory, so that both give the same numbers.
+
+Alignment: log row i (the state after tick i) is compared with the reference of tick i - 1 (row 0: tick 0's),
+as the run-time metrics always did.
+
+Through an impaired link (a recording replayed through wbcbench/teleop/link/network.py's simulated link), the log
+also holds the hands' undelayed reference (`teleop_truth` channels: the recording's spline at the tick, what the
+robot should be doing now): the hand errors are then also measured against it (`*_true`), and the reference's
+own error against it (`reference_lag`: what the link and the prediction left in the target).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ...side import Side
+from .source import HANDS, rotation_error, stats
+
+__all__ = ["EFFECTORS", "has_targets", "has_truth", "teleop_errors_from_log", "teleop_metrics_from_log"]
+
+EFFECTORS = ("left_hand", "right_hand", "head")
+_COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
+
+
+def has_targets(log: dict) -> bool:
+    return all(f"target_{e}.x" in log for e in EFFECTORS)
+
+
+def has_truth(log: dict) -> bool:
+    """The log holds the hands' undelayed reference (a run through the simulated impaired link)."""
+    return all(f"teleop_truth.{h}.x" in log for h in HANDS)
+
+
+def teleop_errors_from_log(log: dict, robot) -> dict[str, np.ndarray]:
+    """Per tick: position [m] and rotation (||I - R_ref R^T||_F) errors of both hands, whether each hand's
+    reference lies inside the body (its protected point within r_rep + r of a repulsion point), the head's
+    position error, and the time."""
+    n = len(log["t"])
+    model = robot.model
+    data = model.createData()
+    names = ["x", "y", "z", "qx", "qy", "qz", "qw"] + robot.joint_names
+    Q = np.column_stack([log[f"q.{c}"] for c in names])
+    frames = {"left_hand": robot.profile.hands[Side.LEFT], "right_hand": robot.profile.hands[Side.RIGHT],
+              "head": robot.profile.head_frame}
+    fids = {k: model.getFrameId(f) for k, f in frames.items()}
+    sides = {"left_hand": Side.LEFT, "right_hand": Side.RIGHT}
+    reps = {h: robot.profile.repulsors.get(s) for h, s in sides.items()}
+    rep_points = {h: [(model.getFrameId(p.frame), np.array(p.offset), p.radius + r.radius) for p in r.points]
+                  for h, r in reps.items() if r is not None}
+    shift = np.maximum(np.arange(n) - 1, 0)  # row i: the reference of tick i - 1
+    ref = {k: np.column_stack([log[f"target_{k}.{c}"] for c in _COMPONENTS])[shift] for k in frames}
+    pos = {k: np.empty((n, 3)) for k in frames}
+    rot = {k: np.empty((n, 3, 3)) for k in frames}
+    inside = {h: np.zeros(n, dtype=bool) for h in HANDS}
+    for i in range(n):
+        pin.framesForwardKinematics(model, data, Q[i])
+        for k, fid in fids.items():
+            M = data.oMf[fid]
+            pos[k][i] = M.translation
+            rot[k][i] = M.rotation
+        for h, points in rep_points.items():
+            R_ref = ref[h][i, 3:].reshape(3, 3)
+            x = ref[h][i, :3] + R_ref @ np.asarray(reps[h].offset)
+            inside[h][i] = any(np.linalg.norm(x - data.oMf[fid].act(off)) < a for fid, off, a in points)
+    e_pos = {k: np.linalg.norm(ref[k][:, :3] - pos[k], axis=1) for k in frames}
+    e_rot = {k: rotation_error(ref[k][:, 3:].reshape(-1, 3, 3), rot[k]) for k in frames}
+    out = {"position": np.stack([e_pos[h] for h in HANDS]), "rotation": np.stack([e_rot[h] for h in HANDS]),
+           "reference_inside_body": np.stack([inside[h] for h in HANDS]), "head_position": e_pos["head"],
+           "t": np.asarray(log["t"]) - (log["t"][0] if n else 0.0)}
+    if has_truth(log):
+        true = {h: np.column_stack([log[f"teleop_truth.{h}.{c}"] for c in _COMPONENTS])[shift] for h in HANDS}
+        out["position_true"] = np.stack([np.linalg.norm(true[h][:, :3] - pos[h], axis=1) for h in HANDS])
+        out["rotation_true"] = np.stack([rotation_error(true[h][:, 3:].reshape(-1, 3, 3), rot[h]) for h in HANDS])
+        out["reference_lag"] = np.stack([np.linalg.norm(true[h][:, :3] - ref[h][:, :3], axis=1) for h in HANDS])
+    return out
+
+
+def teleop_metrics_from_log(log: dict, robot, errors: dict | None = None) -> dict:
+    """The Table II statistics ({mean, std, min, max}) of `teleop_errors_from_log`."""
+    e = errors if errors is not None else teleop_errors_from_log(log, robot)
+    outside = ~e["reference_inside_body"].reshape(-1)
+    all_pos, all_rot = e["position"].reshape(-1), e["rotation"].reshape(-1)
+    out = {
+        "hand_position_error_m": stats(all_pos),
+        "hand_rotation_error": stats(all_rot),
+        "hand_errors": {h: {"position_m": stats(e["position"][i]), "rotation": stats(e["rotation"][i])}
+                        for i, h in enumerate(HANDS)},
+        "hand_position_error_outside_body_m": stats(all_pos[outside]),
+        "hand_rotation_error_outside_body": stats(all_rot[outside]),
+        "hand_reference_inside_body_fraction": float(1.0 - outside.mean()) if outside.size else None,
+        "head_position_error_m": stats(e["head_position"]),
+    }
+    if "position_true" in e:
+        out["hand_position_error_true_m"] = stats(e["position_true"].reshape(-1))
+        out["hand_rotation_error_true"] = stats(e["rotation_true"].reshape(-1))
+        out["hand_reference_lag_m"] = stats(e["reference_lag"].reshape(-1))
+    return out
