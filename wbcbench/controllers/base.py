@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..catalogue import BUILTIN_CONTROLLERS  # the built-ins: name -> "module:Attr", imported when first used
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot
 from ..types import ActuationMode
@@ -78,14 +79,6 @@ class Controller(ABC):
 
 ControllerFactory = Callable[[Robot, ActuationMode, float], Controller]
 
-#: the built-in controllers: name -> "module:Attr", imported when first used (wbcbench/plugins.py `load`)
-BUILTIN_CONTROLLERS: dict[str, str] = {
-    "ik": "wbcbench.controllers.ik:IKController",
-    "joint-pd": "wbcbench.controllers.joint_pd:JointPD",
-    "tsid-position": "wbcbench.controllers.inverse_dynamics:TSIDPosition",
-    "tsid-teleop": "wbcbench.controllers.teleop:TSIDTeleop",
-    "tsid-torque": "wbcbench.controllers.inverse_dynamics:TSIDTorque",
-}
 
 GROUP = "wbcbench.controllers"
 

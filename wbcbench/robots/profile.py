@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..catalogue import BUILTIN_ROBOTS  # the built-ins: name -> profile file of profiles/
 from ..config import Section, load_yaml
 from ..errors import UnknownNameError
 from ..side import Side
@@ -151,13 +152,6 @@ class RobotProfile:
     #: links (applied to the pinocchio and the MuJoCo model alike); 0: none
     min_body_mass: float = 0.0
     min_body_inertia: float = 0.0
-
-
-#: the built-in robots: name -> its profile, a file of wbcbench/robots/profiles
-BUILTIN_ROBOTS: dict[str, str] = {
-    "g1": "g1.yaml",
-    "talos": "talos.yaml",
-}
 
 
 def builtin_robots() -> list[str]:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..catalogue import BUILTIN_KINDS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section, load_yaml
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
@@ -90,17 +91,6 @@ class Scenario:
         """Scenario-specific metrics computed from the run log."""
         return {}
 
-
-#: the built-in scenario kinds: name -> "module:Attr", imported when first used (wbcbench/plugins.py `load`)
-BUILTIN_KINDS: dict[str, str] = {
-    "one-foot": "wbcbench.scenarios.kinds:OneFootScenario",
-    "stand": "wbcbench.scenarios.base:Scenario",
-    "sway": "wbcbench.scenarios.kinds:SwayScenario",
-    "teleop": "wbcbench.scenarios.teleop_kind:TeleopScenario",
-    "terrain-walk": "wbcbench.scenarios.kinds:TerrainWalkScenario",
-    "walk": "wbcbench.scenarios.kinds:WalkScenario",
-    "walk-command": "wbcbench.scenarios.kinds:CommandWalkScenario",
-}
 
 GROUP = "wbcbench.scenarios"
 

@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..catalogue import BUILTIN_STABILIZERS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..types import Measurement, ModelFeedback, References
@@ -66,12 +67,6 @@ class Stabilizer(ABC):
                 f"references, and it gives none (give the scenario a {missing[0]} plan, or use a task set without "
                 "this stabilizer)", key="stabilizer")
 
-
-#: the built-in stabilizer types: name -> "module:Attr", imported when first used (wbcbench/plugins.py `load`)
-BUILTIN_STABILIZERS: dict[str, str] = {
-    "dcm": "wbcbench.stabilizers.balance:BalanceStabilizer",
-    "force": "wbcbench.stabilizers.teleop:TeleopStabilizer",
-}
 
 _TYPES: dict[str, type[Stabilizer]] = {}
 """Stabilizer types registered in Python (`register_stabilizer`), by name."""

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..catalogue import BUILTIN_TASKS  # the built-ins: name -> "module:Attr", imported when first used
 from ..errors import UnknownNameError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,15 +52,6 @@ class TaskSpec:
         """The model frame of a frame task (None for other types)."""
         return self.options.get("frame")
 
-
-#: the built-in task types: YAML `type:` -> "module:Attr", imported when first used (wbcbench/plugins.py `load`)
-BUILTIN_TASKS: dict[str, str] = {
-    "angular_momentum": "wbcbench.tasks.angular_momentum_task:AngularMomentumTask",
-    "com": "wbcbench.tasks.com_task:CoMTask",
-    "frame": "wbcbench.tasks.frame_task:FrameTask",
-    "posture": "wbcbench.tasks.posture_task:PostureTask",
-    "self_collision": "wbcbench.tasks.self_collision:SelfCollisionTask",
-}
 
 _TYPES: dict[str, type[Task]] = {}
 """Task types registered in Python (`register_task`), by YAML name."""
