@@ -1,10 +1,11 @@
 """The names of what wbcbench can run, found without importing what runs it (no numpy, pinocchio or MuJoCo), so
 that `wbcbench --help` and `wbcbench list` answer at once.
 
-Shipped scenarios, robot profiles and sensor profiles are files, listed from their folders; built-in controllers,
-scenario kinds, task types and stabilizers are named here and checked against their registries by the tests
-(tests/test_cli_fast.py). Installed plugins (entry points) can only be known by importing them: `has_plugins()`
-tells the command line to take the registries' slower path then.
+Shipped scenarios and sensor profiles are files, listed from their folders. The built-in controllers, scenario
+kinds, task types, stabilizers, corrections, engines and robots are the tables here, which their registries read
+(each entry "module:Attr", imported when first used), so that a name is written once. Installed plugins (entry
+points) can only be known by importing them: `has_plugins()` tells the command line to take the registries' slower
+path then.
 """
 
 from __future__ import annotations
@@ -14,14 +15,67 @@ from pathlib import Path
 
 _PACKAGE = Path(__file__).parent
 
-BUILTIN_CONTROLLERS = ("ik", "joint-pd", "tsid-position", "tsid-teleop", "tsid-torque")
-BUILTIN_KINDS = ("one-foot", "stand", "sway", "teleop", "terrain-walk", "walk", "walk-command")
-TASK_TYPES = ("angular_momentum", "com", "frame", "posture", "self_collision")
-STABILIZERS = ("dcm", "force")
+# The built-ins of each registry, in one table each: name -> "package.module:Attr", imported by the registry when
+# first used (wbcbench.plugins.load). The registries read these tables (none imports its built-ins to fill
+# itself); plugins come through entry points (wbcbench/plugins.py).
+
+#: controllers (wbcbench.controllers.base)
+BUILTIN_CONTROLLERS: dict[str, str] = {
+    "ik": "wbcbench.controllers.ik:IKController",
+    "joint-pd": "wbcbench.controllers.joint_pd:JointPD",
+    "tsid-position": "wbcbench.controllers.inverse_dynamics:TSIDPosition",
+    "tsid-teleop": "wbcbench.controllers.teleop:TSIDTeleop",
+    "tsid-torque": "wbcbench.controllers.inverse_dynamics:TSIDTorque",
+}
+#: scenario kinds (wbcbench.scenarios.base)
+BUILTIN_KINDS: dict[str, str] = {
+    "one-foot": "wbcbench.scenarios.kinds:OneFootScenario",
+    "stand": "wbcbench.scenarios.base:Scenario",
+    "sway": "wbcbench.scenarios.kinds:SwayScenario",
+    "teleop": "wbcbench.scenarios.teleop_kind:TeleopScenario",
+    "terrain-walk": "wbcbench.scenarios.kinds:TerrainWalkScenario",
+    "walk": "wbcbench.scenarios.kinds:WalkScenario",
+    "walk-command": "wbcbench.scenarios.kinds:CommandWalkScenario",
+}
+#: task types, the YAML `type:` of a task set's tasks (wbcbench.tasks.registry)
+BUILTIN_TASKS: dict[str, str] = {
+    "angular_momentum": "wbcbench.tasks.angular_momentum_task:AngularMomentumTask",
+    "com": "wbcbench.tasks.com_task:CoMTask",
+    "frame": "wbcbench.tasks.frame_task:FrameTask",
+    "posture": "wbcbench.tasks.posture_task:PostureTask",
+    "self_collision": "wbcbench.tasks.self_collision:SelfCollisionTask",
+}
+#: stabilizer types (wbcbench.stabilizers.base)
+BUILTIN_STABILIZERS: dict[str, str] = {
+    "dcm": "wbcbench.stabilizers.balance:BalanceStabilizer",
+    "force": "wbcbench.stabilizers.teleop:TeleopStabilizer",
+}
+#: plan correction types (wbcbench.controllers.corrections), in the order the task sets' old sections put them
+BUILTIN_CORRECTIONS: dict[str, str] = {
+    "plan_lead": "wbcbench.controllers.plan_lead:PlanLead",
+    "lift_off_wait": "wbcbench.controllers.liftoff:LiftOffWait",
+    "touchdown_search": "wbcbench.controllers.touchdown:TouchdownSearch",
+    "base_feedback": "wbcbench.controllers.corrections:BaseFeedbackStage",
+    "swing_tilt": "wbcbench.controllers.swing_tilt:SwingTilt",
+    "stabilizer": "wbcbench.controllers.corrections:StabilizerStage",
+}
+#: physics engines (wbcbench.sim.engines): name -> ("module:Attr", the package it needs installed or None)
+BUILTIN_ENGINES: dict[str, tuple[str, str | None]] = {
+    "mujoco": ("wbcbench.sim.simulator:Simulator", None),
+    "dart": ("wbcbench.sim.dart_engine:DartSimulator", "dartpy"),
+}
+#: robots (wbcbench.robots.profile): name -> its profile, a file of wbcbench/robots/profiles
+BUILTIN_ROBOTS: dict[str, str] = {
+    "g1": "g1.yaml",
+    "talos": "talos.yaml",
+}
+
+TASK_TYPES = tuple(BUILTIN_TASKS)
+STABILIZERS = tuple(BUILTIN_STABILIZERS)
+CORRECTIONS = tuple(sorted(BUILTIN_CORRECTIONS))
 MODES = ("torque", "position", "spd")  # ActuationMode's values, in its order
-CORRECTIONS = ("base_feedback", "lift_off_wait", "plan_lead", "stabilizer", "swing_tilt", "touchdown_search")
-#: the built-in engines and the package each needs (wbcbench.sim.engines.ENGINES)
-ENGINES = (("mujoco", None), ("dart", "dartpy"))
+#: the built-in engines and the package each needs
+ENGINES = tuple((name, needs) for name, (_, needs) in BUILTIN_ENGINES.items())
 PLUGIN_GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections",
                  "wbcbench.engines")  # wbcbench.plugins.GROUPS
 
@@ -37,7 +91,7 @@ def scenarios() -> list[str]:
 
 def robots() -> list[str]:
     """The shipped robot profiles (wbcbench.robots.profile.builtin_robots)."""
-    return _stems("robots/profiles")
+    return sorted(BUILTIN_ROBOTS)
 
 
 def sensor_profiles() -> list[str]:

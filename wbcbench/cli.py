@@ -158,7 +158,7 @@ def _cmd_list() -> int:
     from .controllers.base import available_controllers, builtin_controllers, controller_plugin_errors
     from .controllers.corrections import BUILTIN_CORRECTIONS, available_corrections, correction_plugin_errors
     from .robots.profile import builtin_robots, plugin_robots, robot_plugin_errors
-    from .scenarios.base import _KINDS, available_kinds, kind_plugin_errors
+    from .scenarios.base import available_kinds, builtin_kinds, kind_plugin_errors
     from .sensing import available_profiles
     from .sim.engines import available_engines, engine_label, engine_plugin_errors
     from .stabilizers.base import available_stabilizers
@@ -170,7 +170,8 @@ def _cmd_list() -> int:
     s, _, _, m = _lists()
     builtin = builtin_controllers()
     ctrls = [n + ("" if n in builtin else origin(c.__module__)) for n, c in available_controllers().items()]
-    kinds = [n + ("" if n in _KINDS else origin(k.__module__)) for n, k in sorted(available_kinds().items())]
+    builtin_k = builtin_kinds()
+    kinds = [n + ("" if n in builtin_k else origin(k.__module__)) for n, k in sorted(available_kinds().items())]
     corrections = [n + ("" if n in BUILTIN_CORRECTIONS else f" [{o.split(' ')[0].split('.')[0].split(':')[0]}]")
                    for n, o in available_corrections().items()]
     plug = plugin_robots()

@@ -139,9 +139,9 @@ def _kernel_cache() -> Check:
 
 
 def _render_cache() -> Check:
-    from .viz.render import _cache_dir
+    from .viz.render import cache_dir
 
-    d = _cache_dir()
+    d = cache_dir()
     if d is None:
         return Check("render-model cache", OK, "off (WBCBENCH_CACHE_DIR is empty): models are rebuilt per process")
     probe = d

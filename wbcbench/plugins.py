@@ -28,6 +28,7 @@ entry point and its distribution when that name is used (and by `wbcbench list`)
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -35,7 +36,7 @@ from typing import Any
 
 from .errors import ConfigError
 
-__all__ = ["GROUPS", "Plugin", "PluginError", "discover"]
+__all__ = ["GROUPS", "Plugin", "PluginError", "discover", "load"]
 
 GROUPS = ("wbcbench.controllers", "wbcbench.scenarios", "wbcbench.robots", "wbcbench.corrections",
           "wbcbench.engines")
@@ -65,23 +66,26 @@ class Plugin:
 _CACHE: dict[str, list[Plugin]] = {}
 
 
-def _check(group: str, obj: Any) -> str | None:
-    """Why `obj` cannot serve in `group` (None if it can)."""
-    if group == "wbcbench.controllers":
-        from .controllers.base import Controller
+def load(target: str) -> Any:
+    """The object a "package.module:Attr" string names, its module imported now (the registries' tables of
+    built-ins hold such strings, so that no registry imports its built-ins before one is used)."""
+    module, _, attr = target.partition(":")
+    obj = importlib.import_module(module)
+    for part in attr.split(".") if attr else ():
+        obj = getattr(obj, part)
+    return obj
 
-        if not (isinstance(obj, type) and issubclass(obj, Controller)):
-            return "is not a Controller subclass"
-    elif group == "wbcbench.scenarios":
-        from .scenarios.base import Scenario
 
-        if not (isinstance(obj, type) and issubclass(obj, Scenario)):
-            return "is not a Scenario subclass"
-    elif group == "wbcbench.corrections":
-        from .controllers.corrections import Correction
+#: what each group's objects must be, named as in the group's registry (checked with `issubclass`)
+_BASES = {"wbcbench.controllers": "Controller", "wbcbench.scenarios": "Scenario",
+          "wbcbench.corrections": "Correction"}
 
-        if not (isinstance(obj, type) and issubclass(obj, Correction)):
-            return "is not a Correction subclass"
+
+def _check(group: str, obj: Any, base: type | None) -> str | None:
+    """Why `obj` cannot serve in `group` (None if it can); `base`: the class its objects must subclass."""
+    if base is not None:
+        if not (isinstance(obj, type) and issubclass(obj, base)):
+            return f"is not a {_BASES.get(group, base.__name__)} subclass"
     elif group == "wbcbench.engines":
         if not callable(obj):
             return "is not a simulator class (called with robot, terrain, mode, options, pushes, model_error)"
@@ -92,9 +96,10 @@ def _check(group: str, obj: Any) -> str | None:
     return None
 
 
-def discover(group: str, builtin: set[str] | frozenset[str] = frozenset()) -> list[Plugin]:
+def discover(group: str, builtin: set[str] | frozenset[str] = frozenset(), base: type | None = None) -> list[Plugin]:
     """The plugins of `group` (cached per process), each loaded or with its error; a name taken by a built-in or
-    by an earlier plugin makes the later one an error."""
+    by an earlier plugin makes the later one an error. `base`: the class the group's objects must subclass (the
+    registry asking passes it, so that this module imports no registry)."""
     if group not in _CACHE:
         found = []
         for ep in sorted(metadata.entry_points(group=group), key=lambda e: (e.name, e.value)):
@@ -105,12 +110,14 @@ def discover(group: str, builtin: set[str] | frozenset[str] = frozenset()) -> li
                 found.append(Plugin(group, ep.name, ep.value, dist, error=f"failed to import: "
                                     f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"))
                 continue
-            why = _check(group, obj)
-            found.append(Plugin(group, ep.name, ep.value, dist, obj, why))
+            found.append(Plugin(group, ep.name, ep.value, dist, obj))
         _CACHE[group] = found
     out, seen = [], {}
     for p in _CACHE[group]:
-        if p.error is None and (p.name in builtin or p.name in seen):
+        why = _check(group, p.obj, base) if p.error is None else None
+        if why is not None:
+            p = Plugin(p.group, p.name, p.value, p.dist, p.obj, why)
+        elif p.error is None and (p.name in builtin or p.name in seen):
             other = "a built-in" if p.name in builtin else f"{seen[p.name].origin}"
             p = Plugin(p.group, p.name, p.value, p.dist, p.obj, f"registers the name '{p.name}' that {other} has")
         elif p.error is None:

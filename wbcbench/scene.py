@@ -1,6 +1,7 @@
 """The scene description: a flat floor, tilted platforms (boxes with poses), stairs; parsed from a scenario's
 `terrain:`. Plain data read by both the simulator (`sim/`, which builds MuJoCo geoms from it) and the planners
-(`planning/`, which turn it into contact surfaces), so neither imports the other."""
+(`planning/`, which turn it into contact surfaces), so neither imports the other. Also the external pushes a
+scenario declares (`pushes:`), which the simulator applies."""
 
 from __future__ import annotations
 
@@ -77,3 +78,30 @@ def _positive(b: Section, key: str) -> np.ndarray:
     if np.any(v <= 0):
         raise b.error(key, f"sizes must be > 0, got {v.tolist()}")
     return v
+
+
+@dataclass(frozen=True)
+class Push:
+    """A constant force [N] (world frame) on `body`'s centre of mass from `start` for `duration` [s].
+
+    `body` is a body (link) name of the robot, or "base" for the profile's base frame.
+    """
+
+    body: str
+    force: tuple[float, float, float]
+    start: float
+    duration: float
+
+    def active(self, t: float) -> bool:
+        return self.start <= t < self.start + self.duration
+
+    @property
+    def impulse(self) -> float:
+        return float(np.linalg.norm(self.force) * self.duration)
+
+
+def parse_push(sec: Section) -> Push:
+    p = Push(body=sec.str("body"), force=tuple(sec.vector("force", length=3)),
+             start=sec.float("start", min=0.0), duration=sec.float("duration", positive=True))
+    sec.finish()
+    return p

@@ -9,6 +9,10 @@ import numpy as np
 
 from .side import Side
 
+#: standard gravity [m/s^2], the magnitude every model, planner, estimator and metric uses (the simulator's gravity
+#: vector is (0, 0, -GRAVITY))
+GRAVITY = 9.81
+
 
 class ActuationMode(str, Enum):
     """How joint commands reach the simulated robot.

@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..catalogue import BUILTIN_CONTROLLERS  # the built-ins: name -> "module:Attr", imported when first used
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot
 from ..types import ActuationMode
@@ -77,28 +78,51 @@ class Controller(ABC):
 
 
 ControllerFactory = Callable[[Robot, ActuationMode, float], Controller]
+
+
+GROUP = "wbcbench.controllers"
+
 _REGISTRY: dict[str, type[Controller]] = {}
+"""Controllers registered in Python (`register`), by name."""
+_LOADED: dict[str, type[Controller]] = {}
 
 
 def register(cls: type[Controller]) -> type[Controller]:
-    """Class decorator adding a controller to the built-in registry under `cls.name` (a package of yours
-    registers through the `wbcbench.controllers` entry point instead: wbcbench/plugins.py)."""
+    """Class decorator adding a controller to the registry under `cls.name`, for a class defined in a script or a
+    test (a package of yours registers through the `wbcbench.controllers` entry point instead:
+    wbcbench/plugins.py). A built-in's name stays the built-in's."""
     _REGISTRY[cls.name] = cls
     return cls
 
 
+def _builtin(name: str) -> type[Controller]:
+    cls = _LOADED.get(name)
+    if cls is None:
+        from ..plugins import load
+
+        cls = _LOADED[name] = load(BUILTIN_CONTROLLERS[name])
+    return cls
+
+
+def _plugins(taken) -> list:
+    from ..plugins import discover
+
+    return discover(GROUP, set(taken), Controller)
+
+
 def builtin_controllers() -> dict[str, type[Controller]]:
-    from . import ik, inverse_dynamics, joint_pd, teleop  # noqa: F401  (registration side effect of importing the modules)
-    return dict(_REGISTRY)
+    """The built-in controllers and those registered in Python (`register`), by name."""
+    out = dict(_REGISTRY)
+    out.update({name: _builtin(name) for name in BUILTIN_CONTROLLERS})
+    return out
 
 
 def available_controllers() -> dict[str, type[Controller]]:
-    """Every usable controller by name: the built-in registry and the `wbcbench.controllers` entry points of
-    installed packages (wbcbench/plugins.py); broken plugins are left out (`controller_plugin_errors`)."""
-    from ..plugins import discover
-
+    """Every usable controller by name: the built-in ones, those registered in Python and the
+    `wbcbench.controllers` entry points of installed packages (wbcbench/plugins.py); broken plugins are left out
+    (`controller_plugin_errors`)."""
     out = builtin_controllers()
-    for p in discover("wbcbench.controllers", set(out)):
+    for p in _plugins(out):
         if p.error is None:
             out[p.name] = p.obj
     return dict(sorted(out.items()))
@@ -106,25 +130,33 @@ def available_controllers() -> dict[str, type[Controller]]:
 
 def controller_plugin_errors() -> dict[str, str]:
     """name -> one-line message, for the controller plugins that cannot be used."""
-    from ..plugins import discover, message
+    from ..plugins import message
 
-    return {p.name: message(p) for p in discover("wbcbench.controllers", set(builtin_controllers()))
-            if p.error is not None}
+    return {p.name: message(p) for p in _plugins({*BUILTIN_CONTROLLERS, *_REGISTRY}) if p.error is not None}
+
+
+def controller_class(name: str) -> type[Controller]:
+    """The class of controller `name` (only its own module is imported); an unknown name is an `UnknownNameError`
+    listing the known ones, a broken plugin a `PluginError`."""
+    if name in BUILTIN_CONTROLLERS:
+        return _builtin(name)
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    for p in _plugins({*BUILTIN_CONTROLLERS, *_REGISTRY}):
+        if p.name == name:
+            if p.error is not None:
+                from ..plugins import PluginError, message
+
+                raise PluginError(message(p), key="--controller")
+            return p.obj
+    raise UnknownNameError("controller", name, available_controllers(), key="--controller")
 
 
 def make_controller(name: str, robot: Robot, mode: ActuationMode | str | None, dt: float,
                     taskset: str | None = None) -> Controller:
     """A registered controller for `robot` at control period `dt` [s], in `mode` (None: its default), with the task
     set of file `taskset` when given (controllers with a task set only)."""
-    ctrls = available_controllers()
-    if name not in ctrls:
-        broken = controller_plugin_errors().get(name)
-        if broken is not None:
-            from ..plugins import PluginError
-
-            raise PluginError(broken, key="--controller")
-        raise UnknownNameError("controller", name, ctrls, key="--controller")
-    cls = ctrls[name]
+    cls = controller_class(name)
     if mode is None:
         mode = cls.default_mode
     try:

@@ -50,6 +50,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 import numpy as np
 
+from ..catalogue import BUILTIN_CORRECTIONS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..types import Measurement, ModelFeedback, References
@@ -62,15 +63,6 @@ __all__ = ["BUILTIN_CORRECTIONS", "BaseFeedbackStage", "Correction", "Correction
            "StabilizerStage", "available_corrections", "correction_class", "correction_plugin_errors",
            "parse_corrections", "parse_settings", "register_correction"]
 
-#: the built-in correction types: name -> "module:Attr", imported when first used
-BUILTIN_CORRECTIONS: dict[str, str] = {
-    "plan_lead": "wbcbench.controllers.plan_lead:PlanLead",
-    "lift_off_wait": "wbcbench.controllers.liftoff:LiftOffWait",
-    "touchdown_search": "wbcbench.controllers.touchdown:TouchdownSearch",
-    "base_feedback": "wbcbench.controllers.corrections:BaseFeedbackStage",
-    "swing_tilt": "wbcbench.controllers.swing_tilt:SwingTilt",
-    "stabilizer": "wbcbench.controllers.corrections:StabilizerStage",
-}
 
 GROUP = "wbcbench.corrections"
 
@@ -267,7 +259,7 @@ def _builtin(name: str) -> type[Correction]:
 def _plugins():
     from ..plugins import discover
 
-    return discover(GROUP, set(BUILTIN_CORRECTIONS) | set(_REGISTERED))
+    return discover(GROUP, set(BUILTIN_CORRECTIONS) | set(_REGISTERED), Correction)
 
 
 def available_corrections() -> dict[str, str]:

@@ -28,7 +28,7 @@ from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
 from ..tasks.registry import build_task
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
-from .base import Controller, register
+from .base import Controller
 from .ik_formulation import KinematicHierarchy
 from .plan_corrections import PlanCorrections
 from .task_references import TaskReferences
@@ -37,7 +37,6 @@ from .taskset import TaskSetSpec, load_taskset, taskset_path
 MAX_LEVELS = 8
 
 
-@register
 class IKController(Controller):
     """Velocity-level hierarchical IK with positions sent to the joint servos; see the module docstring."""
 

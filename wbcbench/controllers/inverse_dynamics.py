@@ -30,7 +30,7 @@ from ..stabilizers.base import Stabilizer
 from ..tasks import Contact6D, FrameTask
 from ..tasks.registry import build_task
 from ..types import ActuationMode, Command, Measurement, ModelFeedback, References
-from .base import Controller, register
+from .base import Controller
 from .id_formulation import InverseDynamicsFormulation
 from .plan_corrections import PlanCorrections
 from .task_references import TaskReferences
@@ -320,13 +320,11 @@ class InverseDynamicsController(Controller):
         return self.corrections.status({"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback})
 
 
-@register
 class TSIDTorque(InverseDynamicsController):
     name = "tsid-torque"
     default_mode = ActuationMode.TORQUE
 
 
-@register
 class TSIDPosition(InverseDynamicsController):
     name = "tsid-position"
     default_mode = ActuationMode.POSITION

@@ -14,10 +14,9 @@ import pinocchio as pin
 from ..robots import Robot, Side
 from ..types import ActuationMode
 from ..types import Command, Measurement, References
-from .base import Controller, register
+from .base import Controller
 
 
-@register
 class JointPD(Controller):
     name = "joint-pd"
     modes = (ActuationMode.TORQUE, ActuationMode.POSITION, ActuationMode.SPD)

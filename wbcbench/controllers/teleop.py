@@ -53,11 +53,9 @@ from ..jit import njit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
-from ..stabilizers._kernels import reference_split
-from ..stabilizers.teleop import GRAVITY, reference_wrench_targets
+from ..stabilizers.teleop import reference_split, reference_wrench_targets
 from ..tasks import SelfCollisionTask
-from ..types import ActuationMode, Command, Measurement, References
-from .base import register
+from ..types import GRAVITY, ActuationMode, Command, Measurement, References
 from .inverse_dynamics import QP_OK, InverseDynamicsController
 from .taskset import TaskSetSpec, load_taskset, taskset_path
 
@@ -147,7 +145,6 @@ def teleop_taskset(robot: Robot, *, repulsors: bool = True) -> TaskSetSpec:
     return spec
 
 
-@register
 class TSIDTeleop(InverseDynamicsController):
     """Teleoperation controller (module docstring).
 
@@ -221,7 +218,7 @@ class TSIDTeleop(InverseDynamicsController):
         for s in Side:
             self.wrench[s] = np.zeros(6)
             if s in active:
-                self.wrench[s][2] = self.robot.mass * 9.81 / len(active)
+                self.wrench[s][2] = self.robot.mass * GRAVITY / len(active)
         self._feet_nominal = {s: pin.SE3(cs.contact.reference) for s, cs in self.contacts.items()
                               if cs.contact.reference is not None}
         # both feet's nominal rotations and translations as arrays, for the usual tick (both feet down)

@@ -4,6 +4,7 @@ Independent of the simulator: every function takes one sample or one row per con
 `BalanceEstimator` (balance.py) adds the robot model to anchor the CoM on the support foot.
 """
 
+from ._validate import cross
 from .balance import BalanceEstimator
 from .dcm import dcm, lipm_omega
 from .wrench import GRAVITY_WORLD, FootMass, Wrench, contact_wrench_from_ft, ft_from_contact_wrench
@@ -27,6 +28,7 @@ __all__ = [
     "as_plane",
     "center_of_pressure",
     "contact_wrench_from_ft",
+    "cross",
     "dcm",
     "ft_from_contact_wrench",
     "lipm_omega",

@@ -17,7 +17,7 @@ import pinocchio as pin
 from ..jit import njit
 from ..robots import Robot
 from ..side import Side
-from ..tasks.placements import CenterOfMass, _forward, _frames, _subtree_sums
+from ..tasks.placements import CenterOfMass, frame_placements, joint_placements, subtree_sums
 from ..types import Measurement
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
@@ -152,9 +152,9 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
     the support foot (0 left, 1 right: the larger normal force, left on a tie)."""
-    _forward(q_meas, kinds, parents, idx_q, R0, t0, R, t)
-    _frames(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
-    _subtree_sums(R, t, parents, mass, lever, msub, csub)
+    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R, t)
+    frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
+    subtree_sums(R, t, parents, mass, lever, msub, csub)
     # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
     F = np.empty((2, 3))
     M = np.empty((2, 3))
@@ -189,8 +189,8 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
     cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
     if anchor:
         # each loaded foot moved to where the model has it, weighted by its normal force
-        _forward(q_model, kinds, parents, idx_q, R0, t0, R, t)
-        _frames(R, t, frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
+        joint_placements(q_model, kinds, parents, idx_q, R0, t0, R, t)
+        frame_placements(R, t, frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
         w = np.zeros(2)
         for k in range(2):
             if out[k] > min_normal_force:

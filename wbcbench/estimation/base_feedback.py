@@ -36,7 +36,7 @@ import pinocchio as pin
 from ..robots import Robot
 from ..jit import njit
 from ..side import Side
-from ..tasks.placements import ForwardKinematics, _forward, _frames
+from ..tasks.placements import ForwardKinematics, frame_placements, joint_placements
 from ..types import Measurement, PointReference, PoseReference, References
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
@@ -64,12 +64,12 @@ class BaseFeedbackConfig:
 def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames,
                 t_frames, R, t, drift, alpha):
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
-    model's and the measured configuration (`placements._forward`, `_frames`; rows model left, right, measured
-    left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
-    _forward(q_model, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R[:2], t[:2])
-    _forward(q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R[2:], t[2:])
+    model's and the measured configuration (`placements.joint_placements`, `frame_placements`; rows model left,
+    right, measured left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
+    joint_placements(q_model, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
+    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[:2], t[:2])
+    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
+    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[2:], t[2:])
     _drift_from_soles(R, t, drift, alpha)
 
 

@@ -10,10 +10,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..types import GRAVITY
 from ._validate import batch_size, positive_scalar, vec3
 
 
-def lipm_omega(com_height: ArrayLike, gravity: float = 9.81) -> np.ndarray | float:
+def lipm_omega(com_height: ArrayLike, gravity: float = GRAVITY) -> np.ndarray | float:
     """Natural frequency omega = sqrt(g / h) [1/s] of the LIPM.
 
     Args:

@@ -17,12 +17,11 @@ import numpy as np
 import pinocchio as pin
 
 from ..side import Side
-from ..types import Measurement
+from ..types import GRAVITY, Measurement
 from .feet import FeetSensing
 
 __all__ = ["FallPredictor", "convex_hull", "signed_distance_to_polygon"]
 
-GRAVITY = 9.81
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:

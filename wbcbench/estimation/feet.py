@@ -6,11 +6,10 @@ import numpy as np
 import pinocchio as pin
 
 from ..side import Side
-from ..types import Measurement
+from ..types import GRAVITY, Measurement
 
 __all__ = ["FeetSensing"]
 
-GRAVITY = 9.81
 
 
 class FeetSensing:

@@ -26,9 +26,10 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..types import GRAVITY
 from ._validate import batch_size, cross, positive_scalar, rot3, rotate, vec3
 
-GRAVITY_WORLD = np.array([0.0, 0.0, -9.81])
+GRAVITY_WORLD = np.array([0.0, 0.0, -GRAVITY])
 GRAVITY_WORLD.flags.writeable = False
 """Default gravity vector in the world frame [m/s^2] (z up); read-only."""
 

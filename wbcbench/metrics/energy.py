@@ -22,9 +22,10 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..types import GRAVITY
 from ._validate import durations, positive_scalar, same_length, series
 
-STANDARD_GRAVITY = 9.81
+STANDARD_GRAVITY = GRAVITY
 """Gravity magnitude [m/s^2] used by the paper."""
 
 

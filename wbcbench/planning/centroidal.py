@@ -72,6 +72,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import PlanningError
+from ..types import GRAVITY
 from .footsteps import Footstep, FootstepPlan
 from .geometry import SoleRectangle, rotation_from_yaw, yaw_of
 from .swing import SwingTrajectory, quintic_blend
@@ -183,7 +184,7 @@ class CentroidalConfig:
 
     mass: float
     com_height: float = 0.87
-    gravity: float = 9.81
+    gravity: float = GRAVITY
     friction: float = 0.5
     cop_margin: float = 0.02
     max_com_height: float | None = None

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PlanningError
+from ..types import GRAVITY
 from .footsteps import Footstep, FootstepPlan
 from .preview_control import PreviewGains, preview_gains, simulate_preview
 from ..side import Side
@@ -83,7 +84,7 @@ class PatternGeneratorConfig:
 
     com_height: float
     dt: float = 1e-3
-    gravity: float = 9.81
+    gravity: float = GRAVITY
     preview_horizon: float = 2.5
     preview_dt: float | None = None
     zmp_weight: float = 1.0

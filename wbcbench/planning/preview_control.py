@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 from ..errors import PlanningError
+from ..types import GRAVITY
 
 __all__ = ["PreviewControlError", "PreviewGains", "preview_gains", "simulate_preview", "cart_table"]
 
@@ -91,7 +92,7 @@ def _check_positive(name: str, value: float) -> float:
     return float(value)
 
 
-def preview_gains(dt: float, com_height: float, gravity: float = 9.81, horizon: float = 2.5,
+def preview_gains(dt: float, com_height: float, gravity: float = GRAVITY, horizon: float = 2.5,
                   zmp_weight: float = 1.0, jerk_weight: float = 1e-8) -> PreviewGains:
     """Solve and check the preview-control LQ problem (cached on its arguments).
 

@@ -41,6 +41,7 @@ from ..errors import PlanningError
 from ..qp.problem import QPProblem
 from ..qp.registry import make_solver
 from ..side import Side
+from ..types import GRAVITY
 from .swing import quintic_from_state
 
 __all__ = ["LegGeometry", "SwingPitchConfig", "swing_pitch_offsets", "plan_swing_pitch"]
@@ -394,7 +395,7 @@ def toe_off_offsets(t: np.ndarray, p_world_com: np.ndarray, yaw: np.ndarray, p_w
     return out, acc_flat
 
 
-_GRAVITY = np.array([0.0, 0.0, -9.81])
+_GRAVITY = np.array([0.0, 0.0, -GRAVITY])
 
 
 def _toe_off_by_torque(t, dt, p_world_com, yaw, toe, R_world_sole, side, legs, pe, pitch0, B, B1, B2, wt, lower,

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..catalogue import BUILTIN_ROBOTS  # the built-ins: name -> profile file of profiles/
 from ..config import Section, load_yaml
 from ..errors import UnknownNameError
 from ..side import Side
@@ -154,7 +155,7 @@ class RobotProfile:
 
 
 def builtin_robots() -> list[str]:
-    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+    return sorted(BUILTIN_ROBOTS)
 
 
 def plugin_robots() -> dict[str, Path]:
@@ -289,8 +290,10 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
     if p.suffix in (".yaml", ".yml"):
         path = p
     else:
-        path = PROFILE_DIR / f"{name_or_path}.yaml"
-        if not path.exists():
+        builtin = BUILTIN_ROBOTS.get(str(name_or_path))
+        if builtin is not None:
+            path = PROFILE_DIR / builtin
+        else:
             plugins = plugin_robots()
             if str(name_or_path) in plugins:
                 path = plugins[str(name_or_path)]

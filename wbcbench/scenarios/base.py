@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 
+from ..catalogue import BUILTIN_KINDS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section, load_yaml
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
-from ..sim.push import Push, parse_push
-from ..scene import Terrain, parse_terrain
+from ..scene import Push, Terrain, parse_push, parse_terrain
 from ..types import PointReference, References
 
 SCENARIO_DIR = Path(__file__).parent
@@ -92,34 +92,75 @@ class Scenario:
         return {}
 
 
+GROUP = "wbcbench.scenarios"
+
 _KINDS: dict[str, type[Scenario]] = {}
+"""Scenario kinds registered in Python (`register_kind`), by name."""
+_LOADED: dict[str, type[Scenario]] = {}
 
 
 def register_kind(cls: type[Scenario]) -> type[Scenario]:
+    """Class decorator: make `cls` a scenario kind, `kind: <cls.kind>` in scenario files (a package of yours
+    registers through the `wbcbench.scenarios` entry point instead; a built-in's kind stays the built-in's)."""
     _KINDS[cls.kind] = cls
     return cls
 
 
-register_kind(Scenario)
+def kind_class(name: str) -> type[Scenario] | None:
+    """The class of a built-in or registered kind (only its own module is imported); None when it is neither."""
+    if name in BUILTIN_KINDS:
+        cls = _LOADED.get(name)
+        if cls is None:
+            from ..plugins import load
+
+            cls = _LOADED[name] = load(BUILTIN_KINDS[name])
+        return cls
+    return _KINDS.get(name)
+
+
+def _plugins() -> list:
+    from ..plugins import discover
+
+    return discover(GROUP, {*BUILTIN_KINDS, *_KINDS}, Scenario)
+
+
+def builtin_kinds() -> dict[str, type[Scenario]]:
+    """The built-in scenario kinds and those registered in Python (`register_kind`), by name."""
+    out = dict(_KINDS)
+    out.update({name: kind_class(name) for name in BUILTIN_KINDS})
+    return out
 
 
 def available_kinds() -> dict[str, type[Scenario]]:
-    """Scenario kinds by name: the built-in ones and the `wbcbench.scenarios` entry points (wbcbench/plugins.py)."""
-    from . import kinds, teleop_kind  # noqa: F401  (registers the built-in kinds)
-    from ..plugins import discover
-
-    out = dict(_KINDS)
-    for p in discover("wbcbench.scenarios", set(_KINDS)):
+    """Scenario kinds by name: the built-in ones, those registered in Python and the `wbcbench.scenarios` entry
+    points (wbcbench/plugins.py)."""
+    out = builtin_kinds()
+    for p in _plugins():
         if p.error is None:
             out[p.name] = p.obj
     return out
 
 
 def kind_plugin_errors() -> dict[str, str]:
-    from . import kinds, teleop_kind  # noqa: F401
-    from ..plugins import discover, message
+    from ..plugins import message
 
-    return {p.name: message(p) for p in discover("wbcbench.scenarios", set(_KINDS)) if p.error is not None}
+    return {p.name: message(p) for p in _plugins() if p.error is not None}
+
+
+def _kind(kind: str, file: str) -> type[Scenario]:
+    """The class of scenario kind `kind` (a built-in's, a registered one's or a plugin's); an unknown kind is an
+    `UnknownNameError`, a broken plugin a `PluginError` (both naming `file` and the key `kind`)."""
+    cls = kind_class(kind)
+    if cls is not None:
+        return cls
+    for p in _plugins():
+        if p.name == kind:
+            if p.error is not None:
+                from ..plugins import PluginError, message
+
+                raise PluginError(message(p), file=file, key="kind")
+            return p.obj
+    raise UnknownNameError("scenario kind", kind, available_kinds(), file=file, key="kind")
 
 
 def available_scenarios() -> list[str]:
@@ -210,9 +251,6 @@ def _robot_sized(data: Any, path: Path, robot: Robot) -> Any:
 def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None) -> Scenario:
     """Load and validate a scenario by name or path; `duration` overrides the file's. A scenario the robot's profile
     sizes (`scenarios:` in the profile) runs with the profile's `params` and `terrain` keys in place of the file's."""
-    from . import kinds  # noqa: F401  (registers the scenario kinds)
-    from . import teleop_kind  # noqa: F401  (registers the teleop kind)
-
     path = scenario_path(name_or_path)
     file = str(path)
     data = load_yaml(path)
@@ -220,14 +258,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
     # an error in a value the profile replaced names both files
     root = Section(sized, file if sized is data else f"{file} (with the sizes of {robot.profile.file})")
     kind = root.str("kind", "stand")
-    known = available_kinds()
-    if kind not in known:
-        broken = kind_plugin_errors().get(kind)
-        if broken is not None:
-            from ..plugins import PluginError
-
-            raise PluginError(broken, file=file, key="kind")
-        raise UnknownNameError("scenario kind", kind, known, file=file, key="kind")
+    cls = _kind(kind, file)
     pushes = tuple(parse_push(Section(p, file, f"pushes[{i}]")) for i, p in enumerate(root.list("pushes", [])))
     spec = ScenarioSpec(
         name=root.str("name", path.stem),
@@ -249,7 +280,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
         root.raw("duration", None)
     params = root.section("params", {})
     root.finish()
-    scen = known[kind](spec, params, robot)
+    scen = cls(spec, params, robot)
     if spec.duration <= 0:
         if not hasattr(type(scen), "planned_duration"):
             raise root.error("duration", "is required")
@@ -264,10 +295,8 @@ def make_scenario(kind: str, robot: Robot, *, name: str = "python", params: Mapp
     exactly as it does a YAML file's `params:` (errors name `<python:NAME>` and the key). `duration` 0 means the
     kind's planned duration (walks); `sensors` a profile name or `SensorProfile`; `model_error` a `ModelError`;
     `faults` `wbcbench.faults.Fault`s."""
-    kinds = available_kinds()
     file = f"<python:{name}>"
-    if kind not in kinds:
-        raise UnknownNameError("scenario kind", kind, kinds, file=file, key="kind")
+    cls = _kind(kind, file)
     if isinstance(sensors, str):
         from ..sensing import load_sensor_profile
 
@@ -275,7 +304,7 @@ def make_scenario(kind: str, robot: Robot, *, name: str = "python", params: Mapp
     spec = ScenarioSpec(name=name, kind=kind, description=description, duration=float(duration),
                         control_dt=float(control_dt), terrain=terrain or Terrain(), pushes=tuple(pushes), file=file,
                         sim=dict(sim or {}), sensors=sensors, model_error=model_error, faults=tuple(faults))
-    scen = kinds[kind](spec, Section(dict(params or {}), file, "params"), robot)
+    scen = cls(spec, Section(dict(params or {}), file, "params"), robot)
     if spec.duration <= 0 and not hasattr(type(scen), "planned_duration"):
         raise ConfigError(f"kind '{kind}' has no planned duration: give duration > 0", file=file, key="duration")
     return scen

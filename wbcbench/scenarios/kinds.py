@@ -9,11 +9,10 @@ import numpy as np
 from ..errors import ConfigError, PlanningError
 from ..recorder import channel
 from ..robots import Side
-from ..types import PointReference, PoseReference, References
-from .base import Scenario, register_kind
+from ..types import GRAVITY, PointReference, PoseReference, References
+from .base import Scenario
 
 
-@register_kind
 class SwayScenario(Scenario):
     """Stand on both feet while the CoM follows a sinusoid about its initial position.
 
@@ -41,7 +40,7 @@ class SwayScenario(Scenario):
         a = self.amplitude
         com, acc = self.com0 + a * s, -a * w * w * s
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
-        zmp = np.array([*(com[:2] - (com[2] - self.ground) / 9.81 * acc[:2]), self.ground])
+        zmp = np.array([*(com[:2] - (com[2] - self.ground) / GRAVITY * acc[:2]), self.ground])
         return References(t=t, contacts=frozenset(Side), com=PointReference(com, a * w * c, acc), zmp=zmp)
 
     def metrics(self, log):
@@ -53,7 +52,6 @@ class SwayScenario(Scenario):
         return {"com_rms_error_m": float(np.sqrt(np.mean(err ** 2))), "com_max_error_m": float(err.max())}
 
 
-@register_kind
 class OneFootScenario(Scenario):
     """Shift the CoM over one foot, lift the other `lift` m, hold it, until the end.
 
@@ -93,7 +91,7 @@ class OneFootScenario(Scenario):
             feet[self.swing] = PoseReference.translating(p0 + u * up, up * du / self.lift_time,
                                                          up * ddu / self.lift_time ** 2)
         # the ZMP of this CoM motion on the cart-table model: p = c - (c_z / g) c_ddot
-        zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / 9.81 * com_acc[:2]), self.ground_height()])
+        zmp = np.array([*(com[:2] - (com[2] - self.ground_height()) / GRAVITY * com_acc[:2]), self.ground_height()])
         return References(t=t, contacts=contacts, com=PointReference(com, com_vel, com_acc), feet=feet, zmp=zmp,
                           lift_off=lift_off)
 
@@ -113,7 +111,6 @@ def _min_jerk(s: float) -> tuple[float, float, float]:
     return (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3)
 
 
-@register_kind
 class WalkScenario(Scenario):
     """Walk on flat ground: a footstep plan, ZMP preview control (Kajita 2003) for the CoM, quintic swing feet.
 
@@ -457,7 +454,6 @@ def _parse_step_adjustment(sec, robot):
         raise sec.error(None, str(exc)) from None
 
 
-@register_kind
 class TerrainWalkScenario(WalkScenario):
     """Walk across uneven terrain (tilted platforms, stairs): the scene's boxes become contact surfaces, a
     foothold planner (or explicit placements) gives the contact sequence, a centroidal QP the CoM and contact
@@ -580,7 +576,6 @@ class TerrainWalkScenario(WalkScenario):
         self.base_offset = q0[:3] - com0
 
 
-@register_kind
 class CommandWalkScenario(WalkScenario):
     """Walk on flat ground following a velocity command or a path (wbcbench.planning.command): turns, side
     steps, backward steps; the robot profile's `stepping` section limits each step.

@@ -102,7 +102,7 @@ from ..robots import Robot, Side
 from ..types import PointReference, References
 from ..teleop.source import (ANCHORS, DEFAULT_ANCHOR, DEFAULT_TARGETS, HANDS, REST_BLEND, TeleopReferenceSource,
                              TeleopSourceConfig, rotation_error, stats)
-from .base import Scenario, ScenarioSpec, register_kind
+from .base import Scenario, ScenarioSpec
 
 #: the `teleop_stream` log channel (live streams and the simulated link): the newest frame's age and the
 #: prediction horizon used [ms], the receiver's counters (cumulative), and whether the tick's source was valid
@@ -111,7 +111,6 @@ STREAM_LOG = ("age_ms", "horizon_ms", "received", "accepted", "lost", "malformed
 _BOTH_FEET = frozenset(Side)
 _POSE_COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
 
-@register_kind
 class TeleopScenario(Scenario):
     """Hands and head from motion capture, feet in contact, CoM held (module docstring)."""
 

@@ -21,13 +21,10 @@ from __future__ import annotations
 import importlib
 import importlib.util
 
+from ..catalogue import BUILTIN_ENGINES as ENGINES  # the built-ins: name -> ("module:Attr", what it needs)
 from ..errors import ConfigError, UnknownNameError
 
 __all__ = ["ENGINES", "available_engines", "engine_class", "engine_plugin_errors", "make_simulator"]
-
-#: the built-in engines: name -> "module:attribute" (imported when first used) and what it needs installed
-ENGINES = {"mujoco": ("wbcbench.sim.simulator:Simulator", None),
-           "dart": ("wbcbench.sim.dart_engine:DartSimulator", "dartpy")}
 
 
 def _plugins():

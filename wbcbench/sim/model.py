@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from ..errors import ConfigError
 from ..robots import Robot, Side
-from ..types import ActuationMode  # noqa: F401  (re-exported: the mode belongs to the shared vocabulary)
+from ..types import GRAVITY, ActuationMode  # noqa: F401  (re-exported: the mode belongs to the shared vocabulary)
 from ..scene import Terrain
 
 
@@ -44,7 +44,7 @@ class SimOptions:
     noslip_iterations: int = 0
     sole_friction: float = 1.0
     solref: tuple[float, float] = (0.02, 1.0)
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    gravity: tuple[float, float, float] = (0.0, 0.0, -GRAVITY)
     self_collision: str = "off"
     visuals: bool = False
     extra: dict = field(default_factory=dict)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from ..jit import njit
-from ..tasks.placements import _forward, _frames
+from ..tasks.placements import frame_placements, joint_placements
 
 __all__ = ["ankle_admittance", "com_admittance", "corrections", "feet_measurement", "filter_measurement", "model_cop",
            "reference_split", "torso_roll"]
@@ -258,11 +258,11 @@ def measure_feet(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_par
                  f_left, f_right, m_left, m_right, f_sensor, m_sensor, foot_mass, foot_com, sole_center,
                  min_normal_force, gravity, out, zmp, alpha, state, started):
     """The stabilizer's measurement of a tick in one call: the placements of the sensor and sole frames for ``q``
-    (`placements._forward`, `_frames`; rows: left, right sensor, left, right sole into ``R_out``, ``t_out``), the
-    F/T readings into ``f_sensor``, ``m_sensor`` (2, 3), `feet_measurement`, then `filter_measurement`; returns
-    whether the ZMP exists."""
-    _forward(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    _frames(R_joints, t_joints, frame_parents, R_frames, t_frames, R_out, t_out)
+    (`placements.joint_placements`, `frame_placements`; rows: left, right sensor, left, right sole into ``R_out``,
+    ``t_out``), the F/T readings into ``f_sensor``, ``m_sensor`` (2, 3), `feet_measurement`, then
+    `filter_measurement`; returns whether the ZMP exists."""
+    joint_placements(q, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
+    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R_out, t_out)
     for a in range(3):
         f_sensor[0, a], f_sensor[1, a] = f_left[a], f_right[a]
         m_sensor[0, a], m_sensor[1, a] = m_left[a], m_right[a]

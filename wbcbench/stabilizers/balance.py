@@ -12,11 +12,10 @@ from ..estimation import BalanceEstimator
 from ..robots import Robot
 from ..side import Side
 from ..types import Measurement, ModelFeedback, PointReference, References
-from .base import Stabilizer, register_stabilizer
+from .base import Stabilizer
 from .dcm import DcmGains, DcmStabilizer
 
 
-@register_stabilizer
 class BalanceStabilizer(Stabilizer):
     """Corrects each tick's CoM reference from the measured ZMP and anchored CoM (task-set `type: dcm`).
 

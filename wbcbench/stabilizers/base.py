@@ -18,12 +18,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..catalogue import BUILTIN_STABILIZERS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..types import Measurement, ModelFeedback, References
 
-__all__ = ["MissingReferenceError", "Stabilizer", "StabilizerConfig", "available_stabilizers", "make_stabilizer",
-           "parse_stabilizer", "register_stabilizer"]
+__all__ = ["BUILTIN_STABILIZERS", "MissingReferenceError", "Stabilizer", "StabilizerConfig", "available_stabilizers",
+           "make_stabilizer", "parse_stabilizer", "register_stabilizer", "stabilizer_class"]
 
 
 class MissingReferenceError(ConfigError):
@@ -68,19 +69,36 @@ class Stabilizer(ABC):
 
 
 _TYPES: dict[str, type[Stabilizer]] = {}
+"""Stabilizer types registered in Python (`register_stabilizer`), by name."""
+_LOADED: dict[str, type[Stabilizer]] = {}
 
 
 def register_stabilizer(cls: type[Stabilizer]) -> type[Stabilizer]:
-    """Class decorator: make `cls` selectable as `stabilizer: {type: <cls.type>}` in task sets."""
+    """Class decorator: make `cls` selectable as `stabilizer: {type: <cls.type>}` in task sets (a built-in's type
+    stays the built-in's)."""
     if not cls.type:
         raise TypeError(f"{cls.__name__} has no `type`")
     _TYPES[cls.type] = cls
     return cls
 
 
+def stabilizer_class(name: str) -> type[Stabilizer]:
+    """The class of a stabilizer type (only its own module is imported); KeyError when unknown."""
+    if name in BUILTIN_STABILIZERS:
+        cls = _LOADED.get(name)
+        if cls is None:
+            from ..plugins import load
+
+            cls = _LOADED[name] = load(BUILTIN_STABILIZERS[name])
+        return cls
+    return _TYPES[name]
+
+
 def available_stabilizers() -> dict[str, type[Stabilizer]]:
-    from . import balance, teleop  # noqa: F401  (the built-in types register on import)
-    return dict(sorted(_TYPES.items()))
+    """Every stabilizer type by name: the built-in ones and those registered in Python."""
+    out = dict(_TYPES)
+    out.update({name: stabilizer_class(name) for name in BUILTIN_STABILIZERS})
+    return dict(sorted(out.items()))
 
 
 @dataclass(frozen=True)
@@ -93,13 +111,12 @@ class StabilizerConfig:
 
 def parse_stabilizer(sec: Section) -> StabilizerConfig:
     """Parse a `stabilizer:` section (`type:` defaults to `dcm`, the paper's walking stabilizer)."""
-    types = available_stabilizers()
     name = sec.str("type", "dcm")
-    if name not in types:
-        raise UnknownNameError("stabilizer type", name, types, file=sec.file, key=sec.key("type"))
-    return StabilizerConfig(name, types[name].parse(sec))
+    if name not in BUILTIN_STABILIZERS and name not in _TYPES:
+        raise UnknownNameError("stabilizer type", name, available_stabilizers(), file=sec.file, key=sec.key("type"))
+    return StabilizerConfig(name, stabilizer_class(name).parse(sec))
 
 
 def make_stabilizer(config: StabilizerConfig, robot, dt: float) -> Stabilizer:
     """The stabilizer of a task set, for `robot` at control period `dt` [s]."""
-    return available_stabilizers()[config.type](robot, config.spec, dt)
+    return stabilizer_class(config.type)(robot, config.spec, dt)

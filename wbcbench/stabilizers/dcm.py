@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..jit import njit
+from ..types import GRAVITY
 
 __all__ = [
     "natural_frequency",
@@ -45,7 +46,7 @@ __all__ = [
 
 
 # ---- the laws ----------------------------------------------------------------------------------------------
-def natural_frequency(com_height: float, gravity: float = 9.81) -> float:
+def natural_frequency(com_height: float, gravity: float = GRAVITY) -> float:
     """omega = sqrt(g / c_z) [1/s] of the linear inverted pendulum (paper Eq. 2)."""
     if not np.isfinite(com_height) or com_height <= 0.0 or not np.isfinite(gravity) or gravity <= 0.0:
         raise ValueError(f"com_height and gravity must be positive, got {com_height!r}, {gravity!r}")
@@ -207,7 +208,7 @@ class DcmStabilizer:
     A new stabilizer starts reset; call `reset()` whenever the control loop restarts.
     """
 
-    def __init__(self, gains: DcmGains, *, dt: float, com_height: float, gravity: float = 9.81):
+    def __init__(self, gains: DcmGains, *, dt: float, com_height: float, gravity: float = GRAVITY):
         if not isinstance(gains, DcmGains):
             raise ValueError(f"gains must be DcmGains, got {type(gains).__name__}")
         _check("DcmStabilizer", "dt", dt, positive=True)

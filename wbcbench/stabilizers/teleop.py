@@ -44,19 +44,19 @@ import numpy as np
 import pinocchio as pin
 
 from ..config import Section
-from ..estimation import FootMass
-from ..estimation._validate import cross
+from ..estimation import FootMass, cross
 from ..side import Side
 from ..tasks.placements import ForwardKinematics
-from ..types import Measurement, ModelFeedback, PointReference, PoseReference, References
+from ..types import GRAVITY, Measurement, ModelFeedback, PointReference, PoseReference, References
 from . import _kernels as _k
 from ._kernels import feet_measurement, filter_measurement, reference_split
-from .base import Stabilizer, register_stabilizer
+from .base import Stabilizer
 
 _SIDES = tuple(Side)  # iterating the enum itself costs a microsecond a loop
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 __all__ = [
+    "reference_split",
     "AdmittanceGains",
     "ZmpDistributorGains",
     "TeleopStabilizerSpec",
@@ -72,7 +72,6 @@ __all__ = [
     "TeleopStabilizer",
 ]
 
-GRAVITY = 9.81
 _ZERO3 = np.zeros(3)
 _ZERO6 = np.zeros(6)
 _EYE3 = np.eye(3)
@@ -357,7 +356,6 @@ def reference_wrench_targets(com: np.ndarray, com_acc: np.ndarray | None, feet: 
     return split_to_local(F, feet, centres)
 
 
-@register_stabilizer
 class TeleopStabilizer(Stabilizer):
     """The enabled strategies of a `TeleopStabilizerSpec` (task-set `stabilizer: {type: force}`).
 

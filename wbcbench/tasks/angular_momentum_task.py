@@ -12,14 +12,12 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.task import Task
-from wbcbench.tasks.registry import register_task
 
 __all__ = ["AngularMomentumTask"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
-@register_task
 class AngularMomentumTask(Task):
     """Regulate the centroidal angular momentum ``h_ang`` (about the CoM, world axes, kg m^2/s).
 

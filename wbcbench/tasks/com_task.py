@@ -12,14 +12,12 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.task import Task
-from wbcbench.tasks.registry import register_task
 
 __all__ = ["CoMTask"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
-@register_task
 class CoMTask(Task):
     """Track a reference CoM position ``p_world_com`` (m, world axes x y z).
 

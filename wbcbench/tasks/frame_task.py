@@ -12,7 +12,6 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError, TaskConfigError
 from wbcbench.tasks.task import Task
-from wbcbench.tasks.registry import register_task
 
 __all__ = ["FrameTask"]
 
@@ -22,7 +21,6 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _F64 = np.dtype(np.float64)
 
 
-@register_task
 class FrameTask(Task):
     """Track a reference pose ``T_world_ref`` with frame ``frame``; 6 axes ``x y z roll pitch yaw``.
 

@@ -17,7 +17,8 @@ import pinocchio as pin
 
 from wbcbench.jit import njit
 
-__all__ = ["CenterOfMass", "ForwardKinematics"]
+__all__ = ["CenterOfMass", "ForwardKinematics", "forward_gather", "frame_placements", "joint_placements",
+           "subtree_sums"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -259,3 +260,16 @@ def _forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out
     """`_forward`, then `_gather` (one call)."""
     _forward(q, kinds, parents, idx_q, R0, t0, R, t)
     _gather(R, t, joints, R_out, t_out)
+
+
+# The kernels other packages call from their own compiled kernels (estimation, stabilizers), under public names:
+# the arrays they take are those of `ForwardKinematics` and `CenterOfMass`.
+joint_placements = _forward
+"""``joint_placements(q, kinds, parents, idx_q, R0, t0, R, t)``: every joint's placement into ``R``, ``t``."""
+frame_placements = _frames
+"""``frame_placements(R, t, parent, Rf, tf, R_out, t_out)``: frames' placements from their joints'."""
+subtree_sums = _subtree_sums
+"""``subtree_sums(R, t, parents, mass, lever, msub, csub)``: each subtree's mass and first moment."""
+forward_gather = _forward_gather
+"""``forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out)``: `joint_placements`, then
+the placements of ``joints`` gathered into ``R_out``, ``t_out``."""

@@ -12,7 +12,6 @@ import pinocchio as pin
 from wbcbench.tasks import _validation as val
 from wbcbench.tasks.exceptions import ReferenceNotSetError, TaskConfigError
 from wbcbench.tasks.task import Task
-from wbcbench.tasks.registry import register_task
 
 __all__ = ["PostureTask"]
 
@@ -35,7 +34,6 @@ _SUBTRACTION_JOINTS = frozenset({
 """Joints whose ``pin.difference`` is ``q1 - q0`` on their single coordinate (bounded revolute, prismatic)."""
 
 
-@register_task
 class PostureTask(Task):
     """Track a reference configuration ``q_ref`` on a set of actuated joints.
 

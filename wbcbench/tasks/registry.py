@@ -17,12 +17,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..catalogue import BUILTIN_TASKS  # the built-ins: name -> "module:Attr", imported when first used
 from ..errors import UnknownNameError
 
 if TYPE_CHECKING:  # pragma: no cover
     from .task import Task
 
-__all__ = ["TaskSpec", "build_task", "register_task", "resolve_frame", "task_class", "task_types"]
+__all__ = ["BUILTIN_TASKS", "TaskSpec", "build_task", "register_task", "resolve_frame", "task_class", "task_types"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,17 @@ class TaskSpec:
 
 
 _TYPES: dict[str, type[Task]] = {}
+"""Task types registered in Python (`register_task`), by YAML name."""
+_LOADED: dict[str, type[Task]] = {}
+
+
+def _builtin(name: str) -> type[Task]:
+    cls = _LOADED.get(name)
+    if cls is None:
+        from ..plugins import load
+
+        cls = _LOADED[name] = load(BUILTIN_TASKS[name])
+    return cls
 
 
 def register_task(cls: type[Task]) -> type[Task]:
@@ -60,6 +72,10 @@ def register_task(cls: type[Task]) -> type[Task]:
     name = getattr(cls, "yaml_type", None)
     if not name:
         raise TypeError(f"{cls.__name__} has no `yaml_type`")
+    if name in BUILTIN_TASKS:
+        if BUILTIN_TASKS[name] == f"{cls.__module__}:{cls.__qualname__}":
+            return cls
+        raise TypeError(f"task type '{name}' is already registered by {BUILTIN_TASKS[name].replace(':', '.')}")
     other = _TYPES.get(name)
     if other is not None and other is not cls:
         raise TypeError(f"task type '{name}' is already registered by {other.__module__}.{other.__qualname__}")
@@ -68,18 +84,19 @@ def register_task(cls: type[Task]) -> type[Task]:
 
 
 def task_types() -> dict[str, type[Task]]:
-    """The registered task types by YAML name."""
-    from . import (angular_momentum_task, com_task, frame_task, posture_task,  # noqa: F401  (registration)
-                   self_collision)
-    return dict(sorted(_TYPES.items()))
+    """The task types by YAML name: the built-in ones and those registered in Python."""
+    out = dict(_TYPES)
+    out.update({name: _builtin(name) for name in BUILTIN_TASKS})
+    return dict(sorted(out.items()))
 
 
 def task_class(name: str, *, file: str | None = None, key: str | None = None) -> type[Task]:
     """The class of a task type; an unknown name is a `ConfigError` naming the file, key and known types."""
-    types = task_types()
-    if name not in types:
-        raise UnknownNameError("task type", name, types, file=file, key=key)
-    return types[name]
+    if name in BUILTIN_TASKS:
+        return _builtin(name)
+    if name not in _TYPES:
+        raise UnknownNameError("task type", name, task_types(), file=file, key=key)
+    return _TYPES[name]
 
 
 def build_task(robot: Any, spec: TaskSpec) -> Task:

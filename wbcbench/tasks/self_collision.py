@@ -64,7 +64,6 @@ from wbcbench.tasks.exceptions import TaskConfigError
 from wbcbench.tasks.frame_batch import classical_acceleration, support_product
 from wbcbench.tasks.placements import ForwardKinematics, _forward_gather
 from wbcbench.tasks.task import Task
-from wbcbench.tasks.registry import register_task
 
 __all__ = ["RepulsionPoint", "SelfCollisionTask", "attractor"]
 
@@ -396,7 +395,6 @@ class _Cache:
     origins: FloatArray | None = None  # (k, 3) origins of the joints carrying the points (slots), world
 
 
-@register_task
 class SelfCollisionTask(Task):
     """Keep a point of frame ``frame`` away from repulsion points (see the module docstring).
 

@@ -78,7 +78,7 @@ _MODELS: dict = {}
 """Visual models built or read in this process, by cache key (`_visual_model` hands out copies)."""
 
 
-def _cache_dir() -> Path | None:
+def cache_dir() -> Path | None:
     """Where visual models are kept between runs: $WBCBENCH_CACHE_DIR, else $XDG_CACHE_HOME/wbcbench or
     ~/.cache/wbcbench (an empty WBCBENCH_CACHE_DIR: no disk cache)."""
     root = os.environ.get("WBCBENCH_CACHE_DIR")
@@ -92,7 +92,7 @@ def _visual_model(robot, terrain, mesh_cell: float):
     multisampling, a brighter headlight, a lighter ground drawn as one square, meshes simplified (`mesh_cell`).
 
     Building it (reading the meshes, compiling) takes seconds, drawing a frame milliseconds: the model is kept as
-    MJB, in this process and on disk (`_cache_dir`), under a key made of everything it is built from (URDF and
+    MJB, in this process and on disk (`cache_dir`), under a key made of everything it is built from (URDF and
     profile text, the model-building code, the terrain, the cell, MuJoCo's version).
     """
     import copy
@@ -112,7 +112,7 @@ def _visual_model(robot, terrain, mesh_cell: float):
     key = h.hexdigest()[:32]
     if key in _MODELS:
         return copy.deepcopy(_MODELS[key])
-    cache = _cache_dir()
+    cache = cache_dir()
     if cache is not None and (cache / f"{key}.mjb").is_file():
         try:
             _MODELS[key] = mujoco.MjModel.from_binary_path(str(cache / f"{key}.mjb"))
