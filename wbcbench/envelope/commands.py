@@ -84,7 +84,7 @@ def run_command(args) -> int:
     with make_executor(args.jobs, args.ray) as ex:
         results = run_envelope(study, args.out, executor=ex, progress=progress)
     md = write_report(study, results, args.out)
-    console.print(md.read_text())
+    console.print(md.read_text(), markup=False)
     crashed = [r for r in results if r["limit"] is None and r["mode"] == "error"]
     if crashed:  # a crash (not a fall) at the easy value: the controller cannot run the axis's scenario
         r = crashed[0]
