@@ -17,7 +17,7 @@ def _payload_stand(data: dict, v: float):
     """3 s of standing with a point mass 0.3 m in front of the torso."""
     data.pop("pushes", None)
     data["duration"] = 3.0
-    return _model_error(data, payloads=[{"link": "torso_2_link", "mass": v, "offset": [0.3, 0.0, 0.0]}]
+    return _model_error(data, payloads=[{"link": "@torso", "mass": v, "offset": [0.3, 0.0, 0.0]}]
                         if v > 0 else []), {}
 
 

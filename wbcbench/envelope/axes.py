@@ -61,8 +61,9 @@ class Axis:
         if easy == hard:
             raise ConfigError(f"axis '{self.name}': the range is empty ({easy:g} to {hard:g})", key="--range")
 
-    def trial(self, value: float) -> tuple[dict, dict]:
-        """(scenario mapping, run parameters) of the trial at `value`."""
+    def trial(self, value: float, robot: str = "talos") -> tuple[dict, dict]:
+        """(scenario mapping, run parameters) of the trial at `value` for `robot` (a payload on the link `@torso`
+        goes on the robot profile's torso frame)."""
         from ..config import load_yaml
         from ..scenarios.base import scenario_path
 
@@ -71,10 +72,16 @@ class Axis:
         data["name"] = f"envelope-{self.name}-{value:g}"
         data["description"] = f"{self.description} at {value:g} {self.unit} (generated from {Path(path).name})."
         data, extra = self.build(data, float(value))
+        for p in (data.get("model_error") or {}).get("payloads") or []:
+            if p.get("link") == TORSO:
+                from ..robots import load_robot
+                p["link"] = load_robot(robot).profile.torso_frame
         return data, extra
 
 
 AXES: dict[str, Axis] = {}
+TORSO = "@torso"
+"""A payload's link in a built scenario that stands for the robot's torso frame."""
 
 
 def register_axis(axis: Axis) -> Axis:
@@ -256,7 +263,7 @@ for _axis in (
     Axis("friction", "", "walk-20cm-quick on soles and ground of one friction coefficient", "walk-20cm-quick",
          1.0, 0.05, 0.05, lambda d, v: (_model_error(d, friction=v), {}), allowed=lambda robot: (1e-3, 5.0)),
     Axis("payload", "kg", "walk-20cm-quick with a point mass fixed on the torso", "walk-20cm-quick", 0.0, 60.0,
-         2.5, lambda d, v: (_model_error(d, payloads=[{"link": "torso_2_link", "mass": v, "offset": [0.0, 0.0, 0.1]}]
+         2.5, lambda d, v: (_model_error(d, payloads=[{"link": TORSO, "mass": v, "offset": [0.0, 0.0, 0.1]}]
                                           if v > 0 else []), {}), allowed=lambda robot: (0.0, 500.0)),
     Axis("sensor-delay", "s", "walk-20cm-quick with the talos-like sensors, latency", "walk-20cm-quick", 0.0, 0.05,
          0.002, _delay, allowed=lambda robot: (0.0, 0.1)),

@@ -12,7 +12,8 @@ RESOLUTION_PRESETS = {"coarse": 4.0, "default": 1.0, "fine": 0.25}
 
 def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("envelope", help="capability envelopes: the hardest value of each axis a controller passes")
-    p.add_argument("axes", nargs="+", help="axes (see wbcbench.envelope.axes), or 'all'")
+    from .axes import available_axes
+    p.add_argument("axes", nargs="+", help=f"axes, or 'all': {', '.join(available_axes())}")
     p.add_argument("--controllers", "-c", required=True, help="comma-separated controller names")
     p.add_argument("--robot", "-r", default="talos")
     p.add_argument("--range", action="append", default=[], metavar="AXIS=EASY:HARD",

@@ -117,7 +117,7 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     if vfile.exists():
         return json.loads(vfile.read_text())
     axis = get_axis(axis_name)
-    data, extra = axis.trial(value)
+    data, extra = axis.trial(value, study.robot)
     d.mkdir(parents=True, exist_ok=True)
     scen = d / "envelope-scenario.yaml"
     scen.write_text(yaml.safe_dump(data, sort_keys=False))
@@ -196,7 +196,7 @@ def validate(study: EnvelopeStudy) -> None:
                               key="--resolution")
     with tempfile.TemporaryDirectory(prefix="wbcbench-envelope-") as tmp:
         for a in axes:
-            data, extra = a.trial(study.range_of(a)[0])
+            data, extra = a.trial(study.range_of(a)[0], study.robot)
             scen_file = Path(tmp) / f"{a.name}.yaml"
             scen_file.write_text(yaml.safe_dump(data, sort_keys=False))
             for c in study.controllers:
