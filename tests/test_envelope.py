@@ -95,3 +95,17 @@ def test_controller_that_cannot_run_the_axis(tmp_path, capsys):
         AXES.pop(axis.name)
     err = capsys.readouterr().err.strip()
     assert "controller 'tsid-teleop' cannot run axis 'friction-short'" in err and len(err.splitlines()) == 1
+
+
+def test_reproduce_section(tmp_path, monkeypatch):
+    """`reproduce --envelope` appends the envelope table to the flagship report."""
+    from wbcbench.envelope import report
+
+    monkeypatch.setattr(report, "QUICK_AXES", ("push",))
+    (tmp_path / "report.md").write_text("# Report\n")
+    (tmp_path / "report.html").write_text("<html><body><h1>Report</h1></body></html>")
+    md = report.reproduce_section(tmp_path, controllers="joint-pd")
+    assert md == tmp_path / "envelope" / "envelope.md"
+    text = (tmp_path / "report.md").read_text()
+    assert "## Capability envelopes (quick)" in text and "| push | N s | 0 -> 60 | 8 |" in text
+    assert "envelope/radar-talos.png" in text and "envelope/envelope.html" in (tmp_path / "report.html").read_text()

@@ -93,3 +93,36 @@ def write_report(study, results: list[dict], out_dir) -> Path:
         f"<h1>Capability envelope: {esc(study.robot)}</h1><p>{esc(intro)}</p>{table}"
         f"<ul>{''.join(f'<li>{esc(d[2:])}</li>' for d in desc)}</ul><img src='{radar.name}' width=600>")
     return path
+
+
+QUICK_AXES = ("push", "payload", "friction", "sensor-delay")
+"""The axes `reproduce --envelope` measures (coarse resolution: each axis's default bracket x4)."""
+DEFAULT_CONTROLLERS = ("tsid-torque", "tsid-position", "ik")
+
+
+def reproduce_section(report_dir, robot: str = "talos", controllers: str | None = None, jobs: int = 1,
+                      ray: str | None = None, engine: str = "mujoco") -> Path:
+    """`reproduce --envelope`: the envelopes of QUICK_AXES at coarse resolution into REPORT_DIR/envelope, and their
+    table appended to report.md and linked from report.html. Returns the envelope report."""
+    from ..study.execute import make_executor
+    from .axes import get_axis
+    from .search import EnvelopeStudy, run_envelope
+
+    out = Path(report_dir) / "envelope"
+    ctrls = tuple(controllers.split(",")) if controllers else DEFAULT_CONTROLLERS
+    study = EnvelopeStudy(axes=QUICK_AXES, controllers=ctrls, robot=robot, engine=engine,
+                          resolutions={a: 4 * get_axis(a).resolution for a in QUICK_AXES})
+    with make_executor(jobs, ray) as ex:
+        results = run_envelope(study, out, executor=ex)
+    md = write_report(study, results, out)
+    body = md.read_text().split("\n", 1)[1].replace("](radar-", "](envelope/radar-")
+    report_md = Path(report_dir) / "report.md"
+    if report_md.exists():
+        report_md.write_text(report_md.read_text().rstrip() + "\n\n## Capability envelopes (quick)\n" + body)
+    report_html = Path(report_dir) / "report.html"
+    if report_html.exists():
+        text = report_html.read_text()
+        link = ("<h2>Capability envelopes (quick)</h2><p><a href='envelope/envelope.html'>envelope table</a></p>"
+                f"<img src='envelope/radar-{robot}.png' width=600>")
+        report_html.write_text(text.replace("</body>", link + "</body>") if "</body>" in text else text + link)
+    return md
