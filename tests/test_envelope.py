@@ -109,3 +109,10 @@ def test_reproduce_section(tmp_path, monkeypatch):
     text = (tmp_path / "report.md").read_text()
     assert "## Capability envelopes (quick)" in text and "| push | N s | 0 -> 60 | 8 |" in text
     assert "envelope/radar-talos.png" in text and "envelope/envelope.html" in (tmp_path / "report.html").read_text()
+
+
+def test_resume_refuses_other_settings(tmp_path):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "settings.json").write_text('{"tolerance": 0.2, "seed": 0, "engine": "mujoco"}')
+    assert main(["envelope", "push", "-c", "joint-pd", "--out", str(out)]) == 2

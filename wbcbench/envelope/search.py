@@ -123,11 +123,13 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     scen.write_text(yaml.safe_dump(data, sort_keys=False))
     params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
               "seed": study.seed, "engine": study.engine, **extra}
-    row = run_cell(params, str(d.resolve()), code_version(), d.name)
+    done = d / DONE_FILE
+    # a run finished but not judged (killed in between): judged from its row and log, not run again
+    row = json.loads(done.read_text()) if done.exists() else run_cell(params, str(d.resolve()), code_version(),
+                                                                       d.name)
     passed, mode, reason = _verdict(d / "run", row, study.tolerance)
     v = {"value": value, "passed": passed, "mode": mode, "reason": reason, "dir": str(d),
          "wall_s": row.get("cell_wall_s")}
-    assert (d / DONE_FILE).exists()
     vfile.write_text(json.dumps(v, indent=1))
     return v
 
@@ -223,6 +225,12 @@ def run_envelope(study: EnvelopeStudy, out: str | Path, executor=None, progress=
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     validate(study)
+    settings = {"tolerance": study.tolerance, "seed": study.seed, "engine": study.engine}
+    sfile = out / "settings.json"
+    if sfile.exists() and json.loads(sfile.read_text()) != settings:
+        raise ConfigError(f"{out} holds trials judged with other settings ({sfile.read_text().strip()}); "
+                          "choose another --out", key="--out")
+    sfile.write_text(json.dumps(settings))
     jobs = [{"study": study, "controller": c, "axis_name": a, "out": str(out.resolve())}
             for c in study.controllers for a in study.axes]
     done: dict[int, dict] = {}
