@@ -116,3 +116,14 @@ def test_resume_refuses_other_settings(tmp_path):
     out.mkdir()
     (out / "settings.json").write_text('{"tolerance": 0.2, "seed": 0, "engine": "mujoco"}')
     assert main(["envelope", "push", "-c", "joint-pd", "--out", str(out)]) == 2
+
+
+def test_failure_modes():
+    from wbcbench.envelope.search import _mode
+
+    assert _mode({"status": "fell"}, {"controller_status": {}}) == "fell"
+    assert _mode({"status": "error", "error": "CentroidalPlanError: centroidal QP: PRIMAL_INFEASIBLE"}, None) \
+        == "planner refused"
+    assert _mode({"status": "error", "error": "QPError: level 0: infeasible"}, {"fell": True}) == "QP infeasible"
+    assert _mode({"status": "error", "error": "KeyError: 'x'"}, {"fell": True}) == "error"
+    assert _mode({"status": "ok"}, {}) == "off the plan"

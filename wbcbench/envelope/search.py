@@ -72,9 +72,12 @@ def trial_dir(out: Path, robot: str, controller: str, axis: str, value: float) -
 def _mode(row: dict, summary: dict | None) -> str:
     err = str(row.get("error") or "")
     if row.get("status") == "error":
-        if any(w in err.lower() for w in ("qp", "infeasib", "solver")):
+        kind = err.split(":", 1)[0]
+        if summary is None or "Plan" in kind or kind in ("ConfigError", "PlanningError"):
+            return "planner refused"   # the scenario's plan (footsteps, centroidal motion) could not be made
+        if kind == "QPError" or any(w in err.lower() for w in ("qp", "infeasib", "solver")):
             return "QP infeasible"
-        return "planner refused" if summary is None else "error"
+        return "error"
     status = (summary or {}).get("controller_status") or {}
     qp_failed = any(("fail" in k or "infeas" in k) and isinstance(v, (int, float)) and v > 0
                     for k, v in status.items())
