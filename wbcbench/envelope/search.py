@@ -191,7 +191,7 @@ def validate(study: EnvelopeStudy) -> None:
     for c in study.controllers:
         if c not in ctrls:
             raise UnknownNameError("controller", c, ctrls, key="--controllers")
-    robot = load_robot(study.robot)
+    load_robot(study.robot)   # an unknown robot fails here, before any trial
     axes = [get_axis(a) for a in study.axes]
     for a in axes:
         easy, hard = study.range_of(a)
@@ -217,7 +217,6 @@ def validate(study: EnvelopeStudy) -> None:
                 except ConfigError as exc:
                     raise ConfigError(f"controller '{c}' cannot run axis '{a.name}' (scenario {a.scenario}): "
                                       f"{exc}", key="--controllers") from None
-    del robot
 
 
 def run_envelope(study: EnvelopeStudy, out: str | Path, executor=None, progress=None) -> list[dict]:
