@@ -127,3 +127,19 @@ def test_failure_modes():
     assert _mode({"status": "error", "error": "QPError: level 0: infeasible"}, {"fell": True}) == "QP infeasible"
     assert _mode({"status": "error", "error": "KeyError: 'x'"}, {"fell": True}) == "error"
     assert _mode({"status": "ok"}, {}) == "off the plan"
+
+
+def test_generated_scenarios():
+    """Trials are the base scenario as the robot's profile sizes it, changed by the value: at walk-fast-0.8's speed
+    the walk-speed axis gives walk-fast-0.8's gait; the pitch axis at 15 deg gives the paper's platforms."""
+    from wbcbench.config import load_yaml
+    from wbcbench.envelope.axes import get_axis
+    from wbcbench.scenarios.base import scenario_path
+
+    data, _ = get_axis("walk-speed").trial(0.8, "talos")
+    base = load_yaml(scenario_path("walk-fast-0.8-quick"))["params"]
+    assert {k: data["params"][k] for k in ("step_length", "single_support", "double_support")} == \
+        {k: base[k] for k in ("step_length", "single_support", "double_support")}
+    assert get_axis("walk-speed").trial(0.8, "g1")[0]["params"]["com_height"] == 0.58   # the G1's profile sizes it
+    boxes = get_axis("platform-pitch").trial(15.0, "talos")[0]["terrain"]["boxes"]
+    assert boxes == load_yaml(scenario_path("platforms"))["terrain"]["boxes"]

@@ -67,14 +67,17 @@ class Axis:
         from ..config import load_yaml
         from ..scenarios.base import scenario_path
 
+        from ..robots import load_robot
+        from ..scenarios.base import _robot_sized
+
         path = scenario_path(self.scenario)
-        data = copy.deepcopy(load_yaml(path))
+        # the base scenario as the robot's profile sizes it (its `scenarios:` section), then changed by the value
+        data = copy.deepcopy(_robot_sized(load_yaml(path), Path(path), load_robot(robot)))
         data["name"] = f"envelope-{self.name}-{value:g}"
         data["description"] = f"{self.description} at {value:g} {self.unit} (generated from {Path(path).name})."
         data, extra = self.build(data, float(value))
         for p in (data.get("model_error") or {}).get("payloads") or []:
             if p.get("link") == TORSO:
-                from ..robots import load_robot
                 p["link"] = load_robot(robot).profile.torso_frame
         return data, extra
 
@@ -159,12 +162,16 @@ def _platforms(data: dict, deg: float, roll: bool) -> tuple[dict, dict]:
 
 
 def _walk_speed(data: dict, v: float) -> tuple[dict, dict]:
-    """walk-fast-0.8's gait scaled: step length 0.6 sqrt(v / 0.8) m, the period (0.75 s at 0.8 m/s) that gives v,
-    single and double support in walk-fast-0.8's ratio (0.65 : 0.10)."""
-    length = 0.6 * math.sqrt(v / 0.8)
+    """The base walk's gait (walk-fast-0.8: 0.6 m steps in 0.75 s, 0.8 m/s; as the robot's profile sizes it) scaled
+    to `v`: step length L0 sqrt(v / v0), the period that gives v, single and double support in the base's ratio."""
+    p = data["params"]
+    length0, ss0, ds0 = float(p["step_length"]), float(p["single_support"]), float(p["double_support"])
+    v0 = length0 / (ss0 + ds0)
+    length = length0 * math.sqrt(v / v0)
     period = length / v
-    data["params"].update(step_length=round(length, 6), single_support=round(period * 0.65 / 0.75, 6),
-                          double_support=round(period * 0.10 / 0.75, 6), max_step_length=max(0.65, length + 0.05))
+    p.update(step_length=round(length, 6), single_support=round(period * ss0 / (ss0 + ds0), 6),
+             double_support=round(period * ds0 / (ss0 + ds0), 6),
+             max_step_length=max(float(p.get("max_step_length", 0.65)), length + 0.05))
     return data, {}
 
 
