@@ -6,7 +6,8 @@ An axis runs from an `easy` value (expected to pass) to a `hard` one; the envelo
 which the controller still completes the scenario. `allowed(robot)` is the interval of values the axis can take
 at all (a friction below 0, a riser taller than the leg): a range outside it is a ConfigError.
 
-A user adds an axis with `register_axis(Axis(...))` (e.g. from a plugin module imported before the command runs):
+A user adds an axis with `register_axis(Axis(...))` in a module imported before the command runs (with `--jobs`
+above 1 or Ray, the worker processes must import it too: the searches name their axis, the workers look it up):
 
     def build(data, value):
         data["model_error"] = {"payloads": [{"link": "arm_left_7_link", "mass": value}]}
