@@ -86,6 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_view_subcommand(sub)
     from .doctor import add_subcommand as add_doctor
     add_doctor(sub)
+    from .envelope.commands import add_subcommand as add_envelope
+    add_envelope(sub)
     return p
 
 
@@ -219,6 +221,9 @@ def main(argv: list[str] | None = None) -> int:
         from .report.commands import COMMANDS, run_command
         if args.command in COMMANDS:
             return run_command(args)
+        if args.command == "envelope":
+            from .envelope.commands import run_command as run_envelope
+            return run_envelope(args)
         if args.command == "robustness":
             from .robustness.commands import run_command as run_robustness
             return run_robustness(args)

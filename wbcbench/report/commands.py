@@ -23,6 +23,9 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores available)")
     r.add_argument("--ray", default=None, metavar="ADDRESS|auto",
                    help="run the cells on Ray ('auto': a local instance, HOST:PORT: a cluster)")
+    r.add_argument("--envelope", action="store_true",
+                   help="also measure capability envelopes (a few axes, coarse resolution) into DIR/envelope and "
+                        "add them to the report (wbcbench envelope)")
     r.add_argument("--no-sanity", action="store_true", help="skip the standing scenarios' sanity section")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     r.add_argument("--controllers", default=None,
@@ -93,6 +96,11 @@ def run_command(args: argparse.Namespace) -> int:
                           f"{Path(args.out) / 'engine-sensitivity.html'}")
             return 0
         res = reproduce(args.out, engine=args.engine, **kwargs)
+        if args.envelope:
+            from ..envelope.report import reproduce_section
+
+            env = reproduce_section(res.out_dir, args.robot, args.controllers, args.jobs or 1, args.ray, args.engine)
+            console.print(f"envelope: {env}")
         counts: dict[str, int] = {}
         for o in res.outcomes:
             counts[o.status] = counts.get(o.status, 0) + 1

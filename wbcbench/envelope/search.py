@@ -1,0 +1,247 @@
+"""The envelope search: per (controller, axis), bisection between the axis's easy value (passes) and its hard one
+for the value nearest the hard end at which the controller still completes the scenario.
+
+A trial passes when the run ends without a fall or an error and its final CoM is within `tolerance` of the planned
+CoM (the push protocol's criterion, wbcbench.robustness.push). Each trial is a sweep cell (wbcbench.study.cell:
+scenario.yaml generated from the axis value, profile overrides, run/ a normal run directory, cell.json its row)
+plus verdict.json; a trial with a verdict is not run again, so a killed search restarted on the same --out resumes.
+The (controller, axis) searches run on the sweep's executors (one process, a process pool, or Ray).
+
+Bisection: the hard value first (passing it: 'limit reached', the envelope is at least the range), then the easy
+one (failing it: the envelope is below the range), then the midpoint of the bracket until the bracket is no wider
+than the resolution. The result is the last passing value and the first failing one, with the failing trial's
+failure mode: fell, QP infeasible, planner refused, off the plan (final CoM error beyond the bound), error.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..errors import ConfigError
+
+__all__ = ["EnvelopeResult", "EnvelopeStudy", "run_envelope", "run_trial", "search_axis"]
+
+VERDICT_FILE = "verdict.json"
+
+
+@dataclass(frozen=True)
+class EnvelopeStudy:
+    axes: tuple[str, ...]
+    controllers: tuple[str, ...]
+    robot: str = "talos"
+    ranges: dict = field(default_factory=dict)        # axis -> (easy, hard)
+    resolutions: dict = field(default_factory=dict)   # axis -> bracket width
+    tolerance: float = 0.10                           # [m] final CoM error bound
+    seed: int = 0
+    engine: str = "mujoco"
+
+    def range_of(self, axis) -> tuple[float, float]:
+        return tuple(self.ranges.get(axis.name, (axis.easy, axis.hard)))
+
+    def resolution_of(self, axis) -> float:
+        return float(self.resolutions.get(axis.name, axis.resolution))
+
+
+@dataclass
+class EnvelopeResult:
+    controller: str
+    axis: str
+    unit: str
+    largest: bool
+    easy: float
+    hard: float
+    resolution: float
+    limit: float | None          # last passing value (None: even the easy value failed)
+    first_failure: float | None  # first failing value (None: the hard value passed)
+    mode: str                    # failure mode at first_failure, or 'limit reached' / 'fails at the easy value'
+    reason: str
+    trials: list = field(default_factory=list)   # [value, passed, mode, reason, trial dir]
+    wall_s: float = 0.0
+
+
+def trial_dir(out: Path, robot: str, controller: str, axis: str, value: float) -> Path:
+    return out / "trials" / robot / controller / axis / f"{value:.6g}"
+
+
+def _mode(row: dict, summary: dict | None) -> str:
+    err = str(row.get("error") or "")
+    if row.get("status") == "error":
+        kind = err.split(":", 1)[0]
+        if summary is None or "Plan" in kind or kind in ("ConfigError", "PlanningError"):
+            return "planner refused"   # the scenario's plan (footsteps, centroidal motion) could not be made
+        if kind == "QPError" or any(w in err.lower() for w in ("qp", "infeasib", "solver")):
+            return "QP infeasible"
+        return "error"
+    status = (summary or {}).get("controller_status") or {}
+    qp_failed = any(("fail" in k or "infeas" in k) and isinstance(v, (int, float)) and v > 0
+                    for k, v in status.items())
+    if row.get("status") == "fell":
+        return "QP infeasible" if qp_failed else "fell"
+    return "off the plan"
+
+
+def _verdict(run_dir: Path, row: dict, tolerance: float) -> tuple[bool, str, str]:
+    """(passed, mode, reason) of a finished trial from its cell row and its log."""
+    summary_file = run_dir / "summary.json"
+    summary = json.loads(summary_file.read_text()) if summary_file.exists() else None
+    if row.get("status") != "ok":
+        reason = row.get("error") or (summary or {}).get("fall_reason") or row.get("status")
+        return False, _mode(row, summary), f"{row.get('status')}: {reason}"
+    import pyarrow.parquet as pq
+
+    cols = [f"{c}.{a}" for c in ("com", "com_ref") for a in "xy"]
+    try:
+        last = pq.read_table(run_dir / "log.parquet", columns=cols)
+        last = last.slice(last.num_rows - 1).to_pylist()[0]
+    except (OSError, ValueError, KeyError, IndexError):
+        return False, "error", "no log"
+    err = float(np.hypot(last["com.x"] - last["com_ref.x"], last["com.y"] - last["com_ref.y"]))
+    if not np.isfinite(err):
+        return True, "", "passed (no CoM reference)"
+    if err > tolerance:
+        return False, "off the plan", f"final CoM {err:.3f} m from the planned CoM (bound {tolerance} m)"
+    return True, "", f"passed (final CoM error {err:.3f} m)"
+
+
+def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: float, out: Path) -> dict:
+    """One trial (resumed from its verdict.json when done): {value, passed, mode, reason, dir}."""
+    from ..study.cell import DONE_FILE, run_cell
+    from ..study.sweep import code_version
+    from .axes import get_axis
+
+    d = trial_dir(out, study.robot, controller, axis_name, value)
+    vfile = d / VERDICT_FILE
+    if vfile.exists():
+        return json.loads(vfile.read_text())
+    axis = get_axis(axis_name)
+    data, extra = axis.trial(value, study.robot)
+    d.mkdir(parents=True, exist_ok=True)
+    scen = d / "envelope-scenario.yaml"
+    scen.write_text(yaml.safe_dump(data, sort_keys=False))
+    params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
+              "seed": study.seed, "engine": study.engine, **extra}
+    done = d / DONE_FILE
+    # a run finished but not judged (killed in between): judged from its row and log, not run again
+    row = json.loads(done.read_text()) if done.exists() else run_cell(params, str(d.resolve()), code_version(),
+                                                                       d.name)
+    passed, mode, reason = _verdict(d / "run", row, study.tolerance)
+    v = {"value": value, "passed": passed, "mode": mode, "reason": reason, "dir": str(d),
+         "wall_s": row.get("cell_wall_s")}
+    vfile.write_text(json.dumps(v, indent=1))
+    return v
+
+
+def search_axis(study: EnvelopeStudy, controller: str, axis_name: str, out: str) -> dict:
+    """The bisection of one (controller, axis) (see the module docstring); its EnvelopeResult as a dict."""
+    from .axes import get_axis
+
+    t0 = time.perf_counter()
+    out_p = Path(out)
+    axis = get_axis(axis_name)
+    easy, hard = study.range_of(axis)
+    res = study.resolution_of(axis)
+    trials = []
+
+    def trial(v: float) -> dict:
+        r = run_trial(study, controller, axis_name, round(float(v), 9), out_p)
+        trials.append([r["value"], r["passed"], r["mode"], r["reason"], r["dir"]])
+        return r
+
+    top = trial(hard)
+    if top["passed"]:
+        limit, fail, mode, reason = hard, None, "limit reached", f"passed the hardest value tried, {hard:g}"
+    else:
+        bottom = trial(easy)
+        if not bottom["passed"]:
+            limit, fail, mode, reason = None, easy, bottom["mode"], bottom["reason"]
+        else:
+            ok, bad, last_bad = easy, hard, top
+            while abs(bad - ok) > res * (1 + 1e-9):
+                mid = 0.5 * (ok + bad)
+                r = trial(mid)
+                if r["passed"]:
+                    ok = mid
+                else:
+                    bad, last_bad = mid, r
+            limit, fail, mode, reason = ok, bad, last_bad["mode"], last_bad["reason"]
+    result = EnvelopeResult(controller, axis_name, axis.unit, axis.largest, easy, hard, res, limit, fail, mode,
+                            reason, trials, time.perf_counter() - t0)
+    return asdict(result)
+
+
+def validate(study: EnvelopeStudy) -> None:
+    """Before any trial: every axis known, its range one it can take, its resolution positive, and every
+    controller able to run its scenario (the easy value's scenario loaded and the controller started on it for
+    one control tick). ConfigError otherwise."""
+    from ..controllers.base import available_controllers
+    from ..errors import UnknownNameError
+    from ..robots import load_robot
+    from ..runner import run
+    from ..scenarios import load_scenario
+    from .axes import get_axis
+    import tempfile
+
+    ctrls = available_controllers()
+    for c in study.controllers:
+        if c not in ctrls:
+            raise UnknownNameError("controller", c, ctrls, key="--controllers")
+    load_robot(study.robot)   # an unknown robot fails here, before any trial
+    axes = [get_axis(a) for a in study.axes]
+    for a in axes:
+        easy, hard = study.range_of(a)
+        a.check_range(easy, hard, study.robot)
+        if not study.resolution_of(a) > 0:
+            raise ConfigError(f"axis '{a.name}': resolution must be > 0, got {study.resolution_of(a)}",
+                              key="--resolution")
+    with tempfile.TemporaryDirectory(prefix="wbcbench-envelope-") as tmp:
+        for a in axes:
+            data, extra = a.trial(study.range_of(a)[0], study.robot)
+            scen_file = Path(tmp) / f"{a.name}.yaml"
+            scen_file.write_text(yaml.safe_dump(data, sort_keys=False))
+            for c in study.controllers:
+                try:
+                    from ..study.cell import prepare
+
+                    scen, ctrl, rob, options, mode = prepare({"scenario": str(scen_file), "controller": c,
+                                                              "robot": study.robot, "duration": 0.002, **extra},
+                                                             Path(tmp) / f"{a.name}-{c}")
+                    run(scen, ctrl, rob, mode if not hasattr(ctrl, "step") else None, None,
+                        Path(tmp) / f"{a.name}-{c}" / "run", sim_options=options, overwrite=True,
+                        engine=study.engine)
+                except ConfigError as exc:
+                    raise ConfigError(f"controller '{c}' cannot run axis '{a.name}' (scenario {a.scenario}): "
+                                      f"{exc}", key="--controllers") from None
+
+
+def run_envelope(study: EnvelopeStudy, out: str | Path, executor=None, progress=None) -> list[dict]:
+    """Every (controller, axis) search of the study on `executor` (wbcbench.study.execute; default: this process);
+    writes envelope.json into `out` and returns the results in (controller, axis) order."""
+    from ..study.execute import Executor
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    validate(study)
+    settings = {"tolerance": study.tolerance, "seed": study.seed, "engine": study.engine}
+    sfile = out / "settings.json"
+    if sfile.exists() and json.loads(sfile.read_text()) != settings:
+        raise ConfigError(f"{out} holds trials judged with other settings ({sfile.read_text().strip()}); "
+                          "choose another --out", key="--out")
+    sfile.write_text(json.dumps(settings))
+    jobs = [{"study": study, "controller": c, "axis_name": a, "out": str(out.resolve())}
+            for c in study.controllers for a in study.axes]
+    done: dict[int, dict] = {}
+    executor = executor or Executor()
+    for i, r in executor.map_unordered(search_axis, jobs):
+        done[i] = r
+        if progress:
+            progress(len(done), len(jobs), r)
+    results = [done[i] for i in range(len(jobs))]
+    (out / "envelope.json").write_text(json.dumps({"study": asdict(study), "results": results}, indent=1,
+                                                  default=str))
+    return results
