@@ -26,6 +26,10 @@ class ModelFiles:
 
 
 def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
+    """The model files a profile's `loader` names: an example-robot-data loader name, `fourier:<model>` (a URDF of
+    the `fourier-robot-descriptions` package) or a URDF path (relative paths from the profile's directory)."""
+    if loader_name.startswith("fourier:") or loader_name.endswith(".urdf"):
+        return _urdf_files(loader_name, profile_file)
     from example_robot_data.robots_loader import ROBOTS
     from example_robot_data.utils import getModelPath
 
@@ -42,6 +46,29 @@ def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
     return ModelFiles(urdf=(root / rel).resolve(), srdf=srdf.resolve() if srdf else None,
                       package_root=root.resolve().parent.parent,
                       has_rotor_parameters=bool(getattr(cls, "has_rotor_parameters", False)))
+
+
+def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
+    if loader_name.startswith("fourier:"):
+        try:
+            from fourier_robot_descriptions.fourier import PACKAGE_PATH, REPOSITORY_PATH
+        except ImportError:
+            raise ConfigError("fourier models need the fourier-robot-descriptions package (pip install "
+                              "fourier-robot-descriptions)", file=profile_file, key="loader") from None
+        name = loader_name.split(":", 1)[1]
+        urdf = PACKAGE_PATH / f"{name}.urdf"
+        if not urdf.exists():
+            raise UnknownNameError("fourier model", name, sorted(p.stem for p in PACKAGE_PATH.glob("*.urdf")),
+                                   file=profile_file, key="loader")
+        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=REPOSITORY_PATH.resolve(),
+                          has_rotor_parameters=False)
+    urdf = Path(loader_name).expanduser()
+    if not urdf.is_absolute() and profile_file:
+        urdf = Path(profile_file).parent / urdf
+    if not urdf.is_file():
+        raise ConfigError(f"model file '{urdf}' does not exist", file=profile_file, key="loader")
+    return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=urdf.resolve().parent,
+                      has_rotor_parameters=False)
 
 
 class Robot:
