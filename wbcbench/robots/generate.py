@@ -77,8 +77,11 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     model = pin.buildModelFromUrdf(str(files.urdf), pin.JointModelFreeFlyer())
     if model.nq < 8 or any(model.nqs[j] != 1 for j in range(2, model.njoints)):
         raise ConfigError("only robots with 1-DoF joints below a free base are supported", file=str(files.urdf))
-    geom = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.COLLISION,
-                                 package_dirs=[str(files.package_root)])
+    try:
+        geom = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.COLLISION,
+                                     package_dirs=[str(files.package_root)])
+    except ValueError as exc:  # a mesh the package does not ship
+        raise ConfigError(f"cannot read the collision geometry: {exc}", file=str(files.urdf), key="collision")
     data = model.createData()
     q = pin.neutral(model)
     q[7:] = np.clip(0.0, model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
