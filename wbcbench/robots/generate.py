@@ -90,37 +90,31 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     name = name or Path(loader.split(":")[-1]).stem
     jname = list(model.names)
 
-    # ---- feet: lowest collision geometry each side
-    low = {}  # joint -> (min z, points in joint frame)
-    for g in geom.geometryObjects:
-        pts = _geom_points(g)
-        j = g.parentJoint
-        world = np.array([data.oMi[j].act(p) for p in pts])
-        zmin = world[:, 2].min()
-        prev = low.get(j)
-        low[j] = (min(zmin, prev[0]) if prev else zmin, np.vstack([prev[1], pts]) if prev else pts)
-    feet = {}
-    for side, sign in (("left", 1), ("right", -1)):
-        cands = [(z, j) for j, (z, _) in low.items() if j > 1 and sign * data.oMi[j].translation[1] > 0.02]
-        if cands:
-            feet[side] = min(cands)[1]
-    if len(feet) != 2 or feet["left"] == feet["right"]:
-        raise ConfigError("no feet found: no collision geometry reaching lowest on each side of the robot; write "
-                          "the profile's feet and sole by hand", file=str(files.urdf), key="feet")
-    foot_body = {}
+    # ---- feet: the lowest geometry each side (collision geometry, else the visual meshes)
+    feet, low = _find_feet(model, data, geom)
+    if len(feet) != 2:
+        try:
+            visual = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.VISUAL,
+                                           package_dirs=[str(files.package_root)])
+            feet, low = _find_feet(model, data, visual)
+        except ValueError:
+            pass
+        if len(feet) == 2:
+            missing.append("sole (from the visual meshes: the model has no collision geometry at the feet)")
+    if len(feet) != 2:
+        raise ConfigError("no feet found: no geometry reaching lowest on each side of the robot; write the "
+                          "profile's feet and sole by hand", file=str(files.urdf), key="feet")
+    foot_body, sole_in_joint, sole_in_body = {}, {}, {}
+    sizes = []
     for side, j in feet.items():
-        bodies = [f for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == j]
-        foot_body[side] = bodies[-1].name if bodies else jname[j]
-    # sole rectangle, in the foot joint's frame (assumed level at the joints' zero; checked below)
-    soles = {}
-    for side, j in feet.items():
-        pts = low[j][1]
-        R = data.oMi[j].rotation
-        if np.linalg.norm(R - np.eye(3)) > 1e-3:
-            missing.append(f"feet.{side}: the ankle frame is not level at zero (offset and sole to check)")
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        soles[side] = (lo, hi)
-    sizes = [(s[1][0] - s[0][0], s[1][1] - s[0][1]) for s in soles.values()]
+        bodies = [k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY and f.parentJoint == j]
+        fid = bodies[-1] if bodies else model.getFrameId(jname[j])
+        foot_body[side] = model.frames[fid].name
+        lo, hi = low[j].min(axis=0), low[j].max(axis=0)  # world-aligned box of the foot's geometry
+        sole_w = pin.SE3(np.eye(3), np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]))
+        sole_in_joint[side] = data.oMi[j].actInv(sole_w)
+        sole_in_body[side] = data.oMf[fid].actInv(sole_w)
+        sizes.append((hi[0] - lo[0], hi[1] - lo[1]))
     length, width = float(min(s[0] for s in sizes)), float(min(s[1] for s in sizes))
 
     # ---- chains
@@ -180,8 +174,6 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     from scipy.optimize import least_squares
 
     leg_idx = sorted(model.idx_qs[k] for k in leg_joints)
-    sole_off = {s: np.array([(soles[s][0][0] + soles[s][1][0]) / 2, (soles[s][0][1] + soles[s][1][1]) / 2,
-                             soles[s][0][2]]) for s in feet}
     knee_q = {}
     for side, k in knees.items():
         qi = model.idx_qs[k]
@@ -212,8 +204,9 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
         pos = {}
         for s, j in feet.items():
             M = data.oMi[j]
-            r.extend(10 * pin.log3(M.rotation))
-            pos[s] = M.act(sole_off[s])
+            S = M * sole_in_joint[s]
+            r.extend(10 * pin.log3(S.rotation))
+            pos[s] = S.translation
             r.append(10 * (M.translation[1] - y_feet[s]))
         r.append(10 * (pos["left"][2] - pos["right"][2]))
         r.append(10 * (pos["left"][0] - pos["right"][0]))
@@ -229,7 +222,7 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     q_ref = full(sol.x)
     pin.framesForwardKinematics(model, data, q_ref)
     pin.centerOfMass(model, data, q_ref)
-    sole_z = min(data.oMi[j].act(sole_off[s])[2] for s, j in feet.items())
+    sole_z = min((data.oMi[j] * sole_in_joint[s]).translation[2] for s, j in feet.items())
     base_h = float(data.oMi[1].translation[2] - sole_z)
     top = max(data.oMi[j].translation[2] for j in range(1, model.njoints)) - sole_z
     pin.forwardKinematics(model, data, q)
@@ -276,11 +269,14 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     w(f"head_frame: {head}")
     w("feet:                              # the sole frame: centre of the bottom of the foot's collision geometry")
     for s in ("left", "right"):
-        o = sole_off[s]
+        o = sole_in_body[s].translation
+        rpy = pin.rpy.matrixToRpy(sole_in_body[s].rotation)
         w(f"  {s}:")
         w(f"    frame: {s}_sole_generated")
         w(f"    parent_frame: {foot_body[s]}")
         w(f"    offset: [{o[0]:.4f}, {o[1]:.4f}, {o[2]:.4f}]")
+        if np.abs(rpy).max() > 1e-9:
+            w(f"    rpy: [{rpy[0]:.6f}, {rpy[1]:.6f}, {rpy[2]:.6f}]   # level at the joints' zero")
         w(f"    ft_sensor_frame: {jname[feet[s]]}   # the ankle joint")
     w("sole:                              # the x-y extent of the foot's collision geometry [m]")
     w(f"  length: {length:.4f}")
@@ -327,6 +323,22 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     w(f"  min_base_height: {0.5 * base_h:.3f}")
     w("  max_tilt: 0.7")
     return Generated("\n".join(L) + "\n", missing)
+
+
+def _find_feet(model: pin.Model, data: pin.Data, geom: pin.GeometryModel) -> tuple[dict, dict]:
+    """Per side (y > 0: left), the joint whose geometry reaches lowest; and every joint's geometry points (world,
+    at the configuration in `data`)."""
+    low: dict[int, np.ndarray] = {}
+    for g in geom.geometryObjects:
+        j = g.parentJoint
+        world = np.array([data.oMi[j].act(p) for p in _geom_points(g)])
+        low[j] = np.vstack([low[j], world]) if j in low else world
+    feet = {}
+    for side, sign in (("left", 1), ("right", -1)):
+        cands = [(pts[:, 2].min(), j) for j, pts in low.items() if j > 1 and sign * data.oMi[j].translation[1] > 0.02]
+        if cands:
+            feet[side] = min(cands)[1]
+    return feet, low
 
 
 def _axis(model: pin.Model, j: int) -> np.ndarray:

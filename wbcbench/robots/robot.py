@@ -150,7 +150,8 @@ class Robot:
                 continue
             pid = self._frame_id(foot.parent_frame, f"feet.{side.value}.parent_frame")
             parent = self.model.frames[pid]
-            placement = parent.placement * pin.SE3(np.eye(3), np.asarray(foot.offset))
+            placement = parent.placement * pin.SE3(pin.rpy.rpyToMatrix(*map(float, foot.rpy)),
+                                                   np.asarray(foot.offset))
             self.model.addFrame(pin.Frame(foot.frame, parent.parentJoint, pid, placement, pin.FrameType.OP_FRAME))
         for side in Side:
             self._frame_id(self.profile.feet[side].ft_sensor_frame, f"feet.{side.value}.ft_sensor_frame")
