@@ -92,3 +92,11 @@ def test_generator_on_a_second_source():
     data = yaml.safe_load(gen.text)
     assert data["limits"]["min_body_mass"] > 0
     assert data["feet"]["left"]["ft_sensor_frame"] != data["feet"]["right"]["ft_sensor_frame"]
+
+
+def test_an_upper_body_has_no_feet(tmp_path, capsys):
+    """Alexander's upper body (example-robot-data alex_nub_hands): its grippers are the lowest geometry, far above
+    where legs would end; no feet, one line, exit 2."""
+    assert main(["robot", "init", "alex_nub_hands", "--out", str(tmp_path / "x.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "alex_nub_hands.urdf" in err and "'feet'" in err

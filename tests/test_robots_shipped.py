@@ -13,7 +13,7 @@ from wbcbench.sim.model import sole_geom_name
 from wbcbench.sim.simulator import Simulator
 
 ROBOTS = builtin_robots()
-GENERATED = ["gr1t2", "gr3", "romeo"]  # profiles written by `wbcbench robot init`
+GENERATED = ["alexander", "gr1t2", "gr3", "romeo"]  # profiles written by `wbcbench robot init`
 
 
 def test_the_shipped_robots_are_listed(capsys):

@@ -92,15 +92,24 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
 
     # ---- feet: the lowest geometry each side (collision geometry, else the visual meshes)
     feet, low = _find_feet(model, data, geom)
-    if len(feet) != 2:
-        try:
-            visual = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.VISUAL,
-                                           package_dirs=[str(files.package_root)])
-            feet, low = _find_feet(model, data, visual)
-        except ValueError:
-            pass
-        if len(feet) == 2:
-            missing.append("sole (from the visual meshes: the model has no collision geometry at the feet)")
+    try:  # the visual meshes: for models whose collision geometry misses the legs
+        visual = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.VISUAL,
+                                       package_dirs=[str(files.package_root)])
+        vfeet, vlow = _find_feet(model, data, visual)
+    except ValueError:
+        vfeet, vlow = {}, {}
+
+    def lowest(ft, lw):
+        return max(lw[j][:, 2].min() for j in ft.values()) if len(ft) == 2 else np.inf
+
+    if len(vfeet) == 2 and lowest(vfeet, vlow) < lowest(feet, low) - 0.02:
+        feet, low = vfeet, vlow
+        missing.append("sole (from the visual meshes: the model has no collision geometry at the feet)")
+    if len(feet) == 2:  # legs: the feet well below the base (an upper body's grippers are not feet)
+        z_feet = min(low[j][:, 2].min() for j in feet.values())
+        z_top = max(pts[:, 2].max() for pts in low.values())
+        if data.oMi[1].translation[2] - z_feet < 0.25 * (z_top - z_feet):
+            feet = {}
     if len(feet) != 2:
         raise ConfigError("no feet found: no geometry reaching lowest on each side of the robot; write the "
                           "profile's feet and sole by hand", file=str(files.urdf), key="feet")
