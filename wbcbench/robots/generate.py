@@ -2,9 +2,10 @@
 
 What it finds, from the pinocchio model and its collision geometry at the joints' zero:
 
-* the feet: the two links (one each side of the sagittal plane) whose collision geometry reaches lowest; their
-  sole rectangle is the x-y extent of that geometry (its bounding boxes in the foot frame), the sole frame is
-  added at the centre of the rectangle's bottom face; the F/T frame is the foot's own joint (the ankle);
+* the feet: the two links (one each side of the sagittal plane) whose collision geometry (or visual meshes, when
+  those reach lower) reaches lowest, well below the base; their sole rectangle is the x-y extent of that geometry
+  (its bounding boxes, world-aligned at the joints' zero), the sole frame is added at the centre of the
+  rectangle's bottom face, level; the F/T frame is the foot's own joint (the ankle);
 * base (the root link), torso (the last body joint both arms hang from), IMU (a frame named *imu*, else the base),
   head (a frame named *head*, else the torso), hands (the last joint every arm leaf of a side shares);
 * a standing posture: least squares over the leg joints with the knees bent by `knee` [rad], soles flat and
@@ -240,7 +241,7 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     # ---- gains from the masses
     mass = float(pin.computeTotalMass(model))
     pin.forwardKinematics(model, data, q_ref)
-    pin.centerOfMass(model, data, q_ref, False)
+    pin.centerOfMass(model, data, q_ref, True)  # subtree masses and CoMs
     kp = {}
     for j in range(2, model.njoints):
         if j in leg_joints:
