@@ -88,6 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
     add_doctor(sub)
     from .envelope.commands import add_subcommand as add_envelope
     add_envelope(sub)
+    rb = sub.add_parser("robot", help="robot tools: `robot init SOURCE --out PROFILE.yaml` writes a first profile")
+    rb.add_argument("action", choices=["init"], help="init: generate a profile from a humanoid's model")
+    rb.add_argument("source", help="a URDF path, an example-robot-data model or a fourier-robot-descriptions model")
+    rb.add_argument("--out", "-o", required=True, help="the profile YAML to write")
+    rb.add_argument("--name", default=None, help="the robot's name (default: the model's)")
+    rb.add_argument("--knee", type=float, default=0.6, help="knee bend of the standing posture [rad] (0.6)")
+    rb.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     return p
 
 
@@ -215,6 +222,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "doctor":
             from .doctor import run_command as run_doctor
             return run_doctor(args)
+        if args.command == "robot":
+            from .robots.generate import run_command as run_robot
+            return run_robot(args)
         _check_mujoco()
         if args.command == "run":
             return _cmd_run(args)

@@ -20,13 +20,14 @@ class FootSpec:
     """One foot: its sole frame (centre of the sole rectangle, z = contact normal) and its ankle F/T sensor.
 
     If `parent_frame` is set, the sole frame does not exist in the URDF and is added at `offset` [m]
-    (expressed in the parent frame, same orientation).
+    (expressed in the parent frame), turned by `rpy` [rad] from the parent frame's orientation.
     """
 
     frame: str
     ft_sensor_frame: str
     parent_frame: str | None = None
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -319,7 +320,7 @@ def load_profile(name_or_path: str | Path) -> RobotProfile:
         offset = fs.vector("offset", [0.0, 0.0, 0.0], length=3)
         feet[side] = FootSpec(frame=fs.str("frame"), ft_sensor_frame=fs.str("ft_sensor_frame"),
                               parent_frame=fs.str("parent_frame", None) if fs.has("parent_frame") else None,
-                              offset=tuple(offset))
+                              offset=tuple(offset), rpy=tuple(fs.vector("rpy", [0.0, 0.0, 0.0], length=3)))
         fs.finish()
     feet_sec.finish()
     hands_sec = root.section("hands")

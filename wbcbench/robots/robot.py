@@ -26,6 +26,10 @@ class ModelFiles:
 
 
 def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
+    """The model files a profile's `loader` names: an example-robot-data loader name, `fourier:<model>` (a URDF of
+    the `fourier-robot-descriptions` package) or a URDF path (relative paths from the profile's directory)."""
+    if loader_name.startswith("fourier:") or loader_name.endswith(".urdf"):
+        return _urdf_files(loader_name, profile_file)
     from example_robot_data.robots_loader import ROBOTS
     from example_robot_data.utils import getModelPath
 
@@ -42,6 +46,51 @@ def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
     return ModelFiles(urdf=(root / rel).resolve(), srdf=srdf.resolve() if srdf else None,
                       package_root=root.resolve().parent.parent,
                       has_rotor_parameters=bool(getattr(cls, "has_rotor_parameters", False)))
+
+
+def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
+    if loader_name.startswith("fourier:"):
+        try:
+            from fourier_robot_descriptions.fourier import PACKAGE_PATH, REPOSITORY_PATH
+        except ImportError:
+            raise ConfigError("fourier models need the fourier-robot-descriptions package (pip install "
+                              "fourier-robot-descriptions)", file=profile_file, key="loader") from None
+        name = loader_name.split(":", 1)[1]
+        urdf = PACKAGE_PATH / f"{name}.urdf"
+        if not urdf.exists():
+            raise UnknownNameError("fourier model", name, sorted(p.stem for p in PACKAGE_PATH.glob("*.urdf")),
+                                   file=profile_file, key="loader")
+        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=REPOSITORY_PATH.resolve(),
+                          has_rotor_parameters=False)
+    urdf = Path(loader_name).expanduser()
+    if not urdf.is_absolute() and profile_file:
+        urdf = Path(profile_file).parent / urdf
+    if not urdf.is_file():
+        raise ConfigError(f"model file '{urdf}' does not exist", file=profile_file, key="loader")
+    return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=urdf.resolve().parent,
+                      has_rotor_parameters=False)
+
+
+def _urdf_link_inertias(urdf: Path) -> dict[str, pin.Inertia]:
+    """Each URDF link's inertia in its link frame (zero for a link without <inertial>)."""
+    import xml.etree.ElementTree as ET
+
+    out = {}
+    for link in ET.parse(urdf).getroot().iter("link"):
+        el = link.find("inertial")
+        if el is None:
+            out[link.get("name")] = pin.Inertia.Zero()
+            continue
+        origin = el.find("origin")
+        xyz = np.array((origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split(), float)
+        rpy = np.array((origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split(), float)
+        mass = float(el.find("mass").get("value")) if el.find("mass") is not None else 0.0
+        ie = el.find("inertia")
+        g = (lambda k: float(ie.get(k, 0.0))) if ie is not None else (lambda k: 0.0)
+        I = np.array([[g("ixx"), g("ixy"), g("ixz")], [g("ixy"), g("iyy"), g("iyz")], [g("ixz"), g("iyz"), g("izz")]])
+        R = pin.rpy.rpyToMatrix(*rpy)
+        out[link.get("name")] = pin.Inertia(mass, xyz, R @ I @ R.T)
+    return out
 
 
 class Robot:
@@ -72,15 +121,29 @@ class Robot:
 
     # ------------------------------------------------------------------ construction helpers
     def _bound_inertias(self, model: pin.Model) -> None:
-        """Massless links get the profile's minimum mass and inertia (as MuJoCo's boundmass / boundinertia)."""
+        """Massless links get the profile's minimum mass and inertia, link by link as MuJoCo's boundmass /
+        boundinertia do before fusing fixed links into their moving body (a massless fixed link adds the bound
+        mass at its origin)."""
         m_min, i_min = self.profile.min_body_mass, self.profile.min_body_inertia
+        links = _urdf_link_inertias(self.files.urdf)
+        body = {f.name: f for f in model.frames if f.type == pin.FrameType.BODY}
+
+        def bounded(Y: pin.Inertia) -> pin.Inertia:
+            w, V = np.linalg.eigh(Y.inertia)
+            if Y.mass >= m_min and w.min() >= i_min:
+                return Y
+            return pin.Inertia(max(Y.mass, m_min), Y.lever, V @ np.diag(np.maximum(w, i_min)) @ V.T)
+
         for j in range(1, model.njoints):
-            Y = model.inertias[j]
-            if Y.mass < m_min or np.min(np.linalg.eigvalsh(Y.inertia)) < i_min:
-                I = Y.inertia.copy()
-                w, V = np.linalg.eigh(I)
-                I = V @ np.diag(np.maximum(w, i_min)) @ V.T
-                model.inertias[j] = pin.Inertia(max(Y.mass, m_min), Y.lever, I)
+            total, changed = pin.Inertia.Zero(), False
+            for name, f in body.items():
+                if f.parentJoint != j or name not in links:
+                    continue
+                Y = bounded(links[name])
+                changed |= Y is not links[name]
+                total += f.placement.act(Y)
+            if changed:
+                model.inertias[j] = total
 
     def _apply_limits(self, model: pin.Model) -> None:
         lo, hi = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
@@ -123,7 +186,8 @@ class Robot:
                 continue
             pid = self._frame_id(foot.parent_frame, f"feet.{side.value}.parent_frame")
             parent = self.model.frames[pid]
-            placement = parent.placement * pin.SE3(np.eye(3), np.asarray(foot.offset))
+            placement = parent.placement * pin.SE3(pin.rpy.rpyToMatrix(*map(float, foot.rpy)),
+                                                   np.asarray(foot.offset))
             self.model.addFrame(pin.Frame(foot.frame, parent.parentJoint, pid, placement, pin.FrameType.OP_FRAME))
         for side in Side:
             self._frame_id(self.profile.feet[side].ft_sensor_frame, f"feet.{side.value}.ft_sensor_frame")

@@ -1,0 +1,78 @@
+"""Every shipped robot: the profile loads, `wbcbench list` shows it, pinocchio and MuJoCo agree on its kinematics
+and dynamics (CoM, mass matrix, gravity) to 1e-8, and it stands with tsid-torque."""
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wbcbench.robots import Side, load_robot
+from wbcbench.robots.profile import builtin_robots
+from wbcbench.scene import Terrain
+from wbcbench.sim.model import sole_geom_name
+from wbcbench.sim.simulator import Simulator
+
+ROBOTS = builtin_robots()
+GENERATED = ["alexander", "gr1t2", "gr3", "romeo"]  # profiles written by `wbcbench robot init`
+
+
+def test_the_shipped_robots_are_listed(capsys):
+    from wbcbench.cli import main
+
+    assert set(GENERATED) <= set(ROBOTS) and len(ROBOTS) >= 5
+    assert main(["list"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("robots:"))
+    assert all(r in line for r in ROBOTS)
+
+
+def _velocity_map(sim, q) -> np.ndarray:
+    """T with v_mujoco = T v_pinocchio (free joint: world linear, local angular; pinocchio: local both)."""
+    b = sim.bridge
+    nv = sim.model.nv
+    T = np.zeros((nv, len(q) - 1))
+    R = pin.Quaternion(q[6], q[3], q[4], q[5]).toRotationMatrix()
+    T[b.root_vadr:b.root_vadr + 3, 0:3] = R
+    T[b.root_vadr + 3:b.root_vadr + 6, 3:6] = np.eye(3)
+    T[b.mj_v_idx, b.pin_v_idx] = 1.0
+    return T
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_bridge_kinematics_mass_matrix_and_gravity_agree(name):
+    robot = load_robot(name)
+    sim = Simulator(robot, Terrain(floor=False), "torque")
+    m, d = robot.model, robot.model.createData()
+    base_body = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, robot.profile.base_frame)
+    rng = np.random.default_rng(0)
+    lo, hi = robot.position_limits
+    for _ in range(3):
+        q = robot.q0.copy()
+        q[7:] = rng.uniform(lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo))
+        q[:3] = rng.normal(size=3) + [0, 0, 3.0]
+        q[3:7] = pin.Quaternion(pin.exp3(rng.normal(size=3))).coeffs()
+        sim.reset(q, np.zeros(robot.nv))
+        mujoco.mj_forward(sim.model, sim.data)
+        pin.centerOfMass(m, d, q)
+        assert np.allclose(sim.data.subtree_com[base_body], d.com[0], atol=1e-8)
+        pin.framesForwardKinematics(m, d, q)
+        for s in Side:
+            gid = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s))
+            foot = d.oMf[robot.sole_frame_id(s)]
+            assert np.allclose(sim.data.geom_xmat[gid].reshape(3, 3), foot.rotation, atol=1e-8)
+        T = _velocity_map(sim, q)
+        M_mj = np.zeros((sim.model.nv, sim.model.nv))
+        mujoco.mj_fullM(sim.model, sim.data, M_mj)  # MuJoCo 4 signature
+        M_pin = pin.crba(m, d, q)
+        M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
+        assert np.allclose(T.T @ M_mj @ T, M_pin, atol=1e-8)
+        g_pin = pin.computeGeneralizedGravity(m, d, q)
+        assert np.allclose(T.T @ sim.data.qfrc_bias, g_pin, atol=1e-8)
+
+
+@pytest.mark.parametrize("name", GENERATED)
+def test_generated_profiles_stand_with_tsid_torque(name):
+    from wbcbench.runner import run
+
+    s = run("stand", "tsid-torque", robot=load_robot(name), duration=3.0).summary
+    assert not s["fell"] and s["sim_time_s"] == pytest.approx(3.0, abs=0.01)
+    assert abs(s["metrics"]["base_height_change_m"]) < 0.01
