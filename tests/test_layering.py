@@ -36,7 +36,8 @@ TIERS: tuple[tuple[str, ...], ...] = (
     ("controllers",),                               # built from tasks, stabilizers, planners' references
     ("scenarios",),                                 # reference sources (planners, teleop), scene, metrics
     ("runner",),                                    # the run loop: runner.py, loop.py, loop_hooks.py, branching.py
-    ("report", "study", "robustness", "viz", "doctor"),  # applications reading and making runs; install check
+    ("report", "study", "robustness", "viz", "doctor", "envelope"),  # applications reading and making runs;
+                                                                     # install check
     ("cli",),
 )
 

@@ -66,7 +66,11 @@ BUILTIN_ENGINES: dict[str, tuple[str, str | None]] = {
 }
 #: robots (wbcbench.robots.profile): name -> its profile, a file of wbcbench/robots/profiles
 BUILTIN_ROBOTS: dict[str, str] = {
+    "alexander": "alexander.yaml",
     "g1": "g1.yaml",
+    "gr1t2": "gr1t2.yaml",
+    "gr3": "gr3.yaml",
+    "romeo": "romeo.yaml",
     "talos": "talos.yaml",
 }
 

@@ -69,11 +69,11 @@ class Axis:
         from ..scenarios.base import scenario_path
 
         from ..robots import load_robot
-        from ..scenarios.base import _robot_sized
+        from ..scenarios.base import robot_sized
 
         path = scenario_path(self.scenario)
         # the base scenario as the robot's profile sizes it (its `scenarios:` section), then changed by the value
-        data = copy.deepcopy(_robot_sized(load_yaml(path), Path(path), load_robot(robot)))
+        data = copy.deepcopy(robot_sized(load_yaml(path), Path(path), load_robot(robot)))
         data["name"] = f"envelope-{self.name}-{value:g}"
         data["description"] = f"{self.description} at {value:g} {self.unit} (generated from {Path(path).name})."
         data, extra = self.build(data, float(value))

@@ -231,7 +231,7 @@ def robot_sizes(name: str, robot: Robot) -> dict[str, dict]:
     return robot.profile.scenario_overrides.get(name, {})
 
 
-def _robot_sized(data: Any, path: Path, robot: Robot) -> Any:
+def robot_sized(data: Any, path: Path, robot: Robot) -> Any:
     """The scenario file's mapping with the keys the robot profile gives for it replaced (`params` and `terrain`
     key by key) and the description saying so."""
     if not isinstance(data, dict):
@@ -254,7 +254,7 @@ def load_scenario(name_or_path: str, robot: Robot, duration: float | None = None
     path = scenario_path(name_or_path)
     file = str(path)
     data = load_yaml(path)
-    sized = _robot_sized(data, path, robot)
+    sized = robot_sized(data, path, robot)
     # an error in a value the profile replaced names both files
     root = Section(sized, file if sized is data else f"{file} (with the sizes of {robot.profile.file})")
     kind = root.str("kind", "stand")
