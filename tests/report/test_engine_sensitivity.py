@@ -79,3 +79,13 @@ def test_reproduce_realism_puts_the_ideal_and_the_realistic_robot_side_by_side(t
     with pytest.raises(WbcError):
         reproduce_realism(tmp_path / "bad", "no-such-preset", quick=True, jobs=1, progress=False, sanity=False,
                           controllers=["tsid-torque"], scenarios=["walk-20cm"], keyframes=False)
+
+
+def test_fallen_cells_rank_by_how_long_they_stood():
+    a = _results({"ik": {"walk": _cell(0.02, 0.02)}, "tsid-torque": {"walk": _cell(0.004, 0.002)}})
+    b = _results({"ik": {"walk": _cell(0.1, 0.1, status="fell")},
+                  "tsid-torque": {"walk": _cell(0.1, 0.1, status="fell")}})
+    b["runs"] = [{"section": "paper", "controller": "ik", "scenario": "walk", "sim_time_s": 4.3},
+                 {"section": "paper", "controller": "tsid-torque", "scenario": "walk", "sim_time_s": 3.1}]
+    t = sens.engine_sensitivity({"ideal": a, "real": b})["tables"]["table2"]
+    assert t["ranking"]["walk"] == {"ideal": ["tsid-torque", "ik"], "real": ["ik", "tsid-torque"]}

@@ -10,7 +10,8 @@ Rankings (a fallen or missing cell ranks last, ties by name):
 - Tables 2, 4, 5 (ZMP error): by mean |error| x + y, lower first;
 - Table 6 (energy): by E_m, lower first;
 - Table 7 (PGM): by the mean of the three stages, higher first;
-- Tables 3 and 8 have no ranking (one controller; compute time is the controllers', not the engine's).
+- Tables 3 and 8 have no ranking (one controller; compute time is the controllers', not the engine's);
+- the fallen cells of a scene rank after its complete ones, among themselves by how long they stood.
 """
 
 from __future__ import annotations
@@ -43,16 +44,28 @@ def _score(cell: dict | None, metrics: tuple[str, ...]) -> float | None:
     return None if any(v is None for v in vals) else sum(vals) / len(vals)
 
 
-def _ranking(values: dict, scenario: str, metrics: tuple[str, ...], lower: bool) -> list[str]:
-    """The controllers of one scenario of a table, best first (fallen / missing last)."""
+def _ranking(values: dict, scenario: str, metrics: tuple[str, ...], lower: bool,
+             survived: dict | None = None) -> list[str]:
+    """The controllers of one scenario of a table, best first; a fallen or missing cell after every complete one,
+    the fallen among themselves by how long they stayed up (`survived`: (controller, scenario) -> simulated
+    seconds, from results["runs"])."""
     scored = []
     for controller, by_scenario in values.items():
         cell = by_scenario.get(scenario)
         if cell is None:
             continue
         s = _score(cell, metrics)
-        scored.append((s is None, (s if lower else -s) if s is not None else 0.0, controller))
+        if s is not None:
+            scored.append((0, s if lower else -s, controller))
+        else:
+            scored.append((1, -float((survived or {}).get((controller, scenario)) or 0.0), controller))
     return [c for *_, c in sorted(scored)]
+
+
+def _survived(results: dict) -> dict:
+    """(controller, scenario) -> the simulated time of the paper-section run [s] (how long a fallen one stood)."""
+    return {(r["controller"], r["scenario"]): r.get("sim_time_s") for r in results.get("runs", [])
+            if r.get("section") == "paper"}
 
 
 def engine_sensitivity(results: dict[str, dict]) -> dict:
@@ -83,8 +96,8 @@ def engine_sensitivity(results: dict[str, dict]) -> dict:
             metrics, lower = RANKINGS[key]
             scenarios = sorted({s for by_s in table["values"].values() for s in by_s})
             for s in scenarios:
-                rank[s] = {e: _ranking(results[e]["tables"].get(key, {}).get("values", {}), s, metrics, lower)
-                           for e in engines}
+                rank[s] = {e: _ranking(results[e]["tables"].get(key, {}).get("values", {}), s, metrics, lower,
+                                       _survived(results[e])) for e in engines}
         holds = [s for s, r in rank.items() if len({tuple(v) for v in r.values()}) == 1]
         flips = [s for s, r in rank.items() if s not in holds]
         tables[key] = {"title": table.get("title", key), "rows": rows, "ranking": rank, "holds": holds,
