@@ -247,3 +247,15 @@ def test_teleoperation_on_dart(tmp_path):
     assert json.loads((tmp_path / "t" / "config.json").read_text())["engine"] == "dart"
     assert s["metrics"]["hand_position_error_m"]["mean"] < 0.034
     assert s["metrics"]["self_collisions"] == 0
+
+
+def test_an_engine_whose_package_is_missing_says_how_to_install_it(monkeypatch):
+    import importlib.util
+
+    from wbcbench.sim import engines
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "dartpy" else real(name, *a))
+    with pytest.raises(ConfigError, match=r"engine 'dart' needs the package 'dartpy': pip install 'wbcbench\[dart\]'"):
+        engines.engine_class("dart")
+    assert engines.engine_label("dart") == "dart (needs dartpy)"

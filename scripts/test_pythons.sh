@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The supported Python versions, each in a fresh virtual environment outside the checkout: build the wheel once,
+# install it with its dependencies from the package index, run `wbcbench run stand` and `wbcbench list` from it.
+# Usage: bash scripts/test_pythons.sh [PYTHON ...]   (default: python3.10 python3.11 python3.12 python3.13)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+PYTHONS=("$@")
+[ ${#PYTHONS[@]} -eq 0 ] && PYTHONS=(python3.10 python3.11 python3.12 python3.13)
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+git clone -q . "$WORK/src"
+python3 -m build --wheel --outdir "$WORK/dist" "$WORK/src" > "$WORK/build.log" 2>&1 || { tail -5 "$WORK/build.log"; exit 1; }
+WHEEL="$(ls "$WORK"/dist/*.whl)"
+status=0
+for py in "${PYTHONS[@]}"; do
+    if ! command -v "$py" > /dev/null; then echo "$py: not found"; status=1; continue; fi
+    v="$WORK/venv-$py"
+    if "$py" -m venv "$v" && "$v/bin/pip" install --quiet "$WHEEL" > "$WORK/$py.log" 2>&1 \
+        && (cd "$WORK" && "$v/bin/wbcbench" run stand -c tsid-torque --duration 1 --quiet --out "$WORK/run-$py" \
+            >> "$WORK/$py.log" 2>&1) \
+        && (cd "$WORK" && "$v/bin/wbcbench" list >> "$WORK/$py.log" 2>&1); then
+        fell=$("$v/bin/python" -c "import json; print(json.load(open('$WORK/run-$py/summary.json'))['fell'])")
+        echo "$py ($("$py" --version 2>&1)): installed, stand ran, fell=$fell"
+    else
+        echo "$py: FAILED: $(grep -v '^\s*$' "$WORK/$py.log" | tail -1)"
+        status=1
+    fi
+done
+exit $status
