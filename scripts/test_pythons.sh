@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The supported Python versions, each in a fresh virtual environment outside the checkout: build the wheel once,
 # install it with its dependencies from the package index, run `wbcbench run stand` and `wbcbench list` from it.
-# Usage: bash scripts/test_pythons.sh [PYTHON ...]   (default: python3.10 python3.11 python3.12 python3.13)
+# Usage: bash scripts/test_pythons.sh [PYTHON ...]   (default: python3.10 python3.11 python3.12 python3.13; the
+# wheel is built with .venv/bin/python, or $BUILD_PY)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 PYTHONS=("$@")
@@ -9,7 +10,7 @@ PYTHONS=("$@")
 WORK="$(mktemp -d)"
 trap 'rm -rf "$WORK"' EXIT
 git clone -q . "$WORK/src"
-python3 -m build --wheel --outdir "$WORK/dist" "$WORK/src" > "$WORK/build.log" 2>&1 || { tail -5 "$WORK/build.log"; exit 1; }
+"${BUILD_PY:-.venv/bin/python}" -m build --wheel --outdir "$WORK/dist" "$WORK/src" > "$WORK/build.log" 2>&1 || { tail -5 "$WORK/build.log"; exit 1; }
 WHEEL="$(ls "$WORK"/dist/*.whl)"
 status=0
 for py in "${PYTHONS[@]}"; do
