@@ -13,17 +13,25 @@ git clone -q . "$WORK/src"
 "${BUILD_PY:-.venv/bin/python}" -m build --wheel --outdir "$WORK/dist" "$WORK/src" > "$WORK/build.log" 2>&1 || { tail -5 "$WORK/build.log"; exit 1; }
 WHEEL="$(ls "$WORK"/dist/*.whl)"
 status=0
-for py in "${PYTHONS[@]}"; do
-    if ! command -v "$py" > /dev/null; then echo "$py: not found"; status=1; continue; fi
-    v="$WORK/venv-$py"
-    if "$py" -m venv "$v" && "$v/bin/pip" install --quiet "$WHEEL" > "$WORK/$py.log" 2>&1 \
-        && (cd "$WORK" && "$v/bin/wbcbench" run stand -c tsid-torque --duration 1 --quiet --out "$WORK/run-$py" \
-            >> "$WORK/$py.log" 2>&1) \
-        && (cd "$WORK" && "$v/bin/wbcbench" list >> "$WORK/$py.log" 2>&1); then
-        fell=$("$v/bin/python" -c "import json; print(json.load(open('$WORK/run-$py/summary.json'))['fell'])")
-        echo "$py ($("$py" --version 2>&1)): installed, stand ran, fell=$fell"
+resolve() {  # a python3.X on the PATH, or pyenv's installed 3.X
+    if "$1" --version > /dev/null 2>&1; then echo "$1"; return; fi
+    local root; root="$(pyenv root 2>/dev/null || echo "$HOME/.pyenv")"
+    ls -d "$root"/versions/"${1#python}".*/bin/"$1" 2>/dev/null | sort -V | tail -1
+}
+for name in "${PYTHONS[@]}"; do
+    py="$(resolve "$name")"
+    tag="$(basename "$name")"
+    if [ -z "$py" ]; then echo "$name: not found"; status=1; continue; fi
+    v="$WORK/venv-$tag"
+    log="$WORK/$tag.log"
+    if "$py" -m venv "$v" > "$log" 2>&1 && "$v/bin/pip" install --quiet "$WHEEL" >> "$log" 2>&1 \
+        && (cd "$WORK" && "$v/bin/wbcbench" run stand -c tsid-torque --duration 1 --quiet --out "$WORK/run-$tag" \
+            >> "$log" 2>&1) \
+        && (cd "$WORK" && "$v/bin/wbcbench" list >> "$log" 2>&1); then
+        fell=$("$v/bin/python" -c "import json; print(json.load(open('$WORK/run-$tag/summary.json'))['fell'])")
+        echo "$name ($("$py" --version 2>&1)): installed, stand ran, fell=$fell"
     else
-        echo "$py: FAILED: $(grep -v '^\s*$' "$WORK/$py.log" | tail -1)"
+        echo "$name ($py): FAILED: $(grep -v '^\s*$' "$log" | tail -1)"
         status=1
     fi
 done
