@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1] / "wbcbench"
 #: "package" here is a top-level module or sub-package of wbcbench, with all it contains (`teleop/*` is one),
 #: except `UNITS`, which groups top-level modules into one package.
 TIERS: tuple[tuple[str, ...], ...] = (
-    ("side", "errors", "jit", "_lazy", "catalogue", "_version"),  # no dependency; catalogue: the registries'
+    ("side", "errors", "jit", "_lazy", "catalogue", "_version", "_markdown"),  # no dependency; catalogue: the registries'
                                                                   # built-in tables; _version: written by the build
     ("types", "config", "plugins"),                 # measurements, references, GRAVITY; YAML Section; entry points
     ("scene", "qp", "recorder", "summary"),         # terrain as data; QP solvers; the log format; summary.json

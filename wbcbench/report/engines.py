@@ -21,6 +21,8 @@ import json
 import math
 from pathlib import Path
 
+from .._markdown import markdown_body
+
 __all__ = ["RANKINGS", "engine_sensitivity", "to_markdown", "to_html", "write"]
 
 #: table -> (the metrics a controller is ranked by (their mean), lower is better)
@@ -162,25 +164,8 @@ def to_html(sens: dict, title: str = "Engine sensitivity") -> str:
     out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
            "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
            "td,th{border:1px solid #ccc;padding:2px 6px;font-size:13px}</style></head><body>"]
-    for line in to_markdown(sens, title).splitlines():
-        if line.startswith("# "):
-            out.append(f"<h1>{html.escape(line[2:])}</h1>")
-        elif line.startswith("## "):
-            out.append(f"<h2>{html.escape(line[3:])}</h2>")
-        elif line.startswith("|---"):
-            continue
-        elif line.startswith("|"):
-            cells = [html.escape(c.strip()) for c in line.strip("|").split("|")]
-            out.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
-        elif line:
-            out.append(f"<p>{html.escape(line)}</p>")
-    body = "\n".join(out)
-    body = body.replace("</h2>\n<p>", "</h2>\n<p>")
-    # wrap consecutive rows in tables
-    import re
-
-    body = re.sub(r"((?:<tr>.*?</tr>\n?)+)", lambda m: f"<table>{m.group(1)}</table>", body)
-    return body + "</body></html>"
+    out += markdown_body(to_markdown(sens, title).splitlines())
+    return "\n".join(out) + "</body></html>"
 
 
 def write(results: dict[str, dict], out_dir: str | Path, *, stem: str = "engine-sensitivity",

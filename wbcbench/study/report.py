@@ -11,6 +11,7 @@ import html
 import json
 from pathlib import Path
 
+from .._markdown import markdown_body
 from ..errors import ConfigError
 
 DEFAULT_METRICS = ("metrics.zmp_error_m.x.mean", "metrics.E_m")
@@ -113,30 +114,7 @@ def sweep_report(sweep_dir: str | Path, metric: str | None = None) -> str:
     lines += ["## Figures", ""] + [f"### {t}\n\n![{t}]({f})\n" for t, f in figures]
     md = "\n".join(lines)
     (d / "report.md").write_text(md)
-    body = []
-    for line in lines:
-        if line.startswith("## "):
-            body.append(f"<h2>{html.escape(line[3:])}</h2>")
-        elif line.startswith("# "):
-            body.append(f"<h1>{html.escape(line[2:])}</h1>")
-        elif line.startswith("|---"):
-            continue
-        elif line.startswith("| "):
-            cells = [html.escape(c.strip()) for c in line.strip("|").split("|")]
-            body.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
-        elif line:
-            body.append(f"<p>{html.escape(line)}</p>")
-    out, in_table = [], False
-    for b in body:
-        if b.startswith("<tr>") and not in_table:
-            out.append("<table>")
-            in_table = True
-        elif not b.startswith("<tr>") and in_table:
-            out.append("</table>")
-            in_table = False
-        out.append(b)
-    if in_table:
-        out.append("</table>")
+    out = markdown_body(lines)
     out += [f"<h3>{html.escape(t)}</h3><img src='{f}'>" for t, f in figures]
     css = "body{font-family:sans-serif;max-width:1100px;margin:2em auto}td{border:1px solid #bbb;padding:2px 6px}" \
           "table{border-collapse:collapse}"
