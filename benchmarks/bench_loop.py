@@ -62,10 +62,12 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
     from wbcbench.robots import load_robot
     from wbcbench.runner import run
     from wbcbench.scenarios import load_scenario
+
+    extra = {} if realism is None else {"realism": realism}  # (a checkout from before the switch has no keyword)
     from wbcbench.sim.simulator import Simulator
 
     with tempfile.TemporaryDirectory() as tmp:  # load the compiled kernels and warm the caches first
-        run(scenario, controller, duration=0.3, out=Path(tmp) / "warm-up", realism=realism)
+        run(scenario, controller, duration=0.3, out=Path(tmp) / "warm-up", **extra)
     robot = load_robot("talos")
     scen = load_scenario(scenario, robot)
     ctrl = make_controller(controller, robot, None, scen.spec.control_dt)
@@ -91,7 +93,7 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
     Simulator.step = timed_step
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock], realism=realism)
+            result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock], **extra)
     finally:
         Simulator.step = step
     s = result.summary
