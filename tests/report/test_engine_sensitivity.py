@@ -26,7 +26,7 @@ def test_rankings_hold_flip_and_fallen_cells_rank_last(tmp_path):
                   "tsid-position": {"walk": _cell(0.015, 0.015)}})
     b = _results({"ik": {"walk": _cell(0.06, 0.02)}, "tsid-torque": {"walk": _cell(0.005, 0.002)},
                   "tsid-position": {"walk": _cell(0.2, 0.1, status="fell")}})
-    out = sens.write({"mujoco": a, "dart": b}, tmp_path)
+    out = sens.write({"mujoco": a, "dart": b}, tmp_path, notes={"dart": "no armature"})
     t = out["tables"]["table2"]
     assert t["ranking"]["walk"]["mujoco"] == ["tsid-torque", "tsid-position", "ik"]
     assert t["ranking"]["walk"]["dart"] == ["tsid-torque", "ik", "tsid-position"]  # fallen: last
@@ -39,7 +39,7 @@ def test_rankings_hold_flip_and_fallen_cells_rank_last(tmp_path):
     assert "tsid-position on walk (dart)" in t["summary"] and "flips" in t["summary"]
     md = (tmp_path / "engine-sensitivity.md").read_text()
     assert "| walk | tsid-torque > tsid-position > ik | tsid-torque > ik > tsid-position |" in md
-    assert "+200 %" in md
+    assert "+200 %" in md and "dart: no armature" in md
     assert json.loads((tmp_path / "engine-sensitivity.json").read_text())["reference"] == "mujoco"
     assert "<table>" in (tmp_path / "engine-sensitivity.html").read_text()
 

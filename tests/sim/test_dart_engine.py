@@ -174,6 +174,11 @@ def test_engine_registry_and_errors(talos):
         engine_class("dratt")
     with pytest.raises(ConfigError, match="model error .* MuJoCo models only"):
         make_simulator("dart", talos, Terrain(), "torque", None, (), model_error=object())
+    from wbcbench.sim.model import SimOptions
+
+    with pytest.raises(ConfigError, match="'physical' .* needs the mujoco engine"):  # a feature DART cannot build
+        make_simulator("dart", talos, Terrain(), "torque", SimOptions(self_collision="physical"))
+    assert "armature" in DartSimulator.COMPARISON_NOTE
 
 
 def _cli(*args, env=None):

@@ -138,6 +138,8 @@ def to_markdown(sens: dict, title: str = "Engine sensitivity") -> str:
     lines = [f"# {title}", "",
              f"The paper's tables on {', '.join(engines)} (each one's full report in its own folder). "
              f"Relative differences are to {ref}. Rankings: best first; a fallen cell ranks last.", ""]
+    for name, note in sens.get("notes", {}).items():
+        lines += [f"{name}: {note}", ""]
     for key, t in sens["tables"].items():
         lines += [f"## {key}: {t['title']}", "", t["summary"], ""]
         if t["ranking"]:
@@ -169,11 +171,13 @@ def to_html(sens: dict, title: str = "Engine sensitivity") -> str:
 
 
 def write(results: dict[str, dict], out_dir: str | Path, *, stem: str = "engine-sensitivity",
-          title: str = "Engine sensitivity") -> dict:
+          title: str = "Engine sensitivity", notes: dict[str, str] | None = None) -> dict:
     """Write STEM.json, .md and .html into `out_dir`; returns the comparison. The same comparison serves any set
     of variants of the matrix (engines; the ideal and a realistic robot: `reproduce --realism`)."""
     out = Path(out_dir)
     sens = engine_sensitivity(results)
+    if notes:  # what differs between the variants beside the numbers (e.g. an engine's model limits)
+        sens["notes"] = dict(notes)
     (out / f"{stem}.json").write_text(json.dumps(sens, indent=1, allow_nan=False))
     (out / f"{stem}.md").write_text(to_markdown(sens, title))
     (out / f"{stem}.html").write_text(to_html(sens, title))

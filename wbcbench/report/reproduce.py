@@ -378,7 +378,8 @@ def reproduce_engines(out_dir: str | Path, engines: list[str], **kwargs) -> tupl
         engine_class(e)
     out = Path(out_dir)
     reports = [reproduce(out / e, engine=e, **kwargs) for e in engines]
-    sens = sensitivity.write({e: r.results for e, r in zip(engines, reports)}, out)
+    notes = {e: note for e in engines if (note := getattr(engine_class(e), "COMPARISON_NOTE", None))}
+    sens = sensitivity.write({e: r.results for e, r in zip(engines, reports)}, out, notes=notes)
     return reports, sens
 
 

@@ -177,6 +177,14 @@ class DartSimulator:
     sensing, faults and pushes use (`measure`, `apply`, `step`, `read_tick`, `true_q`, `set_pushes`, ...)."""
 
     engine = "dart"
+    #: what a comparison with another engine must say beside its numbers (the engine-sensitivity report prints it)
+    COMPARISON_NOTE = (
+        "DART 6 has no joint armature: its TALOS lacks the 0.1 kg m^2 rotor inertia of every actuated joint (the "
+        "controllers keep it in their model), and its contacts are rigid (MuJoCo's soft). Measured cause of the "
+        "position-controlled schemes' larger errors and falls: in MuJoCo with the armature removed, IK and TSID "
+        "position fall on sway and walk-20cm-quick while TSID torque walks as before. Tried for DART's position "
+        "servo and not kept: its implicit joint springs unclipped, clipped by the rest position, switched off when "
+        "saturated; DART's own, FCL and Bullet collision detectors (docs/results/engines.md).")
 
     def __init__(self, robot: Robot, terrain: Terrain | None = None, mode: ActuationMode | str = "torque",
                  options: SimOptions | None = None, pushes: tuple[Push, ...] = (), model_error=None):
