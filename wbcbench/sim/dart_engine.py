@@ -38,7 +38,6 @@ import math
 import os
 import re
 import sys
-from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -49,6 +48,7 @@ from ..scene import Terrain
 from ..types import ActuationMode, Command, Measurement
 from .model import SimOptions
 from .push import Push
+from .simulator import FallStatus
 
 try:  # dartpy is an optional extra (pip install 'wbcbench[dart]')
     import dartpy as dart
@@ -59,12 +59,6 @@ __all__ = ["DartSimulator", "COLLISION_DETECTORS"]
 
 #: DART collision detectors by name (`SimOptions.extra["dart_collision"]`)
 COLLISION_DETECTORS = ("ode", "dart", "fcl", "bullet")
-
-
-@dataclass(frozen=True)
-class FallStatus:
-    fell: bool
-    reason: str = ""
 
 
 _STANDING = FallStatus(False)
@@ -202,6 +196,7 @@ class DartSimulator:
         self.terrain = terrain or Terrain()
         self.model_error = {}
         self.dt = float(self.options.timestep)
+        self._gravity = np.asarray(self.options.gravity, dtype=float)
         detector = str(self.options.extra.get("dart_collision", "ode"))
         if detector not in COLLISION_DETECTORS:
             raise ConfigError(f"unknown DART collision detector '{detector}'; allowed: "
@@ -336,8 +331,8 @@ class DartSimulator:
         self._tick = 0
         self._command = Command(tau=np.zeros(self.robot.na), q=q[7:].copy(), v=np.zeros(self.robot.na))
         self._tau = np.zeros(self.robot.na)
-        self._imu_vel = self._imu_world_velocity()[1]
-        self._imu_acc = -np.asarray(self.options.gravity, dtype=float)
+        self._imu_w, self._imu_vel = self._imu_world_velocity()  # the IMU's velocities now (world frame)
+        self._imu_acc = -self._gravity
         self._configure_joints()
 
     def true_q(self) -> np.ndarray:
@@ -350,8 +345,6 @@ class DartSimulator:
     def _imu_world_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """The IMU frame's angular and linear velocity in the world frame."""
         body = self._imu_body
-        T = body.getWorldTransform()
-        R = T.rotation()
         off = self._imu_M.translation
         w = np.asarray(body.getAngularVelocity(dart.dynamics.Frame.World(), dart.dynamics.Frame.World()))
         lin = np.asarray(body.getLinearVelocity(off, dart.dynamics.Frame.World(), dart.dynamics.Frame.World()))
@@ -377,8 +370,7 @@ class DartSimulator:
         T = self._imu_body.getWorldTransform()
         R = np.asarray(T.rotation()) @ self._imu_M.rotation
         out[k:k + 4] = pin.Quaternion(R).coeffs()
-        w, _ = self._imu_world_velocity()
-        out[k + 4:k + 7] = R.T @ w
+        out[k + 4:k + 7] = R.T @ self._imu_w
         out[k + 7:k + 10] = R.T @ self._imu_acc
         for j, side in enumerate(Side):
             ft = self._ft_reading(side)
@@ -528,7 +520,7 @@ class DartSimulator:
         skel = self.skel
         for _ in range(n):
             tau = self._joint_torque()
-            for i, kind in self._fault.items():
+            for i in self._fault:
                 tau[i] = 0.0
             forces = np.zeros(skel.getNumDofs())
             forces[self._act] = tau
@@ -538,10 +530,10 @@ class DartSimulator:
                 for p, body in zip(self.pushes, self._push_bodies):
                     if p.active(t):
                         body.addExtForce(np.asarray(p.force, dtype=float), np.zeros(3), False, True)
-            self._imu_vel = self._imu_world_velocity()[1]
             self.world.step()
-            w, lin = self._imu_world_velocity()
-            self._imu_acc = (lin - self._imu_vel) / self.dt - np.asarray(self.options.gravity, dtype=float)
+            w, lin = self._imu_world_velocity()  # the accelerometer: the IMU point's velocity change over the step
+            self._imu_acc = (lin - self._imu_vel) / self.dt - self._gravity
+            self._imu_w, self._imu_vel = w, lin
             self._tau = tau
             self._tick += 1
 
