@@ -57,6 +57,14 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     c.add_argument("run_b", metavar="B", help="run directory B")
 
 
+def _print_side_by_side(console, reports, out: Path, what: str, stem: str) -> None:
+    """Each variant's report (named by its folder: the engine, `ideal`, the preset) and the comparison's files."""
+    for r in reports:
+        n_ok = sum(o.status == "ok" for o in r.outcomes)
+        console.print(f"{r.out_dir.name}: {len(r.outcomes)} cells, {n_ok} ok; report {r.out_dir / 'report.md'}")
+    console.print(f"{what}: {out / (stem + '.md')}, {out / (stem + '.html')}")
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Execute a report subcommand. Domain errors propagate to the CLI (one line, exit 2)."""
     from rich.console import Console
@@ -80,20 +88,13 @@ def run_command(args: argparse.Namespace) -> int:
             from .reproduce import reproduce_realism
 
             reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine, **kwargs)
-            for r in reports:
-                n_ok = sum(o.status == "ok" for o in r.outcomes)
-                console.print(f"{r.out_dir.name}: {len(r.outcomes)} cells, {n_ok} ok; report {r.out_dir / 'report.md'}")
-            console.print(f"ideal vs realistic: {Path(args.out) / 'real-robot.md'}, {Path(args.out) / 'real-robot.html'}")
+            _print_side_by_side(console, reports, Path(args.out), "ideal vs realistic", "real-robot")
             return 0
         if args.engines:
             from .reproduce import reproduce_engines
 
             reports, _ = reproduce_engines(args.out, args.engines.split(","), **kwargs)
-            for e, r in zip(args.engines.split(","), reports):
-                n_ok = sum(o.status == "ok" for o in r.outcomes)
-                console.print(f"{e}: {len(r.outcomes)} cells, {n_ok} ok; report {r.out_dir / 'report.md'}")
-            console.print(f"engine sensitivity: {Path(args.out) / 'engine-sensitivity.md'}, "
-                          f"{Path(args.out) / 'engine-sensitivity.html'}")
+            _print_side_by_side(console, reports, Path(args.out), "engine sensitivity", "engine-sensitivity")
             return 0
         res = reproduce(args.out, engine=args.engine, **kwargs)
         if args.envelope:
