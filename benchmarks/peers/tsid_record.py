@@ -1,6 +1,6 @@
 """Records C++ TSID's solutions of the standing problem of `tsid_stand.py` (TALOS, both soles as 6D contacts, CoM,
 waist orientation, angular momentum, posture, joint position bounds) at a few states, as test data for
-tests/controllers/test_tsid_crosscheck.py (TSID's wheels need pinocchio 3.4, wbcbench pinocchio 4: the test reads
+tests/test_tsid_crosscheck.py (TSID's wheels need pinocchio 3.4, wbcbench pinocchio 4: the test reads
 the recorded numbers).
 
 Two steps, from the repository root:
@@ -11,9 +11,9 @@ Two steps, from the repository root:
 (PEERS from benchmarks/peers/setup.sh). The model is wbcbench's (the URDF with its armature, which enters the mass
 matrix in both). States: `stand` (half-sitting at rest, references where the robot is), `com_moved` (the CoM
 reference 1-2 cm away with a velocity and an acceleration), `perturbed` (joint positions and all velocities
-perturbed, the references those of half-sitting but the contacts', set where the soles are). Recorded per state: q, v, the
-references, and TSID's joint accelerations dv, torques tau, corner forces (12 per contact) and contact wrenches
-(its force generator matrix times them, at the sole frame).
+perturbed, the references those of half-sitting but the contacts', set where the soles are). Recorded per state:
+q, v, the references, and TSID's joint accelerations dv, torques tau, corner forces (12 per contact) and contact
+wrenches (its force generator matrix times them, at the sole frame).
 """
 
 import argparse

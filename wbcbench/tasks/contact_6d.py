@@ -77,8 +77,8 @@ class Contact6D(Task):
       zero for a sole at rest: they give the same rows when the contact holds, not when the sole slides or turns.
 
     The shared formulation then gives ``J dv = -J_dot v + Kp e + Kd (-J v)`` (references velocity and
-    acceleration stay zero). TSID position/torque use Kp 30, Kd 11 (paper 000 Table 1). The reference is set when the contact
-    is created or made (``set_reference`` / ``set_reference_to_current``).
+    acceleration stay zero). TSID position/torque use Kp 30, Kd 11 (paper 000 Table 1). The reference is set when
+    the contact is created or made (``set_reference`` / ``set_reference_to_current``).
 
     **Wrench** ``w = [f; tau]`` (N, N m): the wrench exerted by the environment on the robot, expressed in the
     contact frame at its origin. It enters the dynamics as ``M dv + nle = S^T tau_joints + J^T w`` with the

@@ -129,8 +129,8 @@ class FrameBatch:
         _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
                     self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
                     if with_drift else _EMPTY, self._support, self._local, self._classical, self._p_ref, self._R_ref,
-                    self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg, com,
-                    com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
+                    self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
+                    com, com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
 
 
 _EMPTY = np.zeros(0)
