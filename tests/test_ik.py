@@ -110,3 +110,16 @@ def test_ik_rejects_a_hard_task(talos, tmp_path):
     spec = load_taskset(p, talos, max_level=8)
     with pytest.raises(ConfigError, match="com_z.*level"):
         IKController(talos, ActuationMode.POSITION, 1e-3, spec)
+
+
+@pytest.mark.parametrize("option", ["drift: classical", "wrench_metric: {form: tsid}"])
+def test_ik_rejects_the_contacts_dynamics_options(talos, tmp_path, option):
+    """The contacts' drift and wrench metric are the inverse-dynamics QP's; the kinematic hierarchy refuses them."""
+    text = taskset_path(talos, "ik").read_text().replace("contacts: {kp: 1000.0}",
+                                                         f"contacts: {{kp: 1000.0, {option}}}")
+    p = tmp_path / "ik.yaml"
+    p.write_text(text)
+    spec = load_taskset(p, talos, max_level=8)
+    with pytest.raises(ConfigError, match=f"contacts.{option.split(':')[0]}.*inverse-dynamics") as err:
+        IKController(talos, ActuationMode.POSITION, 1e-3, spec)
+    assert str(p) in str(err.value)

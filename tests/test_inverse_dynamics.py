@@ -123,6 +123,33 @@ def test_wrench_axis_weights_move_the_cop_between_the_feet(talos):
     assert roll_t < 0.3 * roll_u
 
 
+def test_contact_options_from_the_task_set(talos, tmp_path):
+    """contacts.drift and contacts.wrench_metric reach the controller's contacts; the shipped diagonal given as a
+    full 6 x 6 metric gives the same tick (the same QP), and TSID's metric ({form: tsid}) a different, consistent
+    one."""
+    text = taskset_path(talos, "tsid-torque").read_text()
+    reg = "regularization: {dv: 1.0e-6, wrench: 1.0e-5, wrench_axes: [1.0, 1.0, 0.1, 2.0, 2.0, 2.0]}"
+    assert reg in text
+    diag = np.diag(1e-5 * np.array([1.0, 1.0, 0.1, 2.0, 2.0, 2.0]) ** 2)
+    full = text.replace(reg, "regularization: {dv: 1.0e-6}").replace(
+        "  kp: 30.0\n", f"  kp: 30.0\n  drift: classical\n  wrench_metric: {diag.tolist()}\n")
+    tsid = text.replace(reg, "regularization: {dv: 1.0e-6}").replace(
+        "  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsid, weight: 1.0e-5}\n")
+    com = PointReference([0.0, 0.03, 0.87])
+    out = {}
+    for name, body in (("shipped", text), ("full", full), ("tsid", tsid)):
+        p = tmp_path / f"{name}.yaml"
+        p.write_text(body)
+        sim, ctrl, meas = _controller(talos, taskset=load_taskset(p, talos))
+        ctrl.step(meas, References(t=0.0, com=com))
+        _check_tick(ctrl, meas.q, meas.v)
+        out[name] = (ctrl.dv.copy(), ctrl.contacts[Side.LEFT].contact, ctrl.wrench[Side.LEFT].copy())
+    assert out["shipped"][1].drift_convention == "spatial" and out["shipped"][1].wrench_metric is None
+    assert out["full"][1].drift_convention == "classical" and np.array_equal(out["full"][1].wrench_metric, diag)
+    assert np.abs(out["full"][0] - out["shipped"][0]).max() < 1e-9  # at rest the two drifts are the same
+    assert np.abs(out["tsid"][2] - out["shipped"][2]).max() > 1.0  # [N]: the feet share the load otherwise
+
+
 def test_masked_axis_is_left_free(talos):
     """With only the x-y CoM task (height axis masked out), the CoM height reference has no effect."""
     spec = load_taskset(taskset_path(talos, "tsid-torque"), talos)
@@ -211,6 +238,10 @@ def _bad_taskset(tmp_path, talos, old, new):
      ["regularization.wrench_axes", "6 values"]),
     ("wrench_axes: [1.0, 1.0, 0.1,", "wrench_axes: [1.0, 1.0, -0.1,", ["regularization.wrench_axes", ">= 0"]),
     ("pitch_with_leg: true", "pitch_with_leg: 1", ["swing_foot.pitch_with_leg", "true or false"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  drift: exact\n", ["contacts.drift", "'exact'", "spatial, classical"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: [[1, 0], [0, 1]]\n", ["contacts.wrench_metric", "6 x 6"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsdi}\n", ["contacts.wrench_metric.form", "tsid"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsid}\n", ["regularization.wrench", "one or the other"]),
 ])
 def test_bad_task_files_name_file_and_key(talos, tmp_path, old, new, needles):
     p = _bad_taskset(tmp_path, talos, old, new)

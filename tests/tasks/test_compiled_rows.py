@@ -65,10 +65,11 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
     com = CoMTask(m, kp=10.0, mask=[1, 0, 1])
     com.set_reference(np.array([0.0, 0.1, 0.8]), np.array([0.1, 0.0, 0.2]))
     contacts = [Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0),
-                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0)]
-    for c, angle in zip(contacts, (0.3, 2.5)):  # a small and a large rotation error
+                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0),
+                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0, drift="classical", name="classical")]
+    for c, angle in zip(contacts, (0.3, 2.5, 0.7)):  # a small and a large rotation error
         c.set_reference(pin.SE3(pin.exp3(angle * np.array([0.6, 0.0, 0.8])), rng.normal(size=3)))
-    stacked = [contacts[0], tasks[0], com, *tasks[1:], contacts[1]]
+    stacked = [contacts[0], tasks[0], com, *tasks[1:], contacts[1], contacts[2]]
     plain = TaskStack(stacked, m.nv)
     batch = TaskStack(stacked, m.nv, compiled_frames=True)
     for seed in range(12):

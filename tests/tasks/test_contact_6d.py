@@ -10,7 +10,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from wbcbench.tasks import Contact6D, ReferenceNotSetError, TaskConfigError, UnknownNameError, acceleration_rows
+from wbcbench.tasks import (
+    Contact6D,
+    ReferenceNotSetError,
+    TaskConfigError,
+    UnknownNameError,
+    acceleration_rows,
+    tsid_wrench_metric,
+)
 
 SEEDS = st.integers(min_value=0, max_value=2**31 - 1)
 SOLE = {"length": 0.20, "width": 0.13}
@@ -50,6 +57,54 @@ def test_local_jacobian_error_and_drift_match_finite_differences(erd_talos, seed
     drift = contact.drift(model, data)
     drift_fd = erd_talos.along(q, v, lambda qq: contact.jacobian(model, erd_talos.at(data, qq)) @ v)
     np.testing.assert_allclose(drift, drift_fd, atol=1e-5 * (1 + np.abs(drift_fd).max()))
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=SEEDS)
+def test_classical_drift_is_the_origin_acceleration(erd_talos, seed):
+    """drift="classical": the frame origin's acceleration at zero joint acceleration in the frame's axes (the second
+    derivative of its world position, rotated), i.e. the spatial drift plus omega x v on the linear rows; the
+    angular rows are the spatial ones."""
+    model = erd_talos.model
+    data = model.createData()
+    spatial, classical = _contact(model), _contact(model, drift="classical")
+    assert (spatial.drift_convention, classical.drift_convention) == ("spatial", "classical")
+    q, v = erd_talos.random_state(seed)
+    erd_talos.at(data, q, v)
+    nu = spatial.velocity(model, data)
+    a = classical.drift(model, data)
+    np.testing.assert_allclose(a, spatial.drift(model, data) + np.r_[np.cross(nu[3:], nu[:3]), np.zeros(3)],
+                               atol=1e-12 * (1 + np.abs(a).max()))
+    R = classical.placement(model, data).rotation
+    h = 1e-5  # the world position's second derivative along q(t) = q + t v (zero joint acceleration)
+
+    def origin(t):
+        return classical.placement(model, erd_talos.at(data, pin.integrate(model, q, t * v))).translation
+
+    p_ddot = (origin(h) - 2 * origin(0.0) + origin(-h)) / h**2
+    np.testing.assert_allclose(R.T @ p_ddot, a[:3], atol=1e-3 * (1 + np.abs(a[:3]).max()))
+
+
+def test_tsid_wrench_metric_is_tsids_cost(erd_talos):
+    """`tsid_wrench_metric`: w^T W w is TSID's cost of the wrench w, weight ||diag(a) w_T||^2 at TSID's frame plus
+    eps times the squared norm of the least-norm corner forces making w (computed here by least squares)."""
+    contact = _contact(erd_talos.model)
+    rng = np.random.default_rng(5)
+    a = np.array([1.0, 1.0, 1e-3, 2.0, 2.0, 2.0])
+    ankle = pin.SE3(pin.exp3(np.array([0.0, 0.05, 0.1])), np.array([0.01, 0.0, 0.107]))  # TSID's frame in the sole's
+    G = contact.corner_wrench_map()
+    for frame in (None, ankle):
+        W = tsid_wrench_metric(contact.corners, weight=1e-5, axis_weights=a, corner_regularization=1e-8,
+                               tsid_frame=frame)
+        assert np.array_equal(W, W.T) and np.linalg.eigvalsh(W).min() > 0
+        for _ in range(5):
+            w = rng.normal(size=6) * [50, 50, 400, 20, 20, 5]
+            w_T = w if frame is None else frame.actInv(pin.Force(w)).vector
+            f = np.linalg.lstsq(G, w, rcond=None)[0]
+            cost = 1e-5 * np.sum((a * w_T) ** 2) + 1e-8 * f @ f
+            assert np.isclose(w @ W @ w, cost, rtol=1e-12)
+    # the ankle frame couples the sole's forces and moments
+    assert np.abs(W[:3, 3:]).max() > 1e-3 * np.abs(W).max()
 
 
 def test_motion_rows_keep_the_sole_still(erd_talos):
@@ -215,6 +270,10 @@ def test_corners_and_friction_coefficients(erd_talos):
         ({"min_normal_force": 100.0, "max_normal_force": 50.0}, "max_normal_force"),
         ({"kp": -30.0}, "kp"),
         ({"weight": -1.0}, "weight"),
+        ({"drift": "exact"}, "drift"),
+        ({"wrench_metric": np.eye(3)}, "wrench_metric"),
+        ({"wrench_metric": np.diag([1.0, 1.0, 1.0, 1.0, 1.0, -1e-3])}, "wrench_metric"),
+        ({"wrench_metric": np.eye(6) + np.eye(6, k=1)}, "wrench_metric"),
     ],
 )
 def test_bad_contact_definitions(erd_talos, kwargs, key):

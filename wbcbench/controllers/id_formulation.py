@@ -16,7 +16,9 @@ at its origin, exerted by the ground on the robot)::
 with tau = M_a dv + h_a - J_c,a^T w. `a` (6,) weighs the wrench's axes in its regularisation (`wrench_axis_weights`,
 default all 1); TSID's Contact6d uses a = (1, 1, 1e-3, 2, 2, 2): a moment about the sole costs 4e6 times as much as
 the same number of newtons of normal force, so in double support the QP moves the CoP between the feet by shifting
-normal force from one foot to the other rather than by ankle torques. `w_c*` are wrench targets
+normal force from one foot to the other rather than by ankle torques. A contact given its own metric
+(`Contact6D`'s `wrench_metric` W, (6, 6) symmetric PSD) has ``w_c^T W w_c`` instead of ``r_w ||a * w_c||^2``
+(`tsid_wrench_metric`: C++ TSID's, whose corner forces add their own regularisation). `w_c*` are wrench targets
 (`References.wrench_targets`), weighted by `wrench_target_weight` (0: none).
 
 The formulation owns the tasks, the contacts with their force ramps (a leaving contact's maximum normal force goes
@@ -55,6 +57,8 @@ from ..tasks import Contact6D, FrameTask, Task, TaskStack, update_kinematics
 from . import _kernels
 
 __all__ = ["ContactState", "IDSolution", "InverseDynamicsFormulation"]
+
+_DIAG6 = np.diag_indices(6)
 
 
 class ContactState:
@@ -102,11 +106,12 @@ class _Layout:
     __slots__ = ("slices", "k", "kb", "barriers", "cap_rows", "A_cost", "b_cost", "sw", "Jc", "H_dv", "g_dv",
                  "H_diag_w", "g_w", "A_hard", "b_hard", "M_base", "M_joints", "nle_base", "nle_joints", "cones",
                  "C_blocks", "u_blocks", "C", "l", "u", "lb_joints", "ub_joints", "problem", "problem_torque",
-                 "problem_relaxed", "targets_set", "rows", "buffers")
+                 "problem_relaxed", "targets_set", "rows", "buffers", "metric_blocks")
 
-    def __init__(self, F: InverseDynamicsFormulation, nc: int, stack: TaskStack, n_hard: int, A: np.ndarray,
+    def __init__(self, F: InverseDynamicsFormulation, active: tuple, stack: TaskStack, n_hard: int, A: np.ndarray,
                  b: np.ndarray):
         nv, na, d = F.nv, F.na, F.data
+        nc = len(active)
         self.slices = stack.slices
         me = self.slices[n_hard - 1].stop if n_hard else 0
         n, n_eq = nv + 6 * nc, 6 + me
@@ -129,6 +134,11 @@ class _Layout:
         H = np.zeros((n, n))
         diag = H.reshape(-1)[::n + 1]
         diag[nv:] = np.tile(F.wrench_regularization_diagonal, nc)
+        # the wrench blocks of the contacts with their own metric, and the metric
+        self.metric_blocks = [(H[nv + 6 * i:nv + 6 * i + 6, nv + 6 * i:nv + 6 * i + 6], W) for i, W in enumerate(
+            F.contacts[name].contact.wrench_metric for name in active) if W is not None]
+        for block, W in self.metric_blocks:
+            block[...] = W
         g = np.zeros(n)
         A_eq, b_eq = np.zeros((n_eq, n)), np.zeros(n_eq)
         C = np.zeros((18 * nc + nb + na, n))
@@ -385,7 +395,7 @@ class InverseDynamicsFormulation:
         A, b = stack.acceleration_rows(self.model, self.data)  # the same arrays (refilled) while the layout holds
         L = self._layouts.get(active)
         if L is None or L.slices is not stack.slices:  # first time, or the stack's layout changed
-            L = self._layouts[active] = _Layout(self, len(active), stack, n_hard, A, b)
+            L = self._layouts[active] = _Layout(self, active, stack, n_hard, A, b)
         self._layout = L
         if L.cap_rows.shape[0]:
             self.n_capped_ticks += _kernels.cap_task_accelerations(stack._b, stack._drift, stack._e, stack._v_ref,
@@ -408,15 +418,21 @@ class InverseDynamicsFormulation:
         return L.problem
 
     def _fill_wrench_targets(self, L: _Layout, active: tuple) -> None:
-        """The wrench block of the cost: r_w a^2 + w_f on the diagonal and -w_f w* in g on ticks with targets."""
+        """The wrench block of the cost: r_w a^2 (or a contact's metric) + w_f on the diagonal and -w_f w* in g on
+        ticks with targets."""
         targets, w = self._targets, self.wrench_target_weight
         if targets is not None and w > 0.0:
             L.H_diag_w.reshape(-1, 6)[...] = self.wrench_regularization_diagonal + w
+            for block, W in L.metric_blocks:
+                block[...] = W
+                block[_DIAG6] += w
             for i, name in enumerate(active):
                 np.multiply(targets[name], -w, out=L.g_w[6 * i:6 * i + 6])
             L.targets_set = True
         elif L.targets_set:
             L.H_diag_w.reshape(-1, 6)[...] = self.wrench_regularization_diagonal
+            for block, W in L.metric_blocks:
+                block[...] = W
             L.g_w[...] = 0.0
             L.targets_set = False
 

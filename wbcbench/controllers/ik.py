@@ -55,6 +55,11 @@ class IKController(Controller):
         if hard:
             raise ConfigError(f"task(s) {', '.join(hard)}: `hard` is for the inverse-dynamics QP; a hierarchy "
                               "orders tasks by `level`", file=spec.file, key="tasks")
+        for key, given in (("drift", spec.contacts.drift != "spatial"),
+                           ("wrench_metric", spec.contacts.wrench_metric is not None)):
+            if given:
+                raise ConfigError("is for the inverse-dynamics QP (contact accelerations and wrenches); the "
+                                  "kinematic hierarchy has neither", file=spec.file, key=f"contacts.{key}")
         self.tasks = [build_task(robot, t) for t in spec.tasks]
         levels = [[task for task, ts in zip(self.tasks, spec.tasks) if ts.level == lv]
                   for lv in sorted({t.level for t in spec.tasks})]

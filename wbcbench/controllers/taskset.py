@@ -33,6 +33,7 @@ import numpy as np
 from ..config import Section, load_yaml
 from ..errors import ConfigError
 from ..robots import Robot
+from ..tasks.contact_6d import DRIFTS, TSID_WRENCH_AXIS_WEIGHTS, as_wrench_metric, sole_corners, tsid_wrench_metric
 from ..tasks.registry import TaskSpec, resolve_frame, task_class
 from .corrections import SECTIONS, CorrectionSpec, parse_corrections, parse_settings, specs_from_sections
 
@@ -40,8 +41,8 @@ if TYPE_CHECKING:
     from ..estimation.base_feedback import BaseFeedbackConfig
     from ..stabilizers.base import StabilizerConfig
 
-__all__ = ["ContactSpec", "ReachCapSpec", "TaskSetSpec", "TaskSpec", "load_taskset", "resolve_frame",
-           "taskset_path", "taskset_variant_path"]
+__all__ = ["ContactSpec", "ReachCapSpec", "TaskSetSpec", "TaskSpec", "TsidWrenchMetric", "load_taskset",
+           "resolve_frame", "taskset_path", "taskset_variant_path"]
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
 
@@ -54,7 +55,9 @@ class ContactSpec:
     (`unload_before_lift_off`, from the references' contact schedule ahead) rather than starts there.
     `model_sole` (length, width) [m] replaces the profile's sole rectangle in the
     controller's model: position controllers relax it so a stabilizer moving the CoM does not saturate the
-    model's CoP limits (SIM-NOTES); None keeps the real sole."""
+    model's CoP limits (SIM-NOTES); None keeps the real sole. `drift`: the contacts' drift convention
+    (`Contact6D`'s: ``"spatial"``, ``"classical"``). `wrench_metric`: None (the `regularization:` section's
+    diagonal), a (6, 6) metric as rows, or `TsidWrenchMetric` (C++ TSID's, from the sole's corners)."""
 
     kp: float
     kd: float
@@ -64,6 +67,30 @@ class ContactSpec:
     transition_time: float = 0.05
     unload_before_lift_off: bool = False
     model_sole: tuple[float, float] | None = None
+    drift: str = "spatial"
+    wrench_metric: "tuple[tuple[float, ...], ...] | TsidWrenchMetric | None" = None
+
+    def wrench_metric_matrix(self, length: float, width: float, center) -> np.ndarray | None:
+        """The contacts' wrench metric (6, 6) for a sole rectangle `length` x `width` [m] centred at `center` (the
+        model's), None: the formulation's diagonal."""
+        m = self.wrench_metric
+        if m is None:
+            return None
+        if isinstance(m, TsidWrenchMetric):
+            return tsid_wrench_metric(sole_corners(length, width, center), weight=m.weight,
+                                      axis_weights=m.axis_weights, corner_regularization=m.corner_regularization)
+        return np.array(m, dtype=float)
+
+
+@dataclass(frozen=True)
+class TsidWrenchMetric:
+    """YAML ``contacts.wrench_metric: {form: tsid, weight, axis_weights, corner_regularization}``: C++ TSID's
+    regularisation of a Contact6d on the sole's four corners (`tsid_wrench_metric`): its force regularisation
+    weight (``addRigidContact``'s), its per-axis weights and its solver's Hessian regularisation."""
+
+    weight: float = 1e-5
+    axis_weights: tuple[float, ...] = TSID_WRENCH_AXIS_WEIGHTS
+    corner_regularization: float = 1e-8
 
 
 @dataclass(frozen=True)
@@ -257,7 +284,9 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                            max_normal_force=c.float("max_normal_force", 2000.0, positive=True),
                            transition_time=c.float("transition_time", 0.05, min=0.0),
                            unload_before_lift_off=c.bool("unload_before_lift_off", False),
-                           model_sole=tuple(c.vector("model_sole", length=2)) if c.has("model_sole") else None)
+                           model_sole=tuple(c.vector("model_sole", length=2)) if c.has("model_sole") else None,
+                           drift=c.str("drift", "spatial", choices=DRIFTS),
+                           wrench_metric=_wrench_metric(c) if c.has("wrench_metric") else None)
     if contacts.model_sole is not None and min(contacts.model_sole) <= 0:
         raise c.error("model_sole", "length and width must be > 0")
     if contacts.max_normal_force < contacts.min_normal_force:
@@ -269,6 +298,11 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     pitch_with_leg = sw.bool("pitch_with_leg", False)
     swing = _parse_task(sw, robot, name="swing_foot")
     reg = root.section("regularization", {})
+    if contacts.wrench_metric is not None:
+        for k in ("wrench", "wrench_axes"):
+            if reg.has(k):
+                raise reg.error(k, "the contacts' wrench_metric replaces the wrench regularisation: give one or "
+                                   "the other")
     corrections = None
     if root.has("corrections"):
         both = [k for k in SECTIONS if root.has(k)]
@@ -353,6 +387,27 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
     reg.finish()
     root.finish()
     return spec
+
+
+def _wrench_metric(c: Section) -> "tuple[tuple[float, ...], ...] | TsidWrenchMetric":
+    """`contacts.wrench_metric`: a 6 x 6 list (symmetric positive semi-definite) or `{form: tsid, ...}`."""
+    raw = c.raw("wrench_metric")
+    if isinstance(raw, dict):
+        sec = c.section("wrench_metric")
+        sec.str("form", choices=["tsid"])
+        out = TsidWrenchMetric(
+            weight=sec.float("weight", 1e-5, min=0.0),
+            axis_weights=tuple(sec.vector("axis_weights", list(TSID_WRENCH_AXIS_WEIGHTS), length=6,
+                                          nonnegative=True).tolist()),
+            corner_regularization=sec.float("corner_regularization", 1e-8, min=0.0))
+        sec.finish()
+        return out
+    try:
+        W = as_wrench_metric(raw)
+    except ValueError as exc:
+        raise c.error("wrench_metric", f"{exc}, or {{form: tsid, weight, axis_weights, corner_regularization}}; "
+                                       f"got {raw!r}") from None
+    return tuple(tuple(float(x) for x in row) for row in W)
 
 
 def _positive_section(root, key: str, cls, required: tuple[str, ...] = (), upper: dict | None = None):

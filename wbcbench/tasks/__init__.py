@@ -17,7 +17,7 @@ the environment on the robot, in the contact frame at its origin. Units SI.
 
 from wbcbench.tasks.angular_momentum_task import AngularMomentumTask
 from wbcbench.tasks.com_task import CoMTask
-from wbcbench.tasks.contact_6d import Contact6D
+from wbcbench.tasks.contact_6d import Contact6D, tsid_wrench_metric
 from wbcbench.tasks.exceptions import ReferenceNotSetError, TaskConfigError, UnknownNameError
 from wbcbench.tasks.formulation import acceleration_rows, velocity_rows
 from wbcbench.tasks.frame_task import FrameTask
@@ -49,6 +49,7 @@ __all__ = [
     "register_task",
     "task_class",
     "task_types",
+    "tsid_wrench_metric",
     "update_kinematics",
     "update_kinematics_velocity_level",
     "velocity_rows",

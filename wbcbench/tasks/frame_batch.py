@@ -16,7 +16,8 @@ the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
   acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``;
 * a contact's rows are in its LOCAL frame: the Jacobian above rotated by ``R^T``, the error
   ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``) and the drift the
-  spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL);
+  spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL), or for a
+  contact with the classical drift the classical acceleration above in the frame's axes, ``R^T [p_ddot; w_dot]``;
 * the CoM task's rows from the centroidal map: ``Ag[:3] / m``, ``p_ref - com``, ``dAg[:3] v / m``.
 
 The same quantities as pinocchio's to rounding (the tests compare them on random states), not the same bits: a
@@ -66,6 +67,8 @@ class FrameBatch:
         k = len(framed)
         parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
         self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
+        self._classical = np.array([getattr(t, "drift_convention", "spatial") == "classical" for t in self.tasks],
+                                   dtype=np.bool_)
         if self._com:
             task, start = self._com[0]
             self._com_rows = np.array([start + r for r in range(len(task.rows))], dtype=np.intp)
@@ -125,9 +128,9 @@ class FrameBatch:
         with_drift = drift is not None
         _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
                     self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                    if with_drift else _EMPTY, self._support, self._local, self._p_ref, self._R_ref, self._axes,
-                    self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg, com, com_ref,
-                    self._com_axes, self._com_rows, self._com_inv_mass)
+                    if with_drift else _EMPTY, self._support, self._local, self._classical, self._p_ref, self._R_ref,
+                    self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
+                    com, com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
 
 
 _EMPTY = np.zeros(0)
@@ -224,7 +227,8 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 
 
 @njit
-def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local, p_ref,
+def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
+                classical, p_ref,
                 R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
     # the CoM task's rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m
     for r in range(com_rows.shape[0]):
@@ -245,6 +249,7 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
     M = np.empty((3, 3))
     w = np.empty(3)
     d = np.empty(3)
+    ca = np.empty(6)
     for i in range(k):
         jp = parents[i]
         for a in range(3):
@@ -277,7 +282,12 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
             log3(M, w)
         err[i, 3], err[i, 4], err[i, 5] = w[0], w[1], w[2]
         if with_drift:
-            if local[i]:  # spatial acceleration at the frame origin, in the frame's axes
+            if local[i] and classical[i]:  # classical acceleration, in the frame's axes
+                classical_acceleration(J, dJ, v, support[i], t[i], ca)
+                for a in range(3):
+                    acc[i, a] = R[i, 0, a] * ca[0] + R[i, 1, a] * ca[1] + R[i, 2, a] * ca[2]
+                    acc[i, 3 + a] = R[i, 0, a] * ca[3] + R[i, 1, a] * ca[4] + R[i, 2, a] * ca[5]
+            elif local[i]:  # spatial acceleration at the frame origin, in the frame's axes
                 _, _, sa, wd = point_motion(J, dJ, v, support[i], t[i])
                 for a in range(3):
                     acc[i, a] = R[i, 0, a] * sa[0] + R[i, 1, a] * sa[1] + R[i, 2, a] * sa[2]
