@@ -51,7 +51,7 @@ def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
 def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
     if loader_name.startswith("fourier:"):
         try:
-            from fourier_robot_descriptions.fourier import PACKAGE_PATH, REPOSITORY_PATH
+            from fourier_robot_descriptions.fourier import PACKAGE_PATH
         except ImportError:
             raise ConfigError("fourier models need the fourier-robot-descriptions package (pip install "
                               "fourier-robot-descriptions)", file=profile_file, key="loader") from None
@@ -60,7 +60,8 @@ def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
         if not urdf.exists():
             raise UnknownNameError("fourier model", name, sorted(p.stem for p in PACKAGE_PATH.glob("*.urdf")),
                                    file=profile_file, key="loader")
-        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=REPOSITORY_PATH.resolve(),
+        # their meshes are "../meshes/<model>/...", relative to the URDF's folder (GR2, Qinglong: only found there)
+        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=PACKAGE_PATH.resolve(),
                           has_rotor_parameters=False)
     urdf = Path(loader_name).expanduser()
     if not urdf.is_absolute() and profile_file:
