@@ -13,13 +13,13 @@ from wbcbench.sim.model import sole_geom_name
 from wbcbench.sim.simulator import Simulator
 
 ROBOTS = builtin_robots()
-GENERATED = ["alexander", "gr1t2", "gr3", "romeo"]  # profiles written by `wbcbench robot init`
+GENERATED = ["alexander", "gr1t2", "gr2t2", "gr2t2d", "gr2t2v2", "gr3", "qinglong", "romeo"]  # profiles written by `wbcbench robot init`
 
 
 def test_the_shipped_robots_are_listed(capsys):
     from wbcbench.cli import main
 
-    assert set(GENERATED) <= set(ROBOTS) and len(ROBOTS) >= 5
+    assert set(GENERATED) <= set(ROBOTS) and len(ROBOTS) >= 10
     assert main(["list"]) == 0
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("robots:"))
     assert all(r in line for r in ROBOTS)

@@ -69,7 +69,11 @@ BUILTIN_ROBOTS: dict[str, str] = {
     "alexander": "alexander.yaml",
     "g1": "g1.yaml",
     "gr1t2": "gr1t2.yaml",
+    "gr2t2": "gr2t2.yaml",
+    "gr2t2d": "gr2t2d.yaml",
+    "gr2t2v2": "gr2t2v2.yaml",
     "gr3": "gr3.yaml",
+    "qinglong": "qinglong.yaml",
     "romeo": "romeo.yaml",
     "talos": "talos.yaml",
 }

@@ -1,6 +1,6 @@
 """The report subcommands of the command line: `reproduce`, `report` and `compare`.
 
-    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] [--robot NAME] --out DIR
+    wbcbench reproduce [--quick] [--jobs N] [--no-keyframes] [--video] [--robot NAME | --robots all|R1,R2] --out DIR
     wbcbench report RUN_DIR... --out DIR
     wbcbench compare RUN_A RUN_B
 """
@@ -49,6 +49,9 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--engines", default=None, metavar="E1,E2",
                    help="the matrix on each engine (OUT/<engine>/) and an engine-sensitivity section beside them "
                         "(OUT/engine-sensitivity.md, .html, .json), the first engine the reference")
+    r.add_argument("--robots", default=None, metavar="all|R1,R2",
+                   help="the matrix on every robot ('all') or on these, on one process pool (OUT/<robot>/ each), "
+                        "and a cross-robot section beside them (OUT/robots.md, .html, .json)")
     p = sub.add_parser("report", help="remake tables and figures from existing run directories (no simulation)")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories (from `wbcbench run`)")
     p.add_argument("--out", "-o", required=True, help="report directory")
@@ -89,6 +92,16 @@ def run_command(args: argparse.Namespace) -> int:
 
             reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine, **kwargs)
             _print_side_by_side(console, reports, Path(args.out), "ideal vs realistic", "real-robot")
+            return 0
+        if args.robots:
+            if args.engines or args.realism or args.robot != "talos" or args.envelope:
+                raise WbcError("--robots runs every robot on one engine, ideal: not with --robot, --engines, "
+                               "--realism or --envelope")
+            from .reproduce import reproduce_robots
+
+            kwargs.pop("robot")
+            reports, _ = reproduce_robots(args.out, args.robots, engine=args.engine, **kwargs)
+            _print_side_by_side(console, reports, Path(args.out), "robots side by side", "robots")
             return 0
         if args.engines:
             from .reproduce import reproduce_engines

@@ -84,6 +84,11 @@ class Job:
     def name(self) -> str:
         return f"{self.section}-{self.scenario}-{self.controller}"
 
+    @property
+    def label(self) -> str:
+        """The job's name in progress and messages: its robot's name first when that is not TALOS."""
+        return self.name if self.robot == "talos" else f"{self.robot}/{self.name}"
+
 
 MEDIA_SECTIONS: tuple[str, ...] = ("paper", "fast")
 """Sections whose cells get a key-frame strip (and with --video a clip) in the report: the tables' cells."""

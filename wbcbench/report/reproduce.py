@@ -86,17 +86,17 @@ def execute(job: matrix.Job, runs_root: str) -> RunOutcome:
     from ..runner import run
 
     run_dir = Path(runs_root) / job.name
-    _send("start", job.name)
+    _send("start", job.label)
     try:
         result = run(job.scenario_run, job.controller, job.robot, None, job.duration_cap_s, run_dir,
-                     progress=lambda f: _send("progress", job.name, f), sensors=job.sensors, overwrite=True,
+                     progress=lambda f: _send("progress", job.label, f), sensors=job.sensors, overwrite=True,
                      engine=job.engine, realism=job.realism)
     except WbcError as exc:
         return RunOutcome(status=ERROR, reason=str(exc), run_dir=str(run_dir), **base)
     except Exception as exc:  # a crash outside the controller (the runner keeps controller crashes)
         return RunOutcome(status=ERROR, reason=f"{type(exc).__name__}: {exc}", run_dir=str(run_dir), **base)
     finally:
-        _send("done", job.name)
+        _send("done", job.label)
     summary = result.summary
     status, reason = (FELL, summary.get("fall_reason")) if summary.get("fell") else (OK, None)
     if not result.log:
@@ -142,11 +142,14 @@ def render_media(outcome: RunOutcome, *, keyframes: bool = True, video: bool = F
 
 
 # ------------------------------------------------------------------------------------------- execution
-def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bool,
+def _run_jobs(jobs: list[matrix.Job], runs_root: Path | list[Path], n_jobs: int, progress: bool,
               ray: str | None = None) -> list[RunOutcome]:
+    """Run `jobs` (into `runs_root`, or one runs root per job) on the process pool, Ray or inline."""
     global _SINK
+    roots = [str(r) for r in runs_root] if isinstance(runs_root, list) else [str(runs_root)] * len(jobs)
+    root_of = {id(j): r for j, r in zip(jobs, roots)}
     runnable = [j for j in jobs if not j.missing]
-    results: dict[str, RunOutcome] = {j.name: execute(j, str(runs_root)) for j in jobs if j.missing}
+    results: dict[int, RunOutcome] = {id(j): execute(j, root_of[id(j)]) for j in jobs if j.missing}
     prog = None
     if progress and runnable:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -169,25 +172,25 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
             prog.update(tasks[name], completed=1.0, visible=False)
 
     def finished(job: matrix.Job, outcome: RunOutcome) -> None:
-        results[job.name] = outcome
+        results[id(job)] = outcome
         if prog is not None:
             prog.advance(total)
             if outcome.status != OK:
                 why = f" ({outcome.reason})" if outcome.reason else ""
-                prog.console.print(f"  {job.name}: {outcome.status}{why}")
+                prog.console.print(f"  {job.label}: {outcome.status}{why}")
 
     try:
         if ray:  # the sweeps' execution layer (wbcbench.study.execute): a local Ray or a cluster
             from ..study.execute import RayExecutor
             with RayExecutor(ray, n_jobs if ray == "auto" else None) as ex:
-                kwargs = [{"job": job, "runs_root": str(runs_root)} for job in runnable]
+                kwargs = [{"job": job, "runs_root": root_of[id(job)]} for job in runnable]
                 for i, outcome in ex.map_unordered(execute, kwargs):
                     finished(runnable[i], outcome)
         elif n_jobs <= 1:
             _SINK = on_message
             try:
                 for job in runnable:
-                    finished(job, execute(job, str(runs_root)))
+                    finished(job, execute(job, root_of[id(job)]))
             finally:
                 _SINK = None
         else:
@@ -195,7 +198,7 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
             q = ctx.Queue()
             with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx, initializer=_init_worker,
                                      initargs=(q,)) as pool:
-                pending = {pool.submit(execute, job, str(runs_root)): job for job in runnable}
+                pending = {pool.submit(execute, job, root_of[id(job)]): job for job in runnable}
                 try:
                     while pending:
                         done, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -220,7 +223,7 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path, n_jobs: int, progress: bo
     finally:
         if prog is not None:
             prog.stop()
-    return [results[j.name] for j in jobs]
+    return [results[id(j)] for j in jobs]
 
 
 def write_report(outcomes: list[RunOutcome], out_dir: str | Path, *, command: str, quick: bool | None = None,
@@ -266,6 +269,69 @@ def key_frames(outcomes: list[RunOutcome], out_dir: Path) -> list[dict]:
     return out
 
 
+def _plan(*, quick: bool, sanity: bool, sensors: str | None, controllers: list[str] | None,
+          scenarios: list[str] | None, keyframes: bool, video: bool, robot: str, engine: str,
+          realism: str | None) -> tuple[list[matrix.Job], str, object]:
+    """The jobs of one robot's reproduction (every name checked before anything runs), the command line that
+    states them and the robot."""
+    from .runs import cached_robot
+
+    robot_obj = cached_robot(robot)  # an unknown robot fails before anything runs
+    from ..sim.engines import engine_class
+
+    engine_class(engine)  # an unknown or missing engine fails before anything runs
+    if realism is not None:  # a bad preset fails before anything runs
+        from ..sim.realism import load_realism
+
+        if engine != "mujoco":
+            raise WbcError(f"--realism needs the mujoco engine, not '{engine}'")
+        load_realism(realism, robot_obj)
+    if sensors is not None:
+        from ..sensing import load_sensor_profile
+
+        load_sensor_profile(sensors)  # a bad profile fails before anything runs
+    if controllers is not None:
+        from ..controllers.base import available_controllers, controller_plugin_errors
+        from ..errors import UnknownNameError
+        from ..plugins import PluginError
+
+        known = available_controllers()
+        for c in controllers:
+            if c not in known:
+                if c in controller_plugin_errors():
+                    raise PluginError(controller_plugin_errors()[c], key="--controllers")
+                raise UnknownNameError("controller", c, known, key="--controllers")
+    plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
+                            scenarios=scenarios)
+    if keyframes or video:
+        from dataclasses import replace
+
+        plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
+                for j in plan]
+    if robot != "talos" or engine != "mujoco" or realism is not None:
+        from dataclasses import replace
+
+        plan = [replace(j, robot=robot, engine=engine, realism=realism) for j in plan]
+    command = "reproduce --quick" if quick else "reproduce"
+    if robot != "talos":
+        command += f" --robot {robot}"
+    if engine != "mujoco":
+        command += f" --engine {engine}"
+    if realism is not None:
+        command += f" --realism {realism}"
+    if sensors:
+        command += f" --sensors {sensors}"
+    if controllers:
+        command += f" --controllers {','.join(controllers)}"
+    if scenarios:
+        command += f" --scenarios {','.join(scenarios)}"
+    if video:
+        command += " --video"
+    elif not keyframes:
+        command += " --no-keyframes"
+    return plan, command, robot_obj
+
+
 def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None, progress: bool = True,
               *, sanity: bool = True, sensors: str | None = None, controllers: list[str] | None = None,
               scenarios: list[str] | None = None, ray: str | None = None, keyframes: bool = True,
@@ -305,62 +371,10 @@ def reproduce(out_dir: str | Path, quick: bool = False, jobs: int | None = None,
     n_jobs = default_jobs() if jobs is None else int(jobs)
     if n_jobs < 1:
         raise WbcError(f"--jobs must be >= 1, got {jobs}")
-    from .runs import cached_robot
-
-    robot_obj = cached_robot(robot)  # an unknown robot fails before anything runs
-    from ..sim.engines import engine_class
-
-    engine_class(engine)  # an unknown or missing engine fails before anything runs
-    if realism is not None:  # a bad preset fails before anything runs
-        from ..sim.realism import load_realism
-
-        if engine != "mujoco":
-            raise WbcError(f"--realism needs the mujoco engine, not '{engine}'")
-        load_realism(realism, robot_obj)
-    if sensors is not None:
-        from ..sensing import load_sensor_profile
-
-        load_sensor_profile(sensors)  # a bad profile fails before anything runs
-    if controllers is not None:
-        from ..controllers.base import available_controllers, controller_plugin_errors
-        from ..errors import UnknownNameError
-        from ..plugins import PluginError
-
-        known = available_controllers()
-        for c in controllers:
-            if c not in known:
-                if c in controller_plugin_errors():
-                    raise PluginError(controller_plugin_errors()[c], key="--controllers")
-                raise UnknownNameError("controller", c, known, key="--controllers")
-    plan = matrix.plan_jobs(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
-                            scenarios=scenarios)
-    if keyframes or video:
-        from dataclasses import replace
-
-        plan = [replace(j, keyframes=keyframes, video=video) if j.section in matrix.MEDIA_SECTIONS else j
-                for j in plan]
-    if robot != "talos" or engine != "mujoco" or realism is not None:
-        from dataclasses import replace
-
-        plan = [replace(j, robot=robot, engine=engine, realism=realism) for j in plan]
+    plan, command, robot_obj = _plan(quick=quick, sanity=sanity, sensors=sensors, controllers=controllers,
+                                     scenarios=scenarios, keyframes=keyframes, video=video, robot=robot,
+                                     engine=engine, realism=realism)
     outcomes = _run_jobs(plan, runs_root, n_jobs, progress, ray)
-    command = "reproduce --quick" if quick else "reproduce"
-    if robot != "talos":
-        command += f" --robot {robot}"
-    if engine != "mujoco":
-        command += f" --engine {engine}"
-    if realism is not None:
-        command += f" --realism {realism}"
-    if sensors:
-        command += f" --sensors {sensors}"
-    if controllers:
-        command += f" --controllers {','.join(controllers)}"
-    if scenarios:
-        command += f" --scenarios {','.join(scenarios)}"
-    if video:
-        command += " --video"
-    elif not keyframes:
-        command += " --no-keyframes"
     results, figures = write_report(outcomes, out, command=command, quick=quick, jobs=n_jobs, started_at=t0,
                                     robot=None if robot == "talos" else robot_obj)
     return ReportResult(out, results, outcomes, figures, [], results["wall_time_s"])
@@ -402,6 +416,59 @@ def reproduce_realism(out_dir: str | Path, realism: str, **kwargs) -> tuple[list
     return [ideal, real], sens
 
 
+def robot_names(robots: str | list[str]) -> list[str]:
+    """`--robots`: "all" (every shipped and installed robot) or names / profile paths, comma-separated or a list."""
+    from ..robots.profile import available_robots
+
+    names = robots.split(",") if isinstance(robots, str) else list(robots)
+    names = [n.strip() for n in names if n.strip()]
+    if names == ["all"]:
+        return list(available_robots())
+    if not names or len(set(names)) != len(names) or "all" in names:
+        raise WbcError(f"--robots needs 'all' or different robot names, got '{','.join(names)}'")
+    return names
+
+
+def reproduce_robots(out_dir: str | Path, robots: str | list[str], *, jobs: int | None = None,
+                     progress: bool = True, ray: str | None = None, **kwargs) -> tuple[list[ReportResult], dict]:
+    """The matrix on several robots (`robots`: "all" or names, `robot_names`), every robot's cells on one process
+    pool; each robot's complete report in OUT/<robot>/ (its runs in OUT/<robot>/runs/), then the cross-robot
+    section OUT/robots.md, .html, .json (`wbcbench.report.robots`): each cell's outcome, ZMP error, cost of
+    transport and compute time per tick, the 20 cm walk's key frames side by side, and which profile keys were
+    generated and which tuned by hand. Every robot is checked before anything runs."""
+    from . import robots as section
+
+    t0 = time.perf_counter()
+    names = robot_names(robots)
+    n_jobs = default_jobs() if jobs is None else int(jobs)
+    if n_jobs < 1:
+        raise WbcError(f"--jobs must be >= 1, got {jobs}")
+    kwargs.setdefault("quick", False)
+    kwargs.setdefault("sanity", True)
+    opts = dict(sensors=None, controllers=None, scenarios=None, keyframes=True, video=False, engine="mujoco",
+                realism=None)
+    opts.update({k: kwargs.pop(k) for k in list(kwargs) if k in opts})
+    out = Path(out_dir)
+    plans = {r: _plan(robot=r, **opts, **kwargs) for r in names}
+    jobs_all, roots = [], []
+    for r, (plan, _, _) in plans.items():
+        jobs_all += plan
+        roots += [out / r / "runs"] * len(plan)
+        (out / r / "runs").mkdir(parents=True, exist_ok=True)
+    outcomes = _run_jobs(jobs_all, roots, n_jobs, progress, ray)
+    reports, per_robot, k = [], {}, 0
+    for r, (plan, command, robot_obj) in plans.items():
+        mine = outcomes[k:k + len(plan)]
+        k += len(plan)
+        results, figures = write_report(mine, out / r, command=command, quick=kwargs["quick"], jobs=n_jobs,
+                                        robot=None if r == "talos" else robot_obj)
+        reports.append(ReportResult(out / r, results, mine, figures, [], 0.0))
+        per_robot[r] = mine
+    provenance = {r: plans[r][2].profile.file for r in names}
+    cross = section.write(per_robot, provenance, out, wall_time_s=time.perf_counter() - t0)
+    return reports, cross
+
+
 def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
     """Remake the tables and figures from existing run directories, without simulating.
 
@@ -432,4 +499,4 @@ def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:
 
 
 __all__ = ["ReportResult", "default_jobs", "execute", "key_frames", "read_run_log", "render_media", "report",
-           "reproduce", "write_report"]
+           "reproduce", "reproduce_robots", "robot_names", "write_report"]

@@ -27,7 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
-from .robot import _model_files
+from .robot import MJCF_SUFFIXES, _model_files, mjcf_error
 
 G = 9.81
 
@@ -41,6 +41,8 @@ class Generated:
 def _loader_for(source: str) -> str:
     """The profile's `loader` for a SOURCE: a URDF path (absolute), `fourier:<name>`, or an example-robot-data
     name; a bare fourier model name is tried after example-robot-data's."""
+    if source.lower().endswith(MJCF_SUFFIXES):
+        raise mjcf_error(Path(source).expanduser(), "", "SOURCE")
     if source.endswith(".urdf"):
         p = Path(source).expanduser()
         if not p.is_file():

@@ -25,9 +25,26 @@ class ModelFiles:
     has_rotor_parameters: bool
 
 
+MJCF_SUFFIXES = (".xml", ".mjcf")
+"""Model files in MuJoCo's format, which profiles do not load (yet): named in a one-line error."""
+
+
+def mjcf_error(path: Path, file: str, key: str) -> ConfigError:
+    """The error for an MJCF model given where a URDF is read (a profile's `loader`, `robot init`'s SOURCE)."""
+    what = "does not exist" if not path.is_file() else "is MJCF"
+    return ConfigError(f"model file '{path}' {what}: profiles load URDF models only (a URDF path, an "
+                       "example-robot-data or a fourier-robot-descriptions model); the free base is added to the "
+                       "URDF's root link", file=file or str(path), key=key)
+
+
 def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
     """The model files a profile's `loader` names: an example-robot-data loader name, `fourier:<model>` (a URDF of
     the `fourier-robot-descriptions` package) or a URDF path (relative paths from the profile's directory)."""
+    if loader_name.lower().endswith(MJCF_SUFFIXES):
+        path = Path(loader_name).expanduser()
+        if not path.is_absolute() and profile_file:
+            path = Path(profile_file).parent / path
+        raise mjcf_error(path, profile_file, "loader")
     if loader_name.startswith("fourier:") or loader_name.endswith(".urdf"):
         return _urdf_files(loader_name, profile_file)
     from example_robot_data.robots_loader import ROBOTS
@@ -51,7 +68,7 @@ def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
 def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
     if loader_name.startswith("fourier:"):
         try:
-            from fourier_robot_descriptions.fourier import PACKAGE_PATH, REPOSITORY_PATH
+            from fourier_robot_descriptions.fourier import PACKAGE_PATH
         except ImportError:
             raise ConfigError("fourier models need the fourier-robot-descriptions package (pip install "
                               "fourier-robot-descriptions)", file=profile_file, key="loader") from None
@@ -60,7 +77,8 @@ def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
         if not urdf.exists():
             raise UnknownNameError("fourier model", name, sorted(p.stem for p in PACKAGE_PATH.glob("*.urdf")),
                                    file=profile_file, key="loader")
-        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=REPOSITORY_PATH.resolve(),
+        # their meshes are "../meshes/<model>/...", relative to the URDF's folder (GR2, Qinglong: only found there)
+        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=PACKAGE_PATH.resolve(),
                           has_rotor_parameters=False)
     urdf = Path(loader_name).expanduser()
     if not urdf.is_absolute() and profile_file:
