@@ -30,6 +30,7 @@ BUILTIN_CONTROLLERS: dict[str, str] = {
 #: scenario kinds (wbcbench.scenarios.base)
 BUILTIN_KINDS: dict[str, str] = {
     "one-foot": "wbcbench.scenarios.kinds:OneFootScenario",
+    "posture-sinusoid": "wbcbench.scenarios.kinds:PostureSinusoidScenario",
     "stand": "wbcbench.scenarios.base:Scenario",
     "sway": "wbcbench.scenarios.kinds:SwayScenario",
     "teleop": "wbcbench.scenarios.teleop_kind:TeleopScenario",

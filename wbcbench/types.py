@@ -107,6 +107,17 @@ class PointReference:
 
 
 @dataclass(frozen=True, slots=True)
+class JointReference:
+    """A joint-space reference for a posture task (`References.targets[task name]`): the full configuration
+    `configuration` (nq,) of which the task uses its selected joints (the base part may hold anything normalized),
+    and the task axes' velocity and acceleration (dim,) [rad/s, rad/s^2] (None: zero)."""
+
+    configuration: np.ndarray
+    velocity: np.ndarray | None = None
+    acceleration: np.ndarray | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class PoseReference:
     """A frame's SE(3) reference in the world: position (3,) [m], rotation (3, 3) or None, and the twist
     velocity (6,) [m/s, rad/s] and acceleration (6,) in LOCAL_WORLD_ALIGNED axes (linear first).

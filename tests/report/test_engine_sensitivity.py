@@ -66,7 +66,8 @@ def test_reproduce_realism_puts_the_ideal_and_the_realistic_robot_side_by_side(t
     realistic runs' config and command; an unknown preset fails before anything runs."""
     from wbcbench.report.reproduce import reproduce_realism
 
-    reports, sens = reproduce_realism(tmp_path, "talos-real", quick=True, jobs=1, progress=False, sanity=False,
+    reports, sens = reproduce_realism(tmp_path, "talos-real", posture_gains=False, quick=True, jobs=1,
+                                      progress=False, sanity=False,
                                       controllers=["tsid-torque"], scenarios=["walk-20cm"], keyframes=False)
     ideal, real = reports
     assert sens["engines"] == ["ideal", "talos-real"] and (tmp_path / "real-robot.md").exists()

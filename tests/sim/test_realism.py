@@ -263,3 +263,33 @@ def test_an_empty_preset_changes_no_nominal_column(tmp_path, robot):
     for k in off:
         if k != "controller_time_us":
             np.testing.assert_array_equal(on[k], off[k], err_msg=k)
+
+
+def test_preset_extends_replaces_sections_and_null_removes_one(robot, tmp_path):
+    """`extends:` starts from another preset; a section given replaces the base's, a null one removes it."""
+    base = load_realism("talos-real", robot)
+    act = load_realism("talos-actuation", robot)   # talos-real with ideal sensing
+    assert act.sensors == "ideal" and base.sensors == "talos-like"
+    assert act.stiffness == base.stiffness and act.hip == base.hip and act.torque_loop == base.torque_loop
+    f = tmp_path / "nohip.yaml"
+    f.write_text("extends: talos-actuation\nhip_flexibility: null\ntorque_loop: {bandwidth: 50.0}\n")
+    mine = load_realism(str(f), robot)
+    assert mine.hip is None and mine.torque_loop == LoopSpec(bandwidth=50.0)
+    assert mine.stiffness == base.stiffness and mine.sensors == "ideal"
+    g = tmp_path / "child.yaml"   # a path relative to the file
+    g.write_text("extends: nohip.yaml\nsensors: talos-like\n")
+    assert load_realism(str(g), robot).hip is None and load_realism(str(g), robot).sensors == "talos-like"
+
+
+@pytest.mark.parametrize("body, needles", [
+    ("extends: no-such-preset\n", ["key 'extends'", "no-such-preset", "talos-real"]),
+    ("extends: loop.yaml\n", ["key 'extends'", "extends itself"]),
+    ("extends: [talos-real]\n", ["key 'extends'", "preset name or file"]),
+])
+def test_preset_extends_errors(robot, tmp_path, body, needles):
+    f = tmp_path / "loop.yaml"
+    f.write_text(body)
+    with pytest.raises(ConfigError) as e:
+        load_realism(str(f), robot)
+    for n in [str(f), *needles]:
+        assert n in str(e.value), str(e.value)

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..side import Side
 from ..tasks import CoMTask, FrameTask, Task
-from ..types import PoseReference, References
+from ..types import JointReference, PoseReference, References
 
 __all__ = ["TaskReferences", "with_swing_pitch"]
 
@@ -52,7 +52,8 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping, axes: Mapping | None = None)
 class TaskReferences:
     """Hands references to tasks: the CoM plan to every CoM task, each named target to the task of that name
     (unknown names are ignored: a scenario may serve several controllers), each swing-foot reference to the
-    free-motion task of that foot. A pose reference without a rotation keeps the task's current one.
+    free-motion task of that foot. A pose reference without a rotation keeps the task's current one; a
+    `JointReference` goes to a posture task.
     `swing_pitch` (the task set's `swing_foot.pitch_with_leg`): the swing feet's references take the plan's pitch
     offsets (`References.swing_pitch`, `with_swing_pitch`)."""
 
@@ -71,7 +72,11 @@ class TaskReferences:
                 task.set_reference(com.position, com.velocity, com.acceleration)
         for name, target in refs.targets.items():
             task = self.by_name.get(name)
-            if task is not None:
+            if task is None:
+                continue
+            if type(target) is JointReference:  # a posture task's joint-space reference
+                task.set_reference(target.configuration, target.velocity, target.acceleration)
+            else:
                 task.set_pose(target.position, target.rotation, target.velocity, target.acceleration)
         feet = refs.feet
         if self.swing_pitch and refs.swing_pitch:  # the plan's swing that pitches with the leg

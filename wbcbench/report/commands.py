@@ -45,7 +45,10 @@ def add_subcommands(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--realism", default=None, metavar="PRESET",
                    help="the matrix on the ideal robot (OUT/ideal/) and on this realistic one (OUT/<preset>/, e.g. "
                         "talos-real: actuator chains, hip flexibility, talos-like sensors) side by side "
-                        "(OUT/real-robot.md, .html, .json)")
+                        "(OUT/real-robot.md, .html, .json), then paper 000's Tables 9-10 on the same preset "
+                        "(OUT/posture-gains/, `wbcbench robustness posture-gains`)")
+    r.add_argument("--no-posture-gains", action="store_true",
+                   help="with --realism: skip the Tables 9-10 posture-gain study")
     r.add_argument("--engines", default=None, metavar="E1,E2",
                    help="the matrix on each engine (OUT/<engine>/) and an engine-sensitivity section beside them "
                         "(OUT/engine-sensitivity.md, .html, .json), the first engine the reference")
@@ -85,14 +88,6 @@ def run_command(args: argparse.Namespace) -> int:
                       controllers=args.controllers.split(",") if args.controllers else None,
                       scenarios=args.scenarios.split(",") if args.scenarios else None, ray=args.ray,
                       keyframes=not args.no_keyframes, video=args.video, robot=args.robot)
-        if args.realism:
-            if args.engines:
-                raise WbcError("--realism and --engines: one comparison at a time")
-            from .reproduce import reproduce_realism
-
-            reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine, **kwargs)
-            _print_side_by_side(console, reports, Path(args.out), "ideal vs realistic", "real-robot")
-            return 0
         if args.robots:
             if args.engines or args.realism or args.robot != "talos" or args.envelope:
                 raise WbcError("--robots runs every robot on one engine, ideal: not with --robot, --engines, "
@@ -102,6 +97,15 @@ def run_command(args: argparse.Namespace) -> int:
             kwargs.pop("robot")
             reports, _ = reproduce_robots(args.out, args.robots, engine=args.engine, **kwargs)
             _print_side_by_side(console, reports, Path(args.out), "robots side by side", "robots")
+            return 0
+        if args.realism:
+            if args.engines:
+                raise WbcError("--realism and --engines: one comparison at a time")
+            from .reproduce import reproduce_realism
+
+            reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine,
+                                           posture_gains=not args.no_posture_gains, **kwargs)
+            _print_side_by_side(console, reports, Path(args.out), "ideal vs realistic", "real-robot")
             return 0
         if args.engines:
             from .reproduce import reproduce_engines

@@ -397,11 +397,13 @@ def reproduce_engines(out_dir: str | Path, engines: list[str], **kwargs) -> tupl
     return reports, sens
 
 
-def reproduce_realism(out_dir: str | Path, realism: str, **kwargs) -> tuple[list[ReportResult], dict]:
+def reproduce_realism(out_dir: str | Path, realism: str, posture_gains: bool = True,
+                      **kwargs) -> tuple[list[ReportResult], dict]:
     """`reproduce` on the ideal robot (OUT/ideal/) and on the realistic one (OUT/<preset name>/), then the two
     side by side (OUT/real-robot.md, .html, .json): which cells change, which controller falls, the rankings on
     each (paper 000's future work, "evaluate the three controllers on the real robot", as far as simulation
-    goes)."""
+    goes). `posture_gains`: then paper 000's Tables 9-10 on the same preset (`wbcbench.robustness.posture`, when
+    the robot has the Table 9 task set), appended to real-robot.md."""
     from ..sim.realism import load_realism
     from . import engines as comparison
     from .runs import cached_robot
@@ -413,6 +415,12 @@ def reproduce_realism(out_dir: str | Path, realism: str, **kwargs) -> tuple[list
     real = reproduce(out / label, realism=realism, **kwargs)
     sens = comparison.write({"ideal": ideal.results, label: real.results}, out, stem="real-robot",
                             title=f"The ideal robot and {label}")
+    posture = _posture_section(out, realism, kwargs) if posture_gains else None
+    if posture is not None:
+        import json
+
+        sens["posture_gains"] = posture
+        (out / "real-robot.json").write_text(json.dumps(sens, indent=1, allow_nan=False))
     return [ideal, real], sens
 
 
@@ -467,6 +475,25 @@ def reproduce_robots(out_dir: str | Path, robots: str | list[str], *, jobs: int 
     provenance = {r: plans[r][2].profile.file for r in names}
     cross = section.write(per_robot, provenance, out, wall_time_s=time.perf_counter() - t0)
     return reports, cross
+
+
+def _posture_section(out: Path, realism: str, kwargs: dict) -> dict | None:
+    """Paper 000's Tables 9-10 (`wbcbench.robustness.posture`) on the same preset, appended to real-robot.md;
+    None when the robot has no Table 9 task set (the experiment is TALOS')."""
+    from ..controllers.taskset import taskset_variant_path
+    from ..robustness.posture import PostureStudy, run_study, write_report
+    from .runs import cached_robot
+
+    robot = kwargs.get("robot", "talos")
+    if taskset_variant_path(cached_robot(robot), "tsid-torque", "posture") is None:
+        return None
+    study = PostureStudy(realism=str(realism), robot=robot, iterations=3 if kwargs.get("quick") else 4)
+    result = run_study(study, out / "posture-gains", jobs=kwargs.get("jobs"))
+    md = write_report(result, out / "posture-gains")
+    body = md.read_text().replace("\n## ", "\n### ").replace("# Paper 000", "## Paper 000", 1)
+    with open(out / "real-robot.md", "a") as f:
+        f.write("\n" + body)
+    return {"report": str(md), "table": result["table"], "together": result["together"]}
 
 
 def report(run_dirs: list[str | Path], out_dir: str | Path) -> ReportResult:

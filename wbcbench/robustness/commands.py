@@ -1,4 +1,5 @@
-"""`wbcbench robustness push SCENARIO --controller C [...]`: the push-recovery protocol from the command line."""
+"""`wbcbench robustness push SCENARIO --controller C [...]`: the push-recovery protocol from the command line;
+`wbcbench robustness posture-gains [--realism P]`: paper 000's Tables 9-10 experiment (`posture.py`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from ..errors import ConfigError
 
 
 def add_subcommand(sub: argparse._SubParsersAction) -> None:
-    r = sub.add_parser("robustness", help="robustness protocols (push recovery)")
+    r = sub.add_parser("robustness", help="robustness protocols (push recovery, posture gains)")
     rs = r.add_subparsers(dest="protocol", required=True)
     p = rs.add_parser("push", help="largest impulse survived per push direction and gait phase (bisection)")
     p.add_argument("scenario", help="scenario name or YAML (e.g. stand, walk-20cm)")
@@ -35,9 +36,48 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
     p.add_argument("--out", "-o", required=True, help="output directory (report, polar plot, raw runs)")
     p.add_argument("--quiet", "-q", action="store_true")
+    g = rs.add_parser("posture-gains",
+                      help="paper 000 Tables 9-10: the Success and Fail posture gains on the ideal and a realistic "
+                           "robot, what it takes to diverge, the largest safe gain per body part")
+    g.add_argument("--realism", default="talos-actuation", metavar="PRESET",
+                   help="the realistic robot: a preset name or YAML (default talos-actuation: talos-real's "
+                        "actuators and hip flexibility, ideal sensing)")
+    g.add_argument("--robot", "-r", default="talos", help="a robot with a tsid-torque-posture task set (talos)")
+    g.add_argument("--parts", default=",".join(("legs", "torso", "arms", "head")),
+                   help="body parts to bisect, comma-separated (default: legs,torso,arms,head)")
+    g.add_argument("--iterations", type=int, default=4,
+                   help="bisection steps per part, log scale between the Success and Fail gains (default 4; 0: none)")
+    g.add_argument("--no-ablation", action="store_true", help="skip the mechanism table")
+    g.add_argument("--duration", "-d", type=float, default=None, help="[s] override the scenario's (8 s)")
+    g.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
+    g.add_argument("--out", "-o", required=True, help="output directory (report, task sets, raw runs)")
 
 
 def run_command(args: argparse.Namespace) -> int:
+    if args.protocol == "posture-gains":
+        return _posture_gains(args)
+    return _push(args)
+
+
+def _posture_gains(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from .posture import PostureStudy, run_study, validate, write_report
+
+    if args.jobs is not None and args.jobs < 1:
+        raise ConfigError(f"must be >= 1, got {args.jobs}", key="--jobs")
+    study = PostureStudy(realism=args.realism, robot=args.robot, duration=args.duration,
+                         iterations=args.iterations, ablation=not args.no_ablation,
+                         parts=tuple(p.strip() for p in args.parts.split(",") if p.strip()))
+    validate(study)
+    result = run_study(study, args.out, jobs=args.jobs)
+    md = write_report(result, args.out)
+    Console().print(md.read_text())
+    print(f"report: {md}, raw runs: {md.parent / 'runs'}")
+    return 0
+
+
+def _push(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from ..sensing import load_sensor_profile

@@ -6,10 +6,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import ConfigError, PlanningError
+from ..errors import ConfigError, PlanningError, UnknownNameError
 from ..recorder import channel
 from ..robots import Side
-from ..types import GRAVITY, PointReference, PoseReference, References
+from ..types import GRAVITY, JointReference, PointReference, PoseReference, References
 from .base import Scenario
 
 
@@ -100,6 +100,118 @@ class OneFootScenario(Scenario):
         ref = channel(log, "com_ref")
         err = np.linalg.norm(com - ref, axis=1)
         return {"com_rms_error_m": float(np.sqrt(np.mean(err ** 2))), "com_max_error_m": float(err.max())}
+
+
+class PostureSinusoidScenario(Scenario):
+    """Both feet in contact, a sinusoidal joint motion (an arm's) under the posture task: paper 000's Section 7.3.2
+    experiment (the Table 9 task set: the feet's contacts and the posture task, with the Table 10 gains).
+
+    The posture task named `task` (default ``posture``) follows q0 with `joints`' angles moved by
+    ``amplitude * sin(2 pi f t)``, the amplitude ramped in over `ramp` seconds (a min-jerk envelope, so that the
+    reference starts at rest). The run `diverged` when a joint leaves its reference by more than
+    `divergence_error` [rad], exceeds its velocity limit or reaches a position limit (the real robot's harmonic
+    drives blocked at the limits; angles on the link side: with `--realism`, the encoders' angle plus the hidden
+    deflections), or the robot fell (the summary's `fell`). `chatter_rad_s`: the largest RMS velocity, after the ramp,
+    of a joint the sinusoid does not move (an oscillation that need not diverge: high gains on an elastic drive).
+
+    params: joints {joint name: amplitude [rad]}, frequency [Hz], ramp [s], divergence_error [rad], task.
+    """
+
+    kind = "posture-sinusoid"
+
+    def parse(self, params):
+        joints = params.raw("joints", {"arm_right_1_joint": 0.2, "arm_right_4_joint": -0.4})
+        names = self.robot.joint_names
+        if not isinstance(joints, dict) or not joints:
+            raise params.error("joints", f"must be a mapping joint name -> amplitude [rad], got {joints!r}")
+        self.moved = []
+        for name, amp in joints.items():
+            if name not in names:
+                raise UnknownNameError("joint", str(name), names, file=params.file, key=params.key("joints"))
+            if isinstance(amp, bool) or not isinstance(amp, (int, float)) or not np.isfinite(amp):
+                raise params.error("joints", f"amplitude of {name} must be a number [rad], got {amp!r}")
+            self.moved.append((names.index(name), float(amp)))
+        self.frequency = params.float("frequency", 0.5, positive=True)
+        self.ramp = params.float("ramp", 1.0, min=0.0)
+        self.divergence_error = params.float("divergence_error", 0.2, positive=True)
+        self.task = params.str("task", "posture")
+
+    def setup(self, q0, com0):
+        super().setup(q0, com0)
+        self._idx = np.array([i for i, _ in self.moved], dtype=int)
+        self._amp = np.array([a for _, a in self.moved])
+        lo, hi = self.robot.position_limits
+        bad = [f"{self.robot.joint_names[i]} ({q0[7 + i] - abs(a):.3f}..{q0[7 + i] + abs(a):.3f} rad, limits "
+               f"{lo[i]:.3f}..{hi[i]:.3f})" for i, a in self.moved
+               if q0[7 + i] - abs(a) < lo[i] or q0[7 + i] + abs(a) > hi[i]]
+        if bad:
+            raise ConfigError(f"the sinusoid leaves the position limits: {'; '.join(bad)}", file=self.spec.file,
+                              key="params.joints")
+
+    def _offsets(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The moved joints' offsets from q0 at t: angle, velocity, acceleration."""
+        w = 2.0 * np.pi * self.frequency
+        s, c = np.sin(w * t), np.cos(w * t)
+        e, de, dde = _min_jerk(t / self.ramp) if self.ramp > 0 else (1.0, 0.0, 0.0)
+        if self.ramp > 0:
+            de, dde = de / self.ramp, dde / self.ramp ** 2
+        a = self._amp
+        return a * e * s, a * (de * s + e * w * c), a * (dde * s + 2.0 * de * w * c - e * w * w * s)
+
+    def reference_posture(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The posture reference's joint angles, velocities and accelerations (na,) at t."""
+        dq, dv, da = self._offsets(t)
+        q = self.q0[7:].copy()
+        v, a = np.zeros_like(q), np.zeros_like(q)
+        q[self._idx] += dq
+        v[self._idx], a[self._idx] = dv, da
+        return q, v, a
+
+    def references(self, t: float) -> References:
+        q, v, a = self.reference_posture(t)
+        config = self.q0.copy()
+        config[7:] = q
+        return References(t=t, contacts=frozenset(Side), targets={self.task: JointReference(config, v, a)})
+
+    def metrics(self, log):
+        names = self.robot.joint_names
+        t = log["t"]
+        q = channel(log, "q")[:, 7:].copy()
+        v = channel(log, "v")[:, 6:]
+        # the link side, where a drive blocks: the encoders' (motor side) angle plus any hidden deflection of the
+        # realistic robot (`--realism`: the drive's spring `<joint>:drive`, the hip's `<joint>:hip_flex`)
+        for k, col in log.items():
+            if k.startswith("hidden_deflection."):
+                joint = k.split(".", 1)[1].rsplit(":", 1)[0]
+                if joint in names:
+                    q[:, names.index(joint)] += np.asarray(col)
+        refs = [self.reference_posture(float(ti)) for ti in t]
+        ref = np.array([r[0] for r in refs])
+        v_ref = np.array([r[1] for r in refs])
+        err = np.abs(q - ref)
+        lo, hi = self.robot.position_limits
+        vmax = self.robot.velocity_limit
+        margin = 1e-3   # [rad] from a position limit counts as reaching it
+        bad = (err > self.divergence_error) | (np.abs(v) > vmax) | (q < lo + margin) | (q > hi - margin)
+        tick = np.flatnonzero(bad.any(axis=1))
+        out = {"posture_max_error_rad": float(err.max()),
+               "posture_rms_error_rad": float(np.sqrt(np.mean(err[:, self._idx] ** 2))),
+               "max_joint_speed_ratio": float(np.max(np.abs(v) / vmax)),
+               "diverged": bool(tick.size)}
+        # chatter: the velocity of the joints the sinusoid does not move, after the ramp, RMS per joint (legs that
+        # should stand still oscillating under high gains and an elastic drive); the largest and its joint
+        after = t >= self.ramp
+        still = np.setdiff1d(np.arange(len(names)), self._idx)
+        if after.any() and still.size:
+            rms = np.full(len(names), -1.0)
+            rms[still] = np.sqrt(np.mean(v[after][:, still] ** 2, axis=0))
+            j = int(np.argmax(rms))
+            out.update(chatter_rad_s=float(rms[j]), chatter_joint=names[j])
+        if tick.size:
+            k = int(tick[0])
+            j = int(np.argmax(np.where(bad[k], err[k], -1.0)))
+            out.update(divergence_time_s=float(t[k]), divergence_joint=names[j])
+        return out
 
 
 def _min_jerk(s: float) -> tuple[float, float, float]:

@@ -90,6 +90,8 @@ class LiveView:
             targets = {}
             if self._refs is not None:
                 for name, target in self._refs.targets.items():
+                    if not hasattr(target, "position"):  # a joint-space (posture) reference: no frame to draw
+                        continue
                     targets[name] = (np.array(target.position, dtype=float),
                                      None if target.rotation is None else np.array(target.rotation, dtype=float))
             self._slot = (self._sim.t, self._sim.true_q(), targets)

@@ -1,7 +1,8 @@
 """The simulated robot as hardware is (`--realism PRESET`): actuator chains and structural flexibility that the
 controller never sees (it keeps the nominal pinocchio model; the measurement keeps the nominal joint layout).
 
-A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections:
+A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections, and may start from another
+preset (`extends: talos-real`: its sections, each replaced by this file's; a section set to null is removed):
 
     sensors: talos-like          # the sensor profile used unless the run names one (--sensors)
     actuators:                   # joint-name pattern (fnmatch) -> parameters; later patterns override earlier
@@ -158,7 +159,30 @@ def load_realism(preset: "str | Path | Realism", robot) -> Realism:
         if text not in preset_names():
             raise UnknownNameError("realism preset", text, preset_names(), key="--realism")
         path = PRESET_DIR / f"{text}.yaml"
-    return parse_realism(Section(load_yaml(path), str(path)), robot, path.stem)
+    return parse_realism(Section(resolved_preset(path), str(path)), robot, path.stem)
+
+
+def resolved_preset(path: Path, seen: tuple = ()) -> dict:
+    """A preset file's mapping with its `extends:` resolved: the named preset (a shipped name, or a path relative to
+    this file) is loaded first and this file's sections replace its sections; a section set to null removes it
+    (`hip_flexibility: null`: the same robot without the hip spring)."""
+    data = load_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError("a realism preset must be a mapping of sections", file=str(path))
+    base = data.pop("extends", None)
+    if base is not None:
+        if not isinstance(base, str):
+            raise ConfigError(f"must be a preset name or file, got {base!r}", file=str(path), key="extends")
+        if base in preset_names() and not base.endswith((".yaml", ".yml")):
+            base_path = PRESET_DIR / f"{base}.yaml"
+        else:
+            base_path = (path.parent / base).resolve()
+            if not base_path.is_file():
+                raise UnknownNameError("realism preset", base, preset_names(), file=str(path), key="extends")
+        if base_path.resolve() in seen:
+            raise ConfigError(f"extends itself through {base}", file=str(path), key="extends")
+        data = {**resolved_preset(base_path, seen + (path.resolve(),)), **data}
+    return {k: v for k, v in data.items() if v is not None}
 
 
 class RealismProbe:
