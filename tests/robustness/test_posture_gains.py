@@ -77,6 +77,22 @@ def test_study_variants_and_gain_path(tmp_path):
     assert scaled_gains(0.0) == pytest.approx(SUCCESS) and scaled_gains(1.0) == pytest.approx(FAIL)
 
 
+def test_com_task_errors_reach_the_run():
+    """The CoM-task rows: the model error's settings, and the calibration offset added to the realistic robot's own
+    sensor profile (talos-real: talos-like)."""
+    from wbcbench.robustness.posture import COM_ERRORS, _com_error
+
+    study = PostureStudy(realism="talos-real")
+    labels = list(COM_ERRORS)
+    me, sensors = _com_error(study, labels[1], "talos-real")
+    assert me.mass_error == 0.1 and me.com_offset == 0.01 and sensors is None
+    me, sensors = _com_error(study, labels[-1], "talos-real")
+    assert me is None and sensors.encoder_offset == 0.02 and sensors.base == "estimated"   # talos-like's
+    me, sensors = _com_error(study, labels[-1], None)
+    assert sensors.encoder_offset == 0.02 and sensors.base == "ground_truth" and sensors.force_noise == 0.0
+    assert _com_error(study, "none", None) == (None, None)
+
+
 def test_bad_input(tmp_path, robot):
     with pytest.raises(ConfigError, match=r"key 'params.joints'.*unknown joint 'arm_right_9_joint'"):
         make_scenario("posture-sinusoid", robot, duration=1.0, params={"joints": {"arm_right_9_joint": 0.1}})
@@ -103,7 +119,7 @@ def test_study_end_to_end_short(tmp_path):
 
     from wbcbench.robustness.posture import run_study, write_report
 
-    study = PostureStudy(duration=1.0, iterations=1, ablation=False, parts=("head",))
+    study = PostureStudy(duration=1.0, iterations=1, ablation=False, parts=("head",), com_task=False)
     result = run_study(study, tmp_path, jobs=2)
     assert [t["label"] for t in result["table"]] == ["success-ideal", "fail-ideal", "success-talos-actuation",
                                                      "fail-talos-actuation"]

@@ -56,6 +56,26 @@ def test_noise_bias_quantisation_statistics(talos):
     np.testing.assert_array_equal(again.measure(true[0]).ft_force[Side.LEFT], out[0].ft_force[Side.LEFT])
 
 
+def test_encoder_calibration_offsets(talos):
+    """`encoders.offset`: a constant per-joint offset of the given std, the base untouched; drawn from a generator
+    of its own, so that every other term draws exactly as without it."""
+    from dataclasses import replace
+
+    p = SensorProfile(name="t", force_noise=2.0, gyro_noise=0.01)
+    true = _ticks(talos, 50)
+    plain = make_sensor_model(p, talos, 1e-3, seed=3)
+    off = make_sensor_model(replace(p, encoder_offset=0.02), talos, 1e-3, seed=3)
+    a, b = [plain.measure(m) for m in true], [off.measure(m) for m in true]
+    d = np.array([y.q[7:] - x.q[7:] for x, y in zip(a, b)])
+    np.testing.assert_allclose(d, np.broadcast_to(off.encoder_offset, d.shape), atol=1e-15)
+    assert plain.encoder_offset is None and np.std(off.encoder_offset) == pytest.approx(0.02, rel=0.3)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x.q[:7], y.q[:7])
+        np.testing.assert_array_equal(x.ft_force[Side.LEFT], y.ft_force[Side.LEFT])
+        np.testing.assert_array_equal(x.gyro, y.gyro)
+    assert not replace(p, encoder_offset=0.01).ideal and SensorProfile(encoder_offset=0.01).ideal is False
+
+
 def test_latency_and_drops(talos):
     true = _ticks(talos, 60)
     model = make_sensor_model(SensorProfile(name="d", latency=0.005), talos, 1e-3)

@@ -12,6 +12,10 @@ both gain sets on the ideal robot and on a realistic one (`--realism`, `wbcbench
 - mechanism (`ablation`): the Fail gains on the realistic robot with one mechanism of the preset removed at a time
   (actuators: friction and drive elasticity; the torque loop; the hip flexibility; the sensors), and with one alone:
   what it takes for the divergence to appear;
+- the CoM task (`com_task`): on the robot, adding one to the Success set diverged, which the paper blames on
+  calibration and identification errors; here the Success gains with a CoM task
+  (`tsid-torque-posture-com.yaml`) on both robots, without error, with the model's masses and CoMs wrong
+  (`wbcbench.sim.model_error`) and with the encoders' zeros wrong (the sensor profile's `encoders.offset`);
 - the largest safe gain per body part (legs, torso, arms, head): the others at their Success values, a bisection
   in log scale between the Success gain (must hold) and the Fail gain, `iterations` steps (resolution
   (Fail / Success) ** (1 / 2 ** iterations)), and the joint at which the first failing gain diverged.
@@ -39,12 +43,18 @@ SUCCESS = {"legs": 50.0, "torso": 100.0, "arms": 50.0, "head": 10.0}
 FAIL = {"legs": 800.0, "torso": 1000.0, "arms": 800.0, "head": 100.0}
 #: the preset sections an ablation removes, in the report's order
 MECHANISMS = ("actuators", "torque_loop", "hip_flexibility", "sensors")
+#: the errors the CoM task meets: label -> (model error settings, encoder calibration offset std [rad])
+COM_ERRORS = {"none": (None, 0.0),
+              "masses 10 %, CoMs 1 cm": ({"mass_error": 0.1, "com_offset": 0.01}, 0.0),
+              "masses 30 %, CoMs 3 cm": ({"mass_error": 0.3, "com_offset": 0.03}, 0.0),
+              "encoder zeros 0.02 rad": (None, 0.02)}
 
 
 @dataclass(frozen=True)
 class PostureStudy:
     """What to run. `realism`: the realistic robot (a preset name or file); `iterations`: bisection steps per part
-    (0: no bisection); `ablation`: the mechanism table."""
+    (0: no bisection); `ablation`: the mechanism table; `com_task`: the Success gains with a CoM task under
+    identification and calibration errors (`COM_ERRORS`)."""
 
     realism: str = "talos-actuation"
     robot: str = "talos"
@@ -54,6 +64,7 @@ class PostureStudy:
     iterations: int = 4
     ablation: bool = True
     parts: tuple[str, ...] = tuple(PARTS)
+    com_task: bool = True
 
 
 @dataclass
@@ -164,13 +175,25 @@ def _ablated_presets(study: PostureStudy, out: Path) -> dict[str, str]:
     return presets
 
 
-def _trial(study: PostureStudy, label: str, gains: dict, realism: str | None, out: Path) -> Trial:
+def _trial(study: PostureStudy, label: str, gains: dict | None, realism: str | None, out: Path,
+           error: str = "none") -> Trial:
+    """One run: the Table 9 task set with `gains` (None: the Success set with the CoM task, `error` one of
+    `COM_ERRORS`)."""
     from ..runner import run
 
-    taskset = _write_taskset(study, gains, out, label)
+    model_error, sensors = None, None
+    if gains is None:
+        from ..controllers.taskset import taskset_variant_path
+        from ..robots import load_robot
+
+        taskset = taskset_variant_path(load_robot(study.robot), study.controller, "posture-com")
+        model_error, sensors = _com_error(study, error, realism)
+    else:
+        taskset = _write_taskset(study, gains, out, label)
     run_dir = out / "runs" / label
     res = run(study.scenario, study.controller, robot=study.robot, duration=study.duration, out=run_dir,
-              taskset=taskset, realism=realism, overwrite=True)
+              taskset=taskset, realism=realism, overwrite=True, model_error=model_error, sensors=sensors)
+    gains = gains or dict(SUCCESS)
     s, m = res.summary, res.summary.get("metrics", {})
     trial = Trial(label, dict(gains), realism, fell=bool(s["fell"]), run_dir=str(run_dir),
                   divergence_joint=m.get("divergence_joint"), divergence_time_s=m.get("divergence_time_s"),
@@ -188,6 +211,26 @@ def _trial(study: PostureStudy, label: str, gains: dict, realism: str | None, ou
 
 def _job(args) -> Trial:
     return _trial(*args)
+
+
+def _com_error(study: PostureStudy, error: str, realism: str | None):
+    """(model error, sensor profile or None) of one `COM_ERRORS` entry on a robot (the realistic one's sensors,
+    with the calibration offset added)."""
+    from dataclasses import replace
+
+    from ..robots import load_robot
+    from ..sensing import load_sensor_profile
+    from ..sensing.profile import SensorProfile
+    from ..sim.model_error import ModelError
+    from ..sim.realism import load_realism
+
+    settings, offset = COM_ERRORS[error]
+    model_error = ModelError(**settings, seed=0) if settings else None
+    if not offset:
+        return model_error, None
+    name = load_realism(realism, load_robot(study.robot)).sensors if realism is not None else None
+    base = load_sensor_profile(name) if name else SensorProfile()
+    return model_error, replace(base, name=f"{base.name}+encoder-offset", encoder_offset=offset)
 
 
 def _bisect_part(study: PostureStudy, part: str, out: Path, success: dict) -> PartLimit:
@@ -264,7 +307,10 @@ def run_study(study: PostureStudy, out_dir: str | Path, jobs: int | None = None)
              for g, gains in (("success", SUCCESS), ("fail", FAIL))]
     presets = _ablated_presets(study, out) if study.ablation else {}
     ablation = [(f"fail-{k.replace(' ', '-')}", FAIL, p) for k, p in presets.items()]
-    singles = [(study, *row, out) for row in table + ablation]
+    com = ([(f"com-{r_label}-error{k}", None, realism, out, e) for r_label, realism in (("ideal", None),
+                                                                                       (label, study.realism))
+            for k, e in enumerate(COM_ERRORS)] if study.com_task else [])
+    singles = [(study, *row, out) for row in table + ablation] + [(study, *row) for row in com]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         trials = list(pool.map(_job, singles))
         together = None
@@ -277,6 +323,8 @@ def run_study(study: PostureStudy, out_dir: str | Path, jobs: int | None = None)
     result = {"study": asdict(study), "realism_label": label,
               "table": [asdict(t) for t in trials[:len(table)]],
               "ablation": [{"variant": k, **asdict(t)} for k, t in zip(presets, trials[len(table):])],
+              "com_task": [{"robot": label if row[2] else "ideal", "error": row[4], **asdict(t)}
+                           for row, t in zip(com, trials[len(table) + len(ablation):])],
               "limits": [{**asdict(p), "trials": [asdict(t) for t in p.trials]} for p in limits],
               "together": together}
     result = _finite(result)
@@ -321,6 +369,12 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
                   "part's drives made rigid", "",
                   "| variant | outcome | max posture error [rad] | chatter |", "|---|---|---|---|"]
         lines += [f"| {a['variant']} | {_fmt_trial(a)} |" for a in result["ablation"]]
+    if result.get("com_task"):
+        lines += ["", "## The Success gains with a CoM task, under identification and calibration errors", "",
+                  "`tsid-torque-posture-com.yaml` (the Success posture task and a CoM task of weight 1000, Kp 20). On "
+                  "the robot (the paper's result) this diverged; the paper blames calibration and identification.",
+                  "", "| robot | error | outcome | max posture error [rad] | chatter |", "|---|---|---|---|---|"]
+        lines += [f"| {c['robot']} | {c['error']} | {_fmt_trial(c)} |" for c in result["com_task"]]
     if result["limits"]:
         res = 2 ** study["iterations"]
         lines += ["", f"## Largest safe posture gain per body part on {label}", "",

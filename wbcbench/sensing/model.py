@@ -44,6 +44,9 @@ class SensorModel:
         self.gyro_bias = rng.normal(0.0, p.gyro_bias, 3)
         self.accel_bias = rng.normal(0.0, p.accel_bias, 3)
         self.yaw_error = 0.0
+        # calibration offsets from a generator of their own, so that a profile without them draws as before
+        self.encoder_offset = (np.random.default_rng([self.seed, 1]).normal(0.0, p.encoder_offset, len(self.robot.joint_names))
+                               if p.encoder_offset else None)
         self._q_prev = None
         self._v_fd = None
         self._line: deque = deque()
@@ -94,6 +97,8 @@ class SensorModel:
             R = pin.exp3(np.array([0.0, 0.0, self.yaw_error])) @ R @ pin.exp3(tilt)
             quat = pin.Quaternion(R).coeffs().copy()  # x, y, z, w
         q = m.q.copy()
+        if self.encoder_offset is not None:
+            q[7:] += self.encoder_offset
         if p.encoder_resolution:
             res = p.encoder_resolution
             q[7:] = np.round(q[7:] / res) * res

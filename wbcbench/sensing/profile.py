@@ -21,7 +21,8 @@ class SensorProfile:
     constant offset drawn once per sensor axis; force_drift: random walk [N / sqrt(s)].
     gyro_noise, gyro_bias [rad/s], accel_noise, accel_bias [m/s^2]: the IMU's rate and acceleration;
     orientation_noise [rad]: roll/pitch noise of its orientation; yaw_drift [rad / sqrt(s)]: yaw random walk.
-    encoder_resolution [rad]: joint positions quantised to this step (0: exact).
+    encoder_resolution [rad]: joint positions quantised to this step (0: exact); encoder_offset [rad]: std of a
+    constant calibration offset drawn once per joint (the zero of an absolute encoder set imprecisely).
     joint_velocity: "sensor" (the simulator's joint velocities) or "finite_difference" (of the encoder
     positions, low-passed at velocity_cutoff_hz).
     latency [s]: the measurement reaches the controller this much later (a multiple of the control period).
@@ -42,6 +43,7 @@ class SensorProfile:
     orientation_noise: float = 0.0
     yaw_drift: float = 0.0
     encoder_resolution: float = 0.0
+    encoder_offset: float = 0.0
     joint_velocity: str = "sensor"
     velocity_cutoff_hz: float = 100.0
     latency: float = 0.0
@@ -54,7 +56,7 @@ class SensorProfile:
         """True when the measurement passes unchanged."""
         terms = (self.force_noise, self.torque_noise, self.force_bias, self.torque_bias, self.force_drift,
                  self.gyro_noise, self.gyro_bias, self.accel_noise, self.accel_bias, self.orientation_noise,
-                 self.yaw_drift, self.encoder_resolution, self.latency, self.drop_rate)
+                 self.yaw_drift, self.encoder_resolution, self.encoder_offset, self.latency, self.drop_rate)
         return not any(terms) and self.joint_velocity == "sensor" and self.base == "ground_truth"
 
 
@@ -75,6 +77,7 @@ def parse_sensor_profile(sec: Section, name: str | None = None) -> SensorProfile
         orientation_noise=imu.float("orientation_noise", 0.0, **nonneg),
         yaw_drift=imu.float("yaw_drift", 0.0, **nonneg),
         encoder_resolution=enc.float("resolution", 0.0, **nonneg),
+        encoder_offset=enc.float("offset", 0.0, min=0.0, max=0.5),
         joint_velocity=sec.str("joint_velocity", "sensor", choices=["sensor", "finite_difference"]),
         velocity_cutoff_hz=sec.float("velocity_cutoff_hz", 100.0, positive=True),
         latency=sec.float("latency", 0.0, min=0.0, max=0.1),
