@@ -143,3 +143,45 @@ def test_generated_scenarios():
     assert get_axis("walk-speed").trial(0.8, "g1")[0]["params"]["com_height"] == 0.58   # the G1's profile sizes it
     boxes = get_axis("platform-pitch").trial(15.0, "talos")[0]["terrain"]["boxes"]
     assert boxes == load_yaml(scenario_path("platforms"))["terrain"]["boxes"]
+
+
+def test_stair_down_and_rough_ground_terrain():
+    """stair-down: the treads of stairs-quick each `v` lower than the last, the robot's landing at z = 0, no floor;
+    rough: six tilted tiles, none below the floor at its lowest top edge, raised by at most `v` above that, drawn
+    from the seed (the same seed the same ground)."""
+    import math
+
+    import numpy as np
+
+    from wbcbench.envelope.axes import ROUGH_TILE, get_axis
+
+    data, _ = get_axis("stair-down").trial(0.12, "talos")
+    t = data["terrain"]
+    tops = [b["center"][2] + b["size"][2] / 2 for b in t["boxes"]]
+    assert not t["floor"] and tops[0] == pytest.approx(0.0) and np.allclose(np.diff(tops), -0.12)
+    assert data["params"]["max_step_height"] >= 0.14
+    a, _ = get_axis("rough").trial(0.06, "talos", seed=3)
+    b, _ = get_axis("rough").trial(0.06, "talos", seed=3)
+    c, _ = get_axis("rough").trial(0.06, "talos", seed=4)
+    assert a["terrain"] == b["terrain"] and a["terrain"] != c["terrain"]
+    for box in a["terrain"]["boxes"]:
+        roll, pitch, _ = box["rpy"]
+        drop = ROUGH_TILE / 2 * math.sin(abs(pitch)) + 0.5 * math.sin(abs(roll))
+        rise = box["center"][2] + box["size"][2] / 2 - drop
+        assert -1e-6 <= rise <= 0.06 + 1e-6 and abs(pitch) <= math.atan(0.06 / ROUGH_TILE) / 2 + 1e-9
+
+
+@pytest.mark.parametrize("axis, value", [("stair-down", 0.10), ("rough", 0.05)])
+def test_new_axes_walk_at_an_easy_value(tmp_path, axis, value):
+    """At an easy value TSID torque completes the generated terrain: descends 2 x 10 cm (the CoM ends 0.2 m lower)
+    or crosses 5 cm rough ground to the third tile."""
+    study = EnvelopeStudy(axes=(axis,), controllers=("tsid-torque",))
+    from wbcbench.envelope.search import trial_dir
+
+    v = run_trial(study, "tsid-torque", axis, value, tmp_path)
+    assert v["passed"], v
+    summary = json.loads((trial_dir(tmp_path, "talos", "tsid-torque", axis, value) / "run" / "summary.json")
+                         .read_text())
+    assert not summary["fell"]
+    if axis == "stair-down":
+        assert summary["metrics"]["com_final_m"][2] < 0.7

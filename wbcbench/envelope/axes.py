@@ -47,6 +47,8 @@ class Axis:
     build: Build
     allowed: Callable[[str], tuple[float, float]] = lambda robot: (-math.inf, math.inf)
     random: bool = False
+    #: the terrain itself is drawn at random: `build(data, value, seed=...)` gets the study's seed
+    seeded: bool = False
 
     @property
     def largest(self) -> bool:
@@ -62,9 +64,9 @@ class Axis:
         if easy == hard:
             raise ConfigError(f"axis '{self.name}': the range is empty ({easy:g} to {hard:g})", key="--range")
 
-    def trial(self, value: float, robot: str = "talos") -> tuple[dict, dict]:
+    def trial(self, value: float, robot: str = "talos", seed: int = 0) -> tuple[dict, dict]:
         """(scenario mapping, run parameters) of the trial at `value` for `robot` (a payload on the link `@torso`
-        goes on the robot profile's torso frame)."""
+        goes on the robot profile's torso frame); `seed` draws a `seeded` axis' terrain."""
         from ..config import load_yaml
         from ..scenarios.base import scenario_path
 
@@ -76,7 +78,7 @@ class Axis:
         data = copy.deepcopy(robot_sized(load_yaml(path), Path(path), load_robot(robot)))
         data["name"] = f"envelope-{self.name}-{value:g}"
         data["description"] = f"{self.description} at {value:g} {self.unit} (generated from {Path(path).name})."
-        data, extra = self.build(data, float(value))
+        data, extra = self.build(data, float(value), seed=seed) if self.seeded else self.build(data, float(value))
         for p in (data.get("model_error") or {}).get("payloads") or []:
             if p.get("link") == TORSO:
                 p["link"] = load_robot(robot).profile.torso_frame
@@ -125,6 +127,53 @@ def _leg_length(robot: str) -> float:
 def _stairs_up(data: dict, v: float) -> tuple[dict, dict]:
     data["terrain"] = {**data["terrain"], "height": v}
     data["params"]["max_step_height"] = max(0.15, v + 0.02)   # the planner's bound is not the limit measured
+    return data, {}
+
+
+def _stairs_down(data: dict, v: float) -> tuple[dict, dict]:
+    """stairs-quick's treads going down by `v` each: the robot starts on a landing whose top is the ground (z = 0,
+    no floor plane), and each tread is `v` lower than the one before, the last one long enough to stop on."""
+    t = data["terrain"]
+    count, depth = int(t.get("count", 6)), float(t.get("depth", 0.3))
+    width, start = float(t.get("width", 1.0)), float(t.get("start_x", 0.3))
+    thick = 1.0 + count * v   # deep enough that no tread's bottom shows above the lowest one
+    boxes = [{"name": "landing", "center": [round((start - 1.0) / 2, 6), 0.0, -thick / 2],
+              "size": [start + 1.0, width, thick]}]
+    for i in range(count):
+        x0 = start + i * depth
+        x1 = x0 + (depth if i < count - 1 else 2.0)
+        top = -(i + 1) * v
+        boxes.append({"name": f"tread_{i + 1}", "center": [round((x0 + x1) / 2, 6), 0.0, round(top - thick / 2, 6)],
+                      "size": [round(x1 - x0, 6), width, thick]})
+    data["terrain"] = {"type": "boxes", "floor": False, "boxes": boxes}
+    data["params"]["max_step_height"] = max(0.15, v + 0.02)
+    return data, {}
+
+
+ROUGH_TILE = 0.3   # [m] a rough-ground tile's length along the walk
+
+
+def _rough(data: dict, v: float, seed: int = 0) -> tuple[dict, dict]:
+    """Rough ground of roughness `v` [m]: from x = 0.15 to 1.95, six 0.3 m tiles across the walk (1 m wide, both feet
+    on the same tile), each tilted by U(-a, a) in pitch and U(-a/2, a/2) in roll, a = atan(v / 0.3) / 2, and raised
+    by U(0, v) above the height at which its lowest top edge meets the floor; drawn with `seed`; the floor before
+    and after them."""
+    import numpy as np
+
+    rng = np.random.default_rng([seed, 7])
+    a = math.atan(v / ROUGH_TILE) / 2
+    thick = 0.1 + v
+    boxes = []
+    for i in range(6):
+        h, pitch, roll = rng.uniform(0.0, v), rng.uniform(-a, a), rng.uniform(-a / 2, a / 2)
+        # raised so that its lowest top edge is on or above the floor (the floor never shows through a tile)
+        h += ROUGH_TILE / 2 * math.sin(abs(pitch)) + 0.5 * math.sin(abs(roll))
+        boxes.append({"name": f"tile_{i + 1}", "center": [round(0.15 + (i + 0.5) * ROUGH_TILE, 6), 0.0,
+                                                           round(h - thick / 2, 6)],
+                      "size": [ROUGH_TILE, 1.0, thick], "rpy": [round(roll, 6), round(pitch, 6), 0.0]})
+    data["terrain"] = {"type": "boxes", "floor": True, "boxes": boxes}
+    data["params"]["max_step_height"] = max(float(data["params"].get("max_step_height", 0.15)), v + 0.02)
+    data["params"]["goal"] = [0.15 + 2.5 * ROUGH_TILE, 0.0]   # the middle of the third tile
     return data, {}
 
 
@@ -255,6 +304,11 @@ _POS = lambda robot: (0.0, math.inf)  # noqa: E731
 for _axis in (
     Axis("stair-up", "m", "climbing two treads of stairs-quick, riser height", "stairs-quick", 0.05, 0.30, 0.01,
          _stairs_up, allowed=lambda robot: (1e-3, _leg_length(robot))),
+    Axis("stair-down", "m", "descending two treads of stairs-quick, riser height", "stairs-quick", 0.05, 0.30, 0.01,
+         _stairs_down, allowed=lambda robot: (1e-3, _leg_length(robot))),
+    Axis("rough", "m", "walking over rough ground (0.3 m tiles raised by up to the value and tilted, seeded), "
+         "roughness", "platforms-quick", 0.0, 0.15, 0.01, _rough, allowed=lambda robot: (0.0, 0.3),
+         seeded=True),
     Axis("stair-tread", "m", "climbing two 10 cm stairs, tread depth", "stairs-quick", 0.40, 0.15, 0.01, _tread,
          allowed=lambda robot: (0.05, 2.0)),
     Axis("platform-pitch", "deg", "walking over the paper's alternately pitched platforms, slope", "platforms-quick",

@@ -120,7 +120,7 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     if vfile.exists():
         return json.loads(vfile.read_text())
     axis = get_axis(axis_name)
-    data, extra = axis.trial(value, study.robot)
+    data, extra = axis.trial(value, study.robot, seed=study.seed)
     d.mkdir(parents=True, exist_ok=True)
     scen = d / "envelope-scenario.yaml"
     scen.write_text(yaml.safe_dump(data, sort_keys=False))
