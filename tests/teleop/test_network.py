@@ -348,3 +348,58 @@ def test_cli_network_options_bad_values_are_one_line_exit_2(capsys):
         assert main(["teleop", "--mocap", "waving", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and needle in err[0], err
+
+
+def _live_switch(talos, scale: float, switch: int = 40, n: int = 75, drop: str | None = None):
+    """A live receiver (own clock) fed the waving recording; from frame `switch` on, another skeleton: the same
+    motion with every segment's position scaled by `scale` about the pelvis (a taller or shorter performer), or
+    without segment `drop`. Per tick: the hands' targets, validity."""
+    import dataclasses
+
+    from wbcbench.teleop.sender import recording_datagram
+    from wbcbench.teleop.segments import MVN_SEGMENT_IDS
+
+    rec = open_recording("waving")
+    pelvis = rec.positions[:, rec.segments.index("Pelvis")][:, None, :]
+    other = dataclasses.replace(rec, positions=pelvis + scale * (rec.positions - pelvis))
+    ids = dict(MVN_SEGMENT_IDS)
+    now = [0.0]
+    receiver = UdpPoseReceiver(None, clock=lambda: now[0])
+    sc = TeleopScenario.from_source(talos, receiver, duration=1.5, realtime=False, engage_time=0.0)
+    sc.setup(talos.q0, np.zeros(3))
+    src = sc.reference_source
+    out = {"t": [], "target": [], "valid": []}
+    i = 0
+    for k in range(1500):
+        t = now[0] = k * 1e-3
+        while i < n and rec.times[i] - rec.times[0] <= t:
+            after = i >= switch
+            seg_ids = {s: v for s, v in ids.items() if not (after and s == drop)}
+            receiver.feed(recording_datagram(other if after and drop is None else rec, i, i, seg_ids), arrival=t)
+            i += 1
+        named = src.targets(t)
+        out["t"].append(t)
+        out["target"].append(np.concatenate([named["left_hand"].position, named["right_hand"].position]))
+        out["valid"].append(src.record_valid[-1])
+    return src, {k: np.array(v) for k, v in out.items()}, rec.times[switch] - rec.times[0]
+
+
+def test_a_stream_that_switches_skeleton_is_held_and_says_why(talos):
+    """Mid-run the stream's performer is 30 % taller: the watchdog trips on the first such frame, every tick after
+    it is invalid, the hands' targets are held, and the reason names the bone and both lengths. The same stream
+    without the switch, and one 5 % taller (within the tolerance), never trip."""
+    src, r, t_switch = _live_switch(talos, 1.3)
+    w = src.watchdog
+    assert w is not None and w["frame_time"] == pytest.approx(t_switch + open_recording("waving").times[0])
+    assert "switched skeleton" in w["reason"] and "bone" in w["reason"] and "+30 %" in w["reason"]
+    after = r["t"] >= w["time"]
+    assert r["valid"][(r["t"] > 0.1) & ~after].all() and not r["valid"][after].any()
+    assert np.ptp(r["target"][after], axis=0).max() < 1e-12   # held
+    for scale in (1.0, 1.05):
+        src, r, _ = _live_switch(talos, scale)
+        assert src.watchdog is None and r["valid"][r["t"] > 0.1].all()
+
+
+def test_a_stream_that_loses_a_limb_segment_is_held(talos):
+    src, r, _ = _live_switch(talos, 1.0, drop="LeftForeArm")
+    assert src.watchdog is not None and "LeftForeArm is gone" in src.watchdog["reason"]

@@ -304,10 +304,10 @@ _POS = lambda robot: (0.0, math.inf)  # noqa: E731
 for _axis in (
     Axis("stair-up", "m", "climbing two treads of stairs-quick, riser height", "stairs-quick", 0.05, 0.30, 0.01,
          _stairs_up, allowed=lambda robot: (1e-3, _leg_length(robot))),
-    Axis("stair-down", "m", "descending two treads of stairs-quick, riser height", "stairs-quick", 0.05, 0.30, 0.01,
+    Axis("stair-down", "m", "descending two treads of stairs-quick, riser height", "stairs-quick", 0.05, 0.45, 0.01,
          _stairs_down, allowed=lambda robot: (1e-3, _leg_length(robot))),
     Axis("rough", "m", "walking over rough ground (0.3 m tiles raised by up to the value and tilted, seeded), "
-         "roughness", "platforms-quick", 0.0, 0.15, 0.01, _rough, allowed=lambda robot: (0.0, 0.3),
+         "roughness", "platforms-quick", 0.0, 0.30, 0.01, _rough, allowed=lambda robot: (0.0, 0.5),
          seeded=True),
     Axis("stair-tread", "m", "climbing two 10 cm stairs, tread depth", "stairs-quick", 0.40, 0.15, 0.01, _tread,
          allowed=lambda robot: (0.05, 2.0)),

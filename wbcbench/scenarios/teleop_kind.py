@@ -355,6 +355,7 @@ class TeleopScenario(Scenario):
                 teleop["network"] = {"spec": self.network.describe(),
                                      "path": "simulated" if src.link is not None else "relay",
                                      "link": link.stats.as_dict() if link is not None else None}
+            teleop["watchdog"] = src.watchdog   # None, or why the robot was held (the stream switched skeleton)
             horizons = log.get("teleop_stream.horizon_ms")
             teleop["prediction"] = {"method": self.predict, "max_horizon_s": self.predict_horizon,
                                     "horizon_ms": stats(np.asarray(horizons)) if horizons is not None else None}

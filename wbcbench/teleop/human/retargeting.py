@@ -33,6 +33,13 @@ maps the operator's shoulder height to the robot's.
 
 ``valid`` is False when the source has no data yet, when ``t`` lies outside the recording (the first or last frame
 is held) or the stream is stale (the last frame is held), or when an effector segment is missing in the frame.
+
+The skeleton watchdog (`watch_skeleton`, on for live streams): the calibration frame's bone lengths (`BONES`: the
+distances between the origins of rigidly linked segments, upper arm, forearm, thigh, shank) are the operator's;
+a later frame whose segments lost one of them, or whose bone differs from the calibration's by more than the
+tolerance (relative), means the stream switched skeleton (another performer, another suit or exporter, a
+re-calibrated system). The retargeting cannot map that skeleton with this calibration, so every sample from then
+on is invalid (the source's loss policy holds the robot) and `watchdog` says why, once.
 """
 
 from __future__ import annotations
@@ -74,6 +81,11 @@ EFFECTORS: tuple[str, ...] = ("left_hand", "right_hand", "head")
 EFFECTOR_SEGMENTS: Mapping[str, str] = MappingProxyType(
     {"left_hand": "LeftHand", "right_hand": "RightHand", "head": "Head"}
 )
+#: The bones the skeleton watchdog measures: pairs of canonical segments whose origins are rigidly linked.
+BONES: tuple[tuple[str, str], ...] = (
+    ("LeftUpperArm", "LeftForeArm"), ("LeftForeArm", "LeftHand"), ("RightUpperArm", "RightForeArm"),
+    ("RightForeArm", "RightHand"), ("LeftUpperLeg", "LeftLowerLeg"), ("LeftLowerLeg", "LeftFoot"),
+    ("RightUpperLeg", "RightLowerLeg"), ("RightLowerLeg", "RightFoot"))
 # Torso-ish keypoints for the first rough alignment before a fit (nearly rigid while standing).
 _TRUNK = ("Pelvis", "T8", "Head", "LeftUpperArm", "RightUpperArm", "LeftUpperLeg", "RightUpperLeg")
 
@@ -232,6 +244,12 @@ class Retargeter:
         self._T_world_feet = robot_feet_frame(robot)
         self._workspaces = dict(robot_workspaces(robot) if workspaces is None else workspaces)
         self._calibration: Calibration | None = None
+        #: the skeleton watchdog (`watch_skeleton`): off, the calibration's bones, the last frame checked, and
+        #: once it has tripped {time, frame_time, reason}
+        self._watch_tolerance = 0.0
+        self._calibration_bones: dict[tuple[str, str], float] = {}
+        self._watched_frame: PoseFrame | None = None
+        self.watchdog: dict | None = None
         if calibration_time is None and isinstance(source, MocapRecording):
             calibration_time = float(source.times[0])
         self._calibration_time = calibration_time
@@ -330,6 +348,7 @@ class Retargeter:
             R_suit = rot.to_matrix(np.asarray(frame.orientations[names[segment]], dtype=float))
             R_world = T.rotation @ R_suit
             offsets[effector] = R_world.T @ self._reference_poses[effector].rotation
+        self._calibration_bones = self._bone_lengths(frame, names)
         self._calibration = Calibration(
             time=float(frame.time),
             method=method,
@@ -366,6 +385,36 @@ class Retargeter:
             return shells
         return {n: s for n, s in robot_workspaces(self._robot, samples=1).items() if n != "head"}
 
+    # ------------------------------------------------------------------------------------------ watchdog
+    def watch_skeleton(self, tolerance: float = 0.15) -> None:
+        """Watch every sampled frame's skeleton against the calibration's (module docstring); 0 turns it off."""
+        if not (tolerance >= 0.0):
+            raise ConfigError(f"the skeleton watchdog's tolerance must be >= 0, got {tolerance!r}",
+                              key="skeleton_tolerance")
+        self._watch_tolerance = float(tolerance)
+
+    def _bone_lengths(self, frame: PoseFrame, names: dict[str, str]) -> dict[tuple[str, str], float]:
+        out = {}
+        for a, b in BONES:
+            if a in names and b in names:
+                d = float(np.linalg.norm(np.asarray(frame.positions[names[a]], dtype=float)
+                                         - np.asarray(frame.positions[names[b]], dtype=float)))
+                if np.isfinite(d) and d > 0.0:
+                    out[(a, b)] = d
+        return out
+
+    def _skeleton_changed(self, frame: PoseFrame, names: dict[str, str]) -> str | None:
+        """Why this frame's skeleton is not the calibration's (None: it is)."""
+        bones = self._bone_lengths(frame, names)
+        for bone, length in self._calibration_bones.items():
+            now = bones.get(bone)
+            if now is None:
+                return f"segment {bone[0] if bone[0] not in names else bone[1]} is gone from the stream"
+            if abs(now - length) > self._watch_tolerance * length:
+                return (f"bone {bone[0]}-{bone[1]} is {now:.3f} m, {length:.3f} m at calibration "
+                        f"({(now / length - 1) * 100:+.0f} %, tolerance {self._watch_tolerance * 100:.0f} %)")
+        return None
+
     # ------------------------------------------------------------------------------------------ sampling
     def sample(self, t: float) -> TeleopSample:
         """References, validity and clamping flags at source time ``t`` [s] (see the module docstring)."""
@@ -383,6 +432,15 @@ class Retargeter:
             return TeleopSample(float(t), refs, False, {name: False for name in EFFECTORS})
         names = self._names(frame)
         valid = bool(frame.valid)
+        if self._watch_tolerance and valid and self.watchdog is None and frame is not self._watched_frame:
+            self._watched_frame = frame
+            why = self._skeleton_changed(frame, names)
+            if why is not None:
+                self.watchdog = {"time": float(t), "frame_time": float(frame.time),
+                                 "reason": f"the stream switched skeleton: {why}; holding the robot"}
+        if self.watchdog is not None:
+            refs = {name: pin.SE3(pose) for name, pose in self._reference_poses.items()}
+            return TeleopSample(float(t), refs, False, {name: False for name in EFFECTORS})
         refs: dict[str, pin.SE3] = {}
         clamped: dict[str, bool] = {}
         T = cal.T_world_suit

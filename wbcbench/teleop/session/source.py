@@ -139,6 +139,8 @@ class TeleopSourceConfig:
     predict_horizon: float = DEFAULT_HORIZON
     predict_latency: float = 0.0
     locomotion: str = "auto"
+    #: streams: the skeleton watchdog's relative tolerance on a bone's length (`Retargeter.watch_skeleton`; 0: off)
+    skeleton_tolerance: float = 0.15
 
 
 class TeleopReferenceSource:
@@ -187,6 +189,8 @@ class TeleopReferenceSource:
         self.streamed = self.live or self.link is not None
         self.predictor = (PosePredictor(cfg.predict, cfg.predict_horizon, max_gap=cfg.stale_after)
                           if self.streamed else None)
+        if self.streamed:  # a stream may switch skeleton mid-run: hold the robot then, and say why
+            self.retargeter.watch_skeleton(cfg.skeleton_tolerance)
         self._filtered_rate: dict[str, np.ndarray] = {}
         self._sample = self._sample_key = self._anchored_sample = None
         self._min_delay = None
@@ -473,6 +477,11 @@ class TeleopReferenceSource:
                 self._filtered[e], self._filtered_rate[e] = F, v
             out[e] = (F, v if sample.valid else np.zeros(6), np.zeros(6))
         return out, bool(sample.valid), clamped
+
+    @property
+    def watchdog(self) -> dict | None:
+        """The skeleton watchdog's trip (time, frame time, reason) once it has held the robot, else None."""
+        return self.retargeter.watchdog
 
     def follow(self, t: float, q: np.ndarray) -> None:
         """The robot's measured configuration q at t (base estimate and encoders): the command filter's body
