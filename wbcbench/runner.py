@@ -341,6 +341,7 @@ def _summary(cfg: RunConfig, p: _Parts, loop: RunLoop, out: LoopOutcome, hooks: 
     predictor = fall.predictor if fall is not None else None
     return {
         "robot": p.robot.name, "scenario": p.spec.name, "controller": p.controller, "mode": p.ctrl.mode.value,
+        **({"realism": p.options.realism.name} if p.options.realism is not None else {}),
         "fell": out.fell, "fall_reason": out.reason or None, "interrupted": out.interrupted, "sim_time_s": sim_time,
         "duration_s": loop.duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,

@@ -161,6 +161,23 @@ def load_realism(preset: "str | Path | Realism", robot) -> Realism:
     return parse_realism(Section(load_yaml(path), str(path)), robot, path.stem)
 
 
+def check_realism(preset: "str | Path | Realism", robot, engine: str = "mujoco", key: str = "--realism") -> Realism:
+    """A preset loaded for `robot` and checked against the run's `engine` (the hidden mechanisms are MuJoCo
+    joints), for a command to call before anything runs. ConfigError (file and key) otherwise."""
+    if engine != "mujoco":
+        raise ConfigError(f"a realism preset needs the mujoco engine, not '{engine}'", key=key)
+    return load_realism(preset, robot)
+
+
+def realism_label(preset: "str | Path | Realism | None") -> str:
+    """How a report header names the simulated robot: 'ideal', or the preset's name (a file's stem)."""
+    if preset is None:
+        return "ideal"
+    if isinstance(preset, Realism):
+        return preset.name
+    return Path(str(preset)).stem
+
+
 class RealismProbe:
     """Logs, for metrics only (the controller never sees them): the hidden joints' deflections (channel
     `hidden_deflection`, one component per hidden joint in MuJoCo's order: `<joint>:drive`, `<joint>:hip_flex`)
