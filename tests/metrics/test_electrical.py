@@ -86,3 +86,23 @@ def test_bad_motor_parameters_one_line_exit_2(tmp_path, motors, needles):
     for n in needles:
         assert n in err, err
     assert not (tmp_path / "run" / "log.parquet").exists()
+
+
+def test_table6_shows_e_el_beside_e_m_only_when_the_runs_have_it():
+    from wbcbench.report.render import _energy_table
+    from wbcbench.report.runs import OK, RunOutcome
+    from wbcbench.report.tables import table_results
+
+    energy = {"E_m": 500.0, "E_m_plus": 300.0, "C_et": 0.4, "C_mt": 0.2, "C_et_paper_mass": 0.42,
+              "C_mt_paper_mass": 0.25}
+    plain = RunOutcome("paper", "tsid-torque", "walk-20cm", OK, metrics=dict(energy))
+    real = RunOutcome("paper", "tsid-torque", "walk-20cm", OK,
+                      metrics={**energy, "E_el": 612.5, "E_cu": 150.0, "C_el_paper_mass": 0.52})
+    ideal = _energy_table({"tables": {"table6": table_results("table6", {("tsid-torque", "walk-20cm"): plain})}})
+    assert not any("E_el" in h for h in ideal.header)
+    assert all(len(r) == len(ideal.header) for r in ideal.rows)
+    t = _energy_table({"tables": {"table6": table_results("table6", {("tsid-torque", "walk-20cm"): real})}})
+    assert t.header[-2:] == ["E_el ours [J]", "C_el ours [J/kg/m]"]
+    assert all(len(r) == len(t.header) for r in t.rows)
+    [row] = [r for r in t.rows if r[-2] != "-"]   # the one run that has it; the other cells are missing
+    assert "20" in row[1] and row[-2].startswith("612") and row[-1].startswith("0.5") and "E_el" in t.notes[-1]
