@@ -242,7 +242,8 @@ def _bisect_group(study: PushStudy, cells: list[PushCell], out_dir: Path) -> lis
     name = f"{first.controller}-{first.phase}-{int(first.direction_deg):03d}deg-s{first.seed}-approach"
     approach = out_dir / "runs" / name
     run(scen, first.controller, robot=robot, out=approach, sensors=study.sensors, seed=first.seed,
-        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan), engine=study.engine, realism=study.realism)
+        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan), engine=study.engine,
+        realism=study.realism)
     shutil.rmtree(approach, ignore_errors=True)  # a partial run: the trials are the raw runs
     return results
 

@@ -179,7 +179,7 @@ def load_design(path: str | Path, allow_large: bool = False) -> Design:
     if total > MAX_CELLS and not allow_large:
         raise ConfigError(f"the design has {total} cells (> {MAX_CELLS}); pass --yes to run it", file=file)
     here = Path(file).resolve().parent
-    for sec in (base, grid):   # task-set, scenario and preset files relative to the sweep file (workers' cwd may differ)
+    for sec in (base, grid):   # task-set, scenario, preset files relative to the sweep file (workers' cwd may differ)
         for k in ("taskset", "scenario", "realism"):
             if k in sec:
                 fix = [str(here / v) if isinstance(v, str) and v.endswith((".yaml", ".yml"))

@@ -227,7 +227,8 @@ def run_command(args: argparse.Namespace) -> int:
         return 0
     if args.mocap is None:
         raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
-    kwargs = dict(robot=args.robot, engine=args.engine, realism=args.realism, controller=args.controller, mode=args.mode,
+    kwargs = dict(robot=args.robot, engine=args.engine, realism=args.realism, controller=args.controller,
+                  mode=args.mode,
                   speed=args.speed,
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer,
                   reach_cap=not args.no_reach_cap, duration=args.duration,
