@@ -341,6 +341,7 @@ def _summary(cfg: RunConfig, p: _Parts, loop: RunLoop, out: LoopOutcome, hooks: 
     predictor = fall.predictor if fall is not None else None
     return {
         "robot": p.robot.name, "scenario": p.spec.name, "controller": p.controller, "mode": p.ctrl.mode.value,
+        **({"realism": p.options.realism.name} if p.options.realism is not None else {}),
         "fell": out.fell, "fall_reason": out.reason or None, "interrupted": out.interrupted, "sim_time_s": sim_time,
         "duration_s": loop.duration,
         "wall_time_s": wall, "real_time_factor": sim_time / wall if wall > 0 else None,
@@ -366,8 +367,10 @@ def _add_metrics(summary: dict, run_dir: Path, rec: Recorder, p: _Parts, probes:
         log = read_log(run_dir / "log.parquet")
         try:
             scen_metrics = p.scen.metrics(log)
+            realism = p.options.realism
+            motors = realism.motors.describe(realism.joints) if getattr(realism, "motors", None) else None
             paper = compute_run_metrics(log, p.robot, dt=p.spec.control_dt,
-                                        distance_planned_m=scen_metrics.get("planned_distance_m"))
+                                        distance_planned_m=scen_metrics.get("planned_distance_m"), motors=motors)
             probe_metrics = {k: v for probe in probes for k, v in probe.metrics(log).items()}
             summary["metrics"] = {**paper, **_common_metrics(log), **scen_metrics, **probe_metrics}
         except Exception as exc:  # metrics must never lose the run

@@ -31,7 +31,8 @@ def pacing_text(rt: dict) -> str:
 
 def render_summary(console: Console, s: dict, run_dir: Path) -> None:
     status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
-    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}: {status}",
+    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}"
+              + (f" (realism {s['realism']})" if s.get("realism") else "") + f": {status}",
               show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value")

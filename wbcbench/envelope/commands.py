@@ -24,6 +24,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tolerance", type=float, default=0.10, help="final CoM error bound [m] (default 0.10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random axes (sensor noise)")
     p.add_argument("--engine", default="mujoco")
+    p.add_argument("--realism", default=None, metavar="PRESET",
+                   help="the simulated robot's hidden hardware in every trial: talos-real or a preset YAML "
+                        "(wbcbench/sim/realism)")
     p.add_argument("--jobs", "-j", type=int, default=1, help="processes (default 1)")
     p.add_argument("--ray", default=None, metavar="ADDRESS|auto", help="run the searches on Ray")
     p.add_argument("--out", "-o", required=True, help="output directory (a finished trial there is not re-run)")
@@ -64,7 +67,17 @@ def _parse(args):
         raise ConfigError(f"must be > 0, got {args.tolerance}", key="--tolerance")
     ctrls = tuple(c for c in args.controllers.split(",") if c)
     return EnvelopeStudy(axes=tuple(a.name for a in axes), controllers=ctrls, robot=args.robot, ranges=ranges,
-                         resolutions=res, tolerance=args.tolerance, seed=args.seed, engine=args.engine)
+                         resolutions=res, tolerance=args.tolerance, seed=args.seed, engine=args.engine,
+                         realism=_preset(args.realism))
+
+
+def _preset(realism: str | None) -> str | None:
+    """A preset file as an absolute path (the trials may run in another working directory), a name as is."""
+    if realism is not None and realism.endswith((".yaml", ".yml")):
+        from pathlib import Path
+
+        return str(Path(realism).resolve())
+    return realism
 
 
 def run_command(args) -> int:

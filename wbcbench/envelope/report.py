@@ -74,7 +74,11 @@ def write_report(study, results: list[dict], out_dir) -> Path:
                      *[_cell(by[(c, a)]) if (c, a) in by else "" for c in ctrls]])
     desc = [f"- `{a}`: {AXES[a].description}" + (" (random: seed %d)" % study.seed if AXES[a].random else "")
             for a in axes if a in AXES]
-    intro = (f"Robot {study.robot}, engine {study.engine}. Each cell: the value nearest the hard end of the range "
+    from ..sim.realism import realism_label
+
+    robot = "ideal" if study.realism is None else f"realism preset {realism_label(study.realism)}"
+    intro = (f"Robot {study.robot} ({robot}), engine {study.engine}. Each cell: the value nearest the hard end of "
+             f"the range "
              f"at which the controller completed the scenario (no fall, no error, final CoM within "
              f"{study.tolerance} m of the planned CoM), found by bisection to the stated resolution; in brackets "
              f"the first failing value and its failure mode. Trials: `trials/<robot>/<controller>/<axis>/<value>/`.")

@@ -40,6 +40,7 @@ class EnvelopeStudy:
     tolerance: float = 0.10                           # [m] final CoM error bound
     seed: int = 0
     engine: str = "mujoco"
+    realism: str | None = None                        # realism preset of every trial (wbcbench.sim.realism)
 
     def range_of(self, axis) -> tuple[float, float]:
         return tuple(self.ranges.get(axis.name, (axis.easy, axis.hard)))
@@ -125,7 +126,7 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     scen = d / "envelope-scenario.yaml"
     scen.write_text(yaml.safe_dump(data, sort_keys=False))
     params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
-              "seed": study.seed, "engine": study.engine, **extra}
+              "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
     done = d / DONE_FILE
     # a run finished but not judged (killed in between): judged from its row and log, not run again
     row = json.loads(done.read_text()) if done.exists() else run_cell(params, str(d.resolve()), code_version(),
@@ -191,7 +192,11 @@ def validate(study: EnvelopeStudy) -> None:
     for c in study.controllers:
         if c not in ctrls:
             raise UnknownNameError("controller", c, ctrls, key="--controllers")
-    load_robot(study.robot)   # an unknown robot fails here, before any trial
+    robot = load_robot(study.robot)   # an unknown robot fails here, before any trial
+    if study.realism is not None:     # so does a bad realism preset
+        from ..sim.realism import check_realism
+
+        check_realism(study.realism, robot, study.engine)
     axes = [get_axis(a) for a in study.axes]
     for a in axes:
         easy, hard = study.range_of(a)
@@ -213,10 +218,16 @@ def validate(study: EnvelopeStudy) -> None:
                                                              Path(tmp) / f"{a.name}-{c}")
                     run(scen, ctrl, rob, mode if not hasattr(ctrl, "step") else None, None,
                         Path(tmp) / f"{a.name}-{c}" / "run", sim_options=options, overwrite=True,
-                        engine=study.engine)
+                        engine=study.engine, realism=study.realism)
                 except ConfigError as exc:
                     raise ConfigError(f"controller '{c}' cannot run axis '{a.name}' (scenario {a.scenario}): "
                                       f"{exc}", key="--controllers") from None
+
+
+def _realism_param(study: EnvelopeStudy) -> dict:
+    """The trials' `realism` parameter, absent for the ideal robot (so the settings of earlier studies still
+    match)."""
+    return {"realism": str(study.realism)} if study.realism is not None else {}
 
 
 def run_envelope(study: EnvelopeStudy, out: str | Path, executor=None, progress=None) -> list[dict]:
@@ -227,7 +238,7 @@ def run_envelope(study: EnvelopeStudy, out: str | Path, executor=None, progress=
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     validate(study)
-    settings = {"tolerance": study.tolerance, "seed": study.seed, "engine": study.engine}
+    settings = {"tolerance": study.tolerance, "seed": study.seed, "engine": study.engine, **_realism_param(study)}
     sfile = out / "settings.json"
     if sfile.exists() and json.loads(sfile.read_text()) != settings:
         raise ConfigError(f"{out} holds trials judged with other settings ({sfile.read_text().strip()}); "

@@ -13,6 +13,23 @@ Choices:
   The published Table 6 is consistent with that: its C values equal E / (m g D) with m g = 981 N
   (m = 100 kg, the real TALOS, not the 90.27 kg URDF) and D = 1.2 m (20 cm walk), 3.6 m (60 cm walk),
   1.8 m (stairs: 6 x 0.30 m, the 0.6 m rise NOT included) and about 1.5 m (platforms).
+
+Electrical energy (not in the paper; the robot's realism preset gives the motors, `wbcbench.sim.realism.Motors`):
+
+    i_i = tau_i / (N_i k_t,i),   P_cu,i = c R_i i_i^2,   P_el,i = tau_i omega_i + P_cu,i,
+    E_el = int_0^T sum_i max(P_el,i, 0) dt   (no regeneration)   or   int_0^T sum_i P_el,i dt   (regeneration),
+    C_el = E_el / (m g D)
+
+with tau_i the joint torque the actuator delivers and omega_i the actuator-side joint velocity (the logged `tau`
+and `v`: with a realism preset's drive elasticity, the motor side), N_i the gear ratio, k_t,i the motor torque
+constant and R_i the winding resistance. c = 3/2 in the `dq` convention (three-phase motor: R per phase, i the
+q-axis current amplitude of the amplitude-invariant Park transform, so the three phase currents of amplitude i
+dissipate 3 x R i^2 / 2), c = 1 in the `dc` convention (an equivalent DC motor). Not modelled: gear efficiency
+(the mechanical power at the joint is the motor's), iron and drive-electronics losses, and the motor's own
+friction beyond what the simulation has (a realism preset's joint friction is inside tau: the actuator torque
+overcomes it, so its losses are in tau omega). Without regeneration, a drive that brakes (P_el,i < 0)
+dissipates that power and draws nothing; with it, the negative power returns to the supply and offsets the
+other joints' draw (an ideal common bus).
 """
 
 from __future__ import annotations
@@ -136,3 +153,72 @@ def cost_of_transport(
     g = positive_scalar("gravity", gravity)
     weight_distance = m * g * d
     return CostOfTransport(energy.e_m / weight_distance, energy.e_m_plus / weight_distance)
+
+
+class ElectricalEnergy(NamedTuple):
+    """Electrical energy of the actuators over a run (see the module docstring).
+
+    Attributes:
+        e_el: E_el, the electrical energy drawn [J].
+        e_cu: the copper losses int sum_i P_cu,i dt [J].
+        work: the net mechanical work int sum_i tau_i omega_i dt [J].
+    """
+
+    e_el: float
+    e_cu: float
+    work: float
+
+
+COPPER_LOSS_FACTOR = {"dq": 1.5, "dc": 1.0}
+"""c in P_cu = c R i^2 per current convention (module docstring)."""
+
+
+def _per_joint(name: str, values: ArrayLike, n: int, *, positive: bool) -> np.ndarray:
+    a = np.asarray(values, dtype=float).reshape(-1)
+    if a.size != n:
+        raise ValueError(f"{name} has {a.size} values for {n} joints")
+    if not np.all(np.isfinite(a)) or (np.any(a <= 0) if positive else np.any(a < 0)):
+        raise ValueError(f"{name} must be finite and {'> 0' if positive else '>= 0'}, got {a.tolist()}")
+    return a
+
+
+def motor_current(tau: ArrayLike, torque_constant: ArrayLike, gear_ratio: ArrayLike) -> np.ndarray:
+    """Motor current i = tau / (N k_t) [A] per tick and joint: (N_ticks, n_joints)."""
+    t = series("tau", tau)
+    t = t[:, None] if t.ndim == 1 else t
+    k = _per_joint("torque_constant", torque_constant, t.shape[1], positive=True)
+    n = _per_joint("gear_ratio", gear_ratio, t.shape[1], positive=True)
+    return t / (n * k)
+
+
+def electrical_energy(tau: ArrayLike, omega: ArrayLike, dt: float | ArrayLike, *, torque_constant: ArrayLike,
+                      gear_ratio: ArrayLike, resistance: ArrayLike, convention: str = "dq",
+                      regeneration: bool = False) -> ElectricalEnergy:
+    """E_el, the copper losses and the net mechanical work by a rectangle sum over ticks (module docstring).
+
+    Args:
+        tau, omega: (N,) or (N, n_joints) joint torques [N m] and actuator-side joint velocities [rad/s].
+        dt: control period [s] (scalar) or (N,) per-tick durations.
+        torque_constant: (n_joints,) k_t [N m/A], > 0.
+        gear_ratio: (n_joints,) N, > 0.
+        resistance: (n_joints,) R [ohm], >= 0 (per phase in the `dq` convention).
+        convention: `dq` (copper loss 3/2 R i^2) or `dc` (R i^2).
+        regeneration: negative electrical power returned to the supply (True) or dissipated (False).
+    """
+    if convention not in COPPER_LOSS_FACTOR:
+        raise ValueError(f"convention must be one of {', '.join(COPPER_LOSS_FACTOR)}, got {convention!r}")
+    q = joint_power(tau, omega)
+    i = motor_current(tau, torque_constant, gear_ratio)
+    r = _per_joint("resistance", resistance, q.shape[1], positive=False)
+    p_cu = COPPER_LOSS_FACTOR[convention] * r * i * i
+    p_el = q + p_cu
+    h = durations(dt, q.shape[0])
+    drawn = p_el.sum(axis=1) if regeneration else np.clip(p_el, 0.0, None).sum(axis=1)
+    return ElectricalEnergy(float(h @ drawn), float(h @ p_cu.sum(axis=1)), float(h @ q.sum(axis=1)))
+
+
+def electrical_cost_of_transport(energy: ElectricalEnergy, mass: float, distance: float, *,
+                                 gravity: float = STANDARD_GRAVITY) -> float:
+    """C_el = E_el / (m g D) (dimensionless, J / (N m)); ValueError for a non-positive mass, distance or gravity."""
+    return energy.e_el / (positive_scalar("mass", mass) * positive_scalar("distance", distance)
+                          * positive_scalar("gravity", gravity))

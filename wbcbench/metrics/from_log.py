@@ -12,6 +12,8 @@ None) with what paper 000 reports (Tables 2-8) and a little more:
     E_m, E_m_plus                  [J], Eq. 10 over the actuated joints
     C_et, C_mt                     E / (m g D) with m the model's mass
     C_et_paper_mass, C_mt_paper_mass   the same with m = 100 kg (m g = 981 N), see below
+    E_el, E_cu, C_el, C_el_paper_mass  electrical energy drawn, its copper losses [J] and E_el / (m g D), only when
+                                   a motor model is given (`motors`, a realism preset's `motors:` section)
     pgm.{double_support,single_support,flying_foot}   Eq. 11-12 on the scenario's contact schedule
     compute_time_us.{mean,median,p99,max}   controller time per tick
     n_ticks, duration_s, mass_kg
@@ -46,7 +48,8 @@ import pinocchio as pin
 
 from ..estimation import FootMass, Plane, Wrench, contact_wrench_from_ft, zmp_from_wrenches
 from ..side import Side
-from .energy import STANDARD_GRAVITY, cost_of_transport, horizontal_distance, mechanical_energy
+from .energy import (STANDARD_GRAVITY, cost_of_transport, electrical_cost_of_transport, electrical_energy,
+                     horizontal_distance, mechanical_energy)
 from .pgm import passivity_gait_measure
 from .timing import timing_stats
 from .tracking import tracking_error_stats
@@ -274,8 +277,25 @@ def _foot_reference(log: dict[str, np.ndarray], side: Side) -> np.ndarray | None
 
 
 # ---------------------------------------------------------------------------------------------- metrics
+def _electrical(motors: Mapping, joints: list[str], tau: np.ndarray, omega: np.ndarray, dt: float, mass: float,
+                distance: float | None) -> dict:
+    """E_el, E_cu, C_el and C_el_paper_mass over `joints` (a joint without motor data: ValueError)."""
+    per = motors["joints"]
+    missing = [j for j in joints if j not in per]
+    if missing:
+        raise ValueError(f"the motor model has no joint {missing[0]}")
+    vals = {k: [per[j][k] for j in joints] for k in ("torque_constant", "gear_ratio", "resistance")}
+    e = electrical_energy(tau, omega, dt, **vals, convention=motors.get("convention", "dq"),
+                          regeneration=bool(motors.get("regeneration", False)))
+    out = {"E_el": e.e_el, "E_cu": e.e_cu}
+    for key, m in (("", mass), ("_paper_mass", PAPER_MASS_KG)):
+        out[f"C_el{key}"] = (electrical_cost_of_transport(e, m, distance, gravity=STANDARD_GRAVITY)
+                             if distance is not None and distance >= MIN_COT_DISTANCE_M else None)
+    return out
+
+
 def compute_run_metrics(log: dict[str, np.ndarray], robot, *, dt: float,
-                        distance_planned_m: float | None = None) -> dict:
+                        distance_planned_m: float | None = None, motors: Mapping | None = None) -> dict:
     """Every metric of paper 000 computable from one run log (see the module docstring for keys and units).
 
     Args:
@@ -283,6 +303,9 @@ def compute_run_metrics(log: dict[str, np.ndarray], robot, *, dt: float,
         robot: the `Robot` the run used (model for kinematics, masses, ankle joints).
         dt: control period [s] (one log row per tick).
         distance_planned_m: the scenario's planned travel [m], reported as is when given.
+        motors: the motor model for the electrical energy, as a realism preset describes it in config.json
+            ({"convention", "regeneration", "joints": {joint: {"torque_constant", "gear_ratio", "resistance"}}});
+            None: no electrical metrics.
 
     Returns:
         JSON-ready nested dict; absent keys = inputs not logged; None = undefined on this run.
@@ -355,6 +378,8 @@ def compute_run_metrics(log: dict[str, np.ndarray], robot, *, dt: float,
                     out[f"C_et{key}"] = out[f"C_mt{key}"] = None
             if distance is None or distance < MIN_COT_DISTANCE_M:
                 notes.append(f"C_et/C_mt: base travelled less than {MIN_COT_DISTANCE_M} m")
+            if motors is not None:
+                out.update(_electrical(motors, joints, tau[keep], omega[keep], float(dt), robot.mass, distance))
 
     # ---- passivity gait measure on the scenario's contact schedule
     contacts = _columns(log, ["in_contact_ref_left", "in_contact_ref_right"])

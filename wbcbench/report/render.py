@@ -110,20 +110,29 @@ def _energy_table(res: dict) -> RenderTable:
     metrics = [("E_m", "E_m [J]"), ("E_m_plus", "E_m+ [J]"), ("C_et", "C_et [J/kg/m]"), ("C_mt", "C_mt [J/kg/m]")]
     header = ["Control scheme", "Simulation"] + [f"{lab} {w}" for _, lab in metrics for w in ("ours", "paper")]
     header += ["C_et ours (model mass)", "C_mt ours (model mass)"]
+    # the electrical energy beside E_m, when the runs had a realism preset with motors (ours only)
+    electric = [k for k in ("E_el", "C_el_paper_mass")
+                if any(k in row for per_scen in t["values"].values() for row in per_scen.values())]
+    header += [{"E_el": "E_el ours [J]", "C_el_paper_mass": "C_el ours [J/kg/m]"}[k] for k in electric]
     table = RenderTable(f"Table {t['number']}: {t['title']}", header, table_id="table6")
     for label, vals in t["paper_reference_rows"].items():
         cells = []
         for key, _ in metrics:
             cells += ["-", fmt(vals.get(key, "-"))]
-        table.rows.append([f"{label} (paper only)", "-", *cells, "-", "-"])
+        table.rows.append([f"{label} (paper only)", "-", *cells, "-", "-", *["-"] * len(electric)])
     for controller, per_scen in t["values"].items():
         for scenario, row in per_scen.items():
             cells = []
             for key, _ in metrics:
                 cells += _pair(row.get(key))
             cells += [fmt(row["C_et_robot_mass"]["ours"]), fmt(row["C_mt_robot_mass"]["ours"])]
+            cells += [fmt(row[k]["ours"]) if k in row else "-" for k in electric]
             table.rows.append([_ctrl(controller, row["status"]), SCENARIO_LABELS.get(scenario, scenario), *cells])
     table.notes.append(t["notes"])
+    if electric:
+        table.notes.append("E_el: the electrical energy drawn by the motors (the realism preset's motor model: "
+                           "torque constant, gear ratio, winding resistance; wbcbench/metrics/energy.py), "
+                           "C_el = E_el / (m g D) with m g = 981 N as the paper's columns. Not in the paper.")
     return table
 
 

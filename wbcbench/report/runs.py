@@ -133,7 +133,8 @@ def run_metrics(run_dir: str | Path, summary: dict, config: dict, log: dict[str,
     log = read_run_log(run_dir) if log is None else log
     robot = cached_robot(str(config.get("robot_profile") or summary.get("robot") or "talos"))
     dt = float(config.get("control_dt_s") or 1e-3)
-    metrics = compute_run_metrics(log, robot, dt=dt, distance_planned_m=planned_distance(summary))
+    motors = (config.get("realism") or {}).get("motors")   # a realism preset's motor model: electrical metrics
+    metrics = compute_run_metrics(log, robot, dt=dt, distance_planned_m=planned_distance(summary), motors=motors)
     from ..teleop.metrics import has_targets, teleop_metrics_from_log
 
     if has_targets(log):  # a teleoperation run: paper 004 Table II statistics from the logged targets

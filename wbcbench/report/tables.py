@@ -61,6 +61,9 @@ def table_results(table_id: str, cells: dict[tuple[str, str], RunOutcome]) -> di
             for key in ("C_et", "C_mt"):
                 row[f"{key}_robot_mass"] = {"ours": ours(o, MetricSpec(key, key, "J/kg/m")), "paper": None,
                                             "unit": "J/kg/m"}
+            if o is not None and o.metrics and "E_el" in o.metrics:   # a realism preset with a motor model
+                for key, unit in (("E_el", "J"), ("C_el_paper_mass", "J/kg/m")):
+                    row[key] = {"ours": ours(o, MetricSpec(key, key, unit)), "paper": None, "unit": unit}
         values.setdefault(controller, {})[scenario] = row
     return {"number": t.number, "title": t.title, "notes": t.notes, "values": values,
             "paper_reference_rows": PAPER_REFERENCE_ROWS.get(table_id, {})}

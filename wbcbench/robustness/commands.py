@@ -28,6 +28,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sensors", default=None, help="sensor profile (default ideal)")
     p.add_argument("--robot", "-r", default="talos")
     p.add_argument("--engine", default="mujoco", help="physics engine of every trial: mujoco (default), dart, a plugin's")
+    p.add_argument("--realism", default=None, metavar="PRESET",
+                   help="the simulated robot's hidden hardware in every trial: talos-real or a preset YAML "
+                        "(wbcbench/sim/realism); its sensor profile unless --sensors names one")
     p.add_argument("--quick", action="store_true",
                    help="3 bisection steps from half the top (7.5 N s resolution at 60 N s), the scenario's "
                         "-quick variant when there is one")
@@ -92,6 +95,12 @@ def _push(args: argparse.Namespace) -> int:
     from ..sim.engines import engine_class
 
     engine_class(args.engine)  # an unknown or missing engine fails before anything runs
+    preset = None
+    if args.realism is not None:  # a bad preset fails before anything runs
+        from ..robots import load_robot
+        from ..sim.realism import check_realism
+
+        preset = check_realism(args.realism, load_robot(args.robot), args.engine)
     known = available_controllers()
     for c in controllers:
         if c not in known:
@@ -104,7 +113,8 @@ def _push(args: argparse.Namespace) -> int:
                      ("--tolerance", args.tolerance)):
         if not val > 0:
             raise ConfigError(f"must be > 0, got {val}", key=key)
-    noisy = args.sensors is not None and not load_sensor_profile(args.sensors).ideal
+    sensors = args.sensors if args.sensors is not None else getattr(preset, "sensors", None)
+    noisy = sensors is not None and not load_sensor_profile(sensors).ideal
     from ..scenarios import available_scenarios
 
     scenario = args.scenario
@@ -122,7 +132,7 @@ def _push(args: argparse.Namespace) -> int:
                       seeds=args.seeds or (3 if noisy else 1), push_duration=args.push_duration,
                       max_impulse=args.max_impulse, iterations=args.iterations or (3 if args.quick else 5),
                       tolerance=args.tolerance, robot=args.robot, sensors=args.sensors, probe_max=not args.quick,
-                      engine=args.engine,
+                      engine=args.engine, realism=args.realism,
                       step_adjustment=args.step_adjustment)
     console = Console()
     jobs = args.jobs or os.cpu_count() or 1

@@ -55,6 +55,9 @@ class PushStudy:
     """Switch the walk's DCM-based step adjustment on (wbcbench.planning.step_adjustment, default settings)."""
     engine: str = "mujoco"
     """The physics engine of every trial (`wbcbench.sim.engines`)."""
+    realism: str | None = None
+    """The realism preset of every trial (`wbcbench.sim.realism`: a name or a YAML file), None: the ideal robot.
+    Its sensor profile applies unless `sensors` names one."""
 
 
 @dataclass(frozen=True)
@@ -153,7 +156,7 @@ def _trial(study: PushStudy, cell: PushCell, impulse: float, out: Path) -> tuple
     scen = _trial_scenario(study, robot, cell.push_time)
     scen.spec = replace(scen.spec, pushes=(_push(study, cell, impulse),))
     res = run(scen, cell.controller, robot=robot, out=out, sensors=study.sensors, seed=cell.seed,
-              predict_falls=True, overwrite=True, engine=study.engine)
+              predict_falls=True, overwrite=True, engine=study.engine, realism=study.realism)
     log = res.log
     return _verdict(study, res.summary, np.array([log[f"com.{a}"][-1] for a in "xyz"]),
                     np.array([log[f"com_ref.{a}"][-1] for a in "xyz"]))
@@ -239,7 +242,8 @@ def _bisect_group(study: PushStudy, cells: list[PushCell], out_dir: Path) -> lis
     name = f"{first.controller}-{first.phase}-{int(first.direction_deg):03d}deg-s{first.seed}-approach"
     approach = out_dir / "runs" / name
     run(scen, first.controller, robot=robot, out=approach, sensors=study.sensors, seed=first.seed,
-        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan), engine=study.engine)
+        predict_falls=True, overwrite=True, branch=BranchPoint(first.push_time, plan), engine=study.engine,
+        realism=study.realism)
     shutil.rmtree(approach, ignore_errors=True)  # a partial run: the trials are the raw runs
     return results
 
@@ -299,6 +303,24 @@ def run_study(study: PushStudy, out_dir: str | Path, jobs: int = 1, progress=Non
     return results
 
 
+def _robot_text(study: PushStudy) -> str:
+    from ..sim.realism import realism_label
+
+    return "ideal" if study.realism is None else f"realism preset {realism_label(study.realism)}"
+
+
+def _sensors_text(study: PushStudy) -> str:
+    """The trials' sensor profile: the study's, else its realism preset's, else ideal."""
+    if study.sensors is not None:
+        return study.sensors
+    if study.realism is not None:
+        from ..robots import load_robot
+        from ..sim.realism import load_realism
+
+        return load_realism(study.realism, load_robot(study.robot)).sensors or "ideal"
+    return "ideal"
+
+
 def write_report(study: PushStudy, results: list[PushResult], out_dir: str | Path) -> Path:
     """push_report.md (a table per phase: controller x direction, impulse survived, mean over seeds) and
     push_polar.png (one polar plot per phase, a curve per controller)."""
@@ -318,8 +340,8 @@ def write_report(study: PushStudy, results: list[PushResult], out_dir: str | Pat
              f"{study.max_impulse / 2 ** study.iterations:.2f} N s; survived = no fall for {study.settle} s and the "
              f"CoM back within {study.tolerance} m of the plan; '>=' when the largest impulse tried, "
              f"{study.max_impulse} N s, was survived). Directions in the world frame, the robot facing 0 deg, 90 deg "
-             f"its left. Engine: {study.engine}. Sensors: {study.sensors or 'ideal'}; seeds: {study.seeds}; step adjustment: "
-             f"{'on' if study.step_adjustment else 'off'}.", ""]
+             f"its left. Engine: {study.engine}. Robot: {_robot_text(study)}. Sensors: {_sensors_text(study)}; "
+             f"seeds: {study.seeds}; step adjustment: {'on' if study.step_adjustment else 'off'}.", ""]
     for phase in study.phases:
         lines += [f"## Phase {phase}", "",
                   "| controller | " + " | ".join(f"{d:.0f} deg" for d in dirs) + " | min |",

@@ -88,14 +88,33 @@ def prepare(params: dict, cell_dir: Path):
             raise ConfigError(f"unknown mode '{params.get('mode')}'; allowed: "
                               f"{', '.join(m.value for m in ActuationMode)}", key="mode") from None
         controller = cls(robot, mode, scen.spec.control_dt, taskset=spec)
+    if params.get("realism") is not None:   # the preset's file and key in the error, before any cell runs
+        _check_realism(params, robot, ctrls[name], controller)
     sim_over = _split(params, "sim.")
-    allowed = {f.name for f in fields(SimOptions)}
+    allowed = {f.name for f in fields(SimOptions)} - {"realism"}
     for k in sim_over:
         if k not in allowed:
             raise ConfigError(f"unknown simulator option '{k}'; allowed: {', '.join(sorted(allowed))}",
                               key=f"sim.{k}")
     options = SimOptions(**sim_over)
     return scen, controller, robot, options, params.get("mode")
+
+
+def _check_realism(params: dict, robot, cls, controller) -> None:
+    """A cell's realism preset: loadable for its robot, on the mujoco engine, with a torque- or position-mode
+    controller (the hidden joints sit behind the actuator, which the SPD law cannot have)."""
+    from ..sim.model import ActuationMode
+    from ..sim.realism import check_realism
+
+    check_realism(params["realism"], robot, str(params.get("engine") or "mujoco"), key="realism")
+    mode = getattr(controller, "mode", None) or params.get("mode") or cls.default_mode
+    try:
+        mode = ActuationMode(getattr(mode, "value", mode))
+    except ValueError:
+        raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in ActuationMode)}",
+                          key="mode") from None
+    if mode is ActuationMode.SPD:
+        raise ConfigError("a realism preset needs torque or position mode, not spd", key="mode")
 
 
 def flatten(d: dict, prefix: str = "") -> dict:
@@ -126,7 +145,8 @@ def run_cell(params: dict, cell_dir: str, code_version: str, cell_id: str, progr
         scen, controller, robot, options, mode = prepare(params, d)
         result = run(scen, controller, robot, mode if not hasattr(controller, "step") else None,
                      None, d / "run", sim_options=options, progress=progress, overwrite=True,
-                     seed=int(params.get("seed") or 0), engine=str(params.get("engine") or "mujoco"))
+                     seed=int(params.get("seed") or 0), engine=str(params.get("engine") or "mujoco"),
+                     realism=params.get("realism"))
         summary = result.summary
         row.update(flatten({k: v for k, v in summary.items()
                             if k not in ("robot", "scenario", "controller", "controller_status")}))

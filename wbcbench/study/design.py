@@ -17,7 +17,9 @@ random:                                # n samples per grid cell, drawn with `se
 ```
 
 Parameter names: `controller`, `robot`, `scenario`, `mode`, `duration` [s], `seed`, `taskset` (a task-set YAML
-path instead of the shipped one, relative to the sweep file), or a key path into the scenario
+path instead of the shipped one, relative to the sweep file), `engine` (the physics engine), `realism` (the
+simulated robot's hidden hardware, `wbcbench.sim.realism`: `talos-real` or a preset YAML path relative to the sweep
+file; absent or null: the ideal robot), or a key path into the scenario
 YAML (`scenario.<path>`), the robot profile (`profile.<path>`, e.g. `profile.position_gains.kp.leg_`), the controller's task set (`taskset.<path>`; a list of named entries such as `tasks` is
 indexed by name: `tasks.com_xy.kp`) or the simulator options (`sim.<field>` of wbcbench.sim.model.SimOptions, e.g.
 `sim.timestep`, `sim.sole_friction`). The overridden YAML is validated by the normal loaders. `seed` seeds
@@ -40,7 +42,7 @@ import numpy as np
 from ..config import load_yaml
 from ..errors import ConfigError
 
-TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset", "engine")
+TOP_KEYS = ("controller", "robot", "scenario", "mode", "duration", "seed", "taskset", "engine", "realism")
 PATH_PREFIXES = ("scenario.", "taskset.", "profile.", "sim.")
 MAX_CELLS = 10_000
 
@@ -77,7 +79,10 @@ def _check_name(name: object, file: str, where: str) -> str:
         raise ConfigError(f"unknown parameter '{name}'; allowed: {', '.join(TOP_KEYS)} or a key path "
                           f"starting with {', '.join(PATH_PREFIXES)}", file=file, key=where)
     if name.startswith("sim."):
-        allowed = [f.name for f in fields(_sim_options_cls()) if f.name != "extra"]
+        if name == "sim.realism":
+            raise ConfigError("the realism preset is the top-level parameter 'realism', not a simulator option",
+                              file=file, key=where)
+        allowed = [f.name for f in fields(_sim_options_cls()) if f.name not in ("extra", "realism")]
         if name[4:] not in allowed:
             raise ConfigError(f"unknown simulator option '{name[4:]}'; allowed: {', '.join(allowed)}",
                               file=file, key=f"{where}")
@@ -174,8 +179,8 @@ def load_design(path: str | Path, allow_large: bool = False) -> Design:
     if total > MAX_CELLS and not allow_large:
         raise ConfigError(f"the design has {total} cells (> {MAX_CELLS}); pass --yes to run it", file=file)
     here = Path(file).resolve().parent
-    for sec in (base, grid):   # task-set and scenario files relative to the sweep file (workers' cwd may differ)
-        for k in ("taskset", "scenario"):
+    for sec in (base, grid):   # task-set, scenario, preset files relative to the sweep file (workers' cwd may differ)
+        for k in ("taskset", "scenario", "realism"):
             if k in sec:
                 fix = [str(here / v) if isinstance(v, str) and v.endswith((".yaml", ".yml"))
                        and not Path(v).is_absolute() else v for v in (sec[k] if sec is grid else [sec[k]])]

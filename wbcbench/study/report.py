@@ -28,6 +28,17 @@ def _md_table(header: list[str], rows: list[tuple]) -> list[str]:
         ["| " + " | ".join(f(v) for v in r) + " |" for r in rows] + [""]
 
 
+def _robot_line(manifest: dict) -> str:
+    """The cells' engines and simulated robots (ideal or a realism preset), from the manifest."""
+    from ..sim.realism import realism_label
+
+    cells = [c.get("params", {}) for c in manifest.get("cells", [])]
+    engines = sorted({str(p.get("engine") or "mujoco") for p in cells}) or ["mujoco"]
+    robots = sorted({realism_label(p.get("realism")) for p in cells}) or ["ideal"]
+    return (f"Engine: {', '.join(engines)}. Robot: "
+            + ", ".join(r if r == "ideal" else f"realism preset {r}" for r in robots) + ".")
+
+
 def sweep_report(sweep_dir: str | Path, metric: str | None = None) -> str:
     """Write report.md, report.html and PNG plots into `sweep_dir`; returns the markdown."""
     import duckdb
@@ -57,7 +68,8 @@ def sweep_report(sweep_dir: str | Path, metric: str | None = None) -> str:
     versions = [v[0] for v in con.execute("SELECT DISTINCT code_version FROM r").fetchall()]
     lines = [f"# Sweep report: {d.name}", "",
              f"{n} cells: {int(n_ok or 0)} ok, {int(n_fell or 0)} fell, {int(n_err or 0)} error. "
-             f"Metric: `{metric}` (over cells that did not fall or crash). Code: {', '.join(versions)}.", ""]
+             f"Metric: `{metric}` (over cells that did not fall or crash). Code: {', '.join(versions)}. "
+             f"{_robot_line(manifest)}", ""]
     figures = []
     import matplotlib
     matplotlib.use("Agg")

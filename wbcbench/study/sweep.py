@@ -60,7 +60,8 @@ def validate_design(design: Design, scratch: Path) -> None:
     key path or a bad value fails before any cell runs."""
     seen = set()
     for c in design.cells:
-        sig = (c.get("robot"), c.get("scenario"), c.get("controller"), c.get("taskset"), tuple(sorted(c.params)))
+        sig = (c.get("robot"), c.get("scenario"), c.get("controller"), c.get("taskset"), str(c.get("realism")),
+               c.get("engine"), c.get("mode"), tuple(sorted(c.params)))
         if sig in seen:
             continue
         seen.add(sig)

@@ -73,7 +73,7 @@ def load_tune(path: str | Path) -> dict:
     if not isinstance(seed, int):
         raise ConfigError(f"must be an integer, got {seed!r}", file=file, key="seed")
     here = Path(file).resolve().parent
-    for k in ("taskset", "scenario"):
+    for k in ("taskset", "scenario", "realism"):
         v = base.get(k)
         if isinstance(v, str) and v.endswith((".yaml", ".yml")) and not Path(v).is_absolute():
             base[k] = str(here / v)
@@ -164,6 +164,13 @@ def tune(tune_file: str | Path, trials: int, out: str | Path | None = None,
     return write_tune_report(study, spec, out, base_row, base_score, base_why)
 
 
+def _robot_text(base: dict) -> str:
+    from ..sim.realism import realism_label
+
+    label = realism_label(base.get("realism"))
+    return label if label == "ideal" else f"realism preset {label}"
+
+
 def write_tune_report(study, spec: dict, out: Path, base_row: dict, base_score, base_why: str) -> dict:
     import optuna
     import matplotlib
@@ -179,7 +186,8 @@ def write_tune_report(study, spec: dict, out: Path, base_row: dict, base_score, 
              f"Base: {json.dumps(spec['base'])}. Objective (minimised): "
              + " + ".join(f"{w} * `{k}`" for k, w in spec["objective"].items())
              + f". Constraints: no fall = {spec['no_fall']}, bounds = {spec['max'] or 'none'}. "
-               f"Sampler TPE, seed {spec['seed']}. Code: {base_row.get('code_version')}.", "",
+               f"Sampler TPE, seed {spec['seed']}. Code: {base_row.get('code_version')}. "
+               f"Engine: {spec['base'].get('engine') or 'mujoco'}. Robot: {_robot_text(spec['base'])}.", "",
              "| | objective | " + " | ".join(obj_keys) + " | fell |", "|---|---|" + "---|" * len(obj_keys) + "---|"]
 
     def f(v):

@@ -1,7 +1,7 @@
 """The simulated robot as hardware is (`--realism PRESET`): actuator chains and structural flexibility that the
 controller never sees (it keeps the nominal pinocchio model; the measurement keeps the nominal joint layout).
 
-A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections, and may start from another
+A preset (`talos-real.yaml` here, or a user's YAML file) has five optional sections, and may start from another
 preset (`extends: talos-real`: its sections, each replaced by this file's; a section set to null is removed):
 
     sensors: talos-like          # the sensor profile used unless the run names one (--sensors)
@@ -9,6 +9,10 @@ preset (`extends: talos-real`: its sections, each replaced by this file's; a sec
       "leg_*": {coulomb: N m, viscous: N m s/rad, stiffness: N m/rad, damping: N m s/rad, torque_limit: N m}
     torque_loop: {bandwidth: Hz, delay: s, sensor_noise: N m, seed: int}   # torque mode only
     hip_flexibility: {joints: [hip joint names], stiffness: N m/rad, damping: N m s/rad}
+    motors:                      # the electrical model of the metrics only (nothing simulated): every joint
+      convention: dq             # dq (default) or dc, see `Motors`
+      regeneration: false        # false (default): no drive returns energy; true: negative power counts
+      joints: {"leg_*": {torque_constant: N m/A, gear_ratio: -, resistance: ohm}}
 
 How each mechanism is simulated, and why this way:
 
@@ -70,6 +74,30 @@ class HipFlexibility:
 
 
 @dataclass(frozen=True)
+class Motors:
+    """The electrical side of the actuators, per joint (robot order), for the electrical energy and cost of
+    transport (`wbcbench.metrics.energy.electrical_energy`): motor torque constant k_t [N m/A], gear ratio N,
+    winding resistance R [ohm]. `convention` fixes what k_t and R refer to: `dq` (three-phase motor, R per phase,
+    k_t per ampere of q-axis current amplitude in the amplitude-invariant Park transform: copper loss
+    3/2 R i^2) or `dc` (R and k_t of an equivalent DC motor: R i^2). `regeneration`: whether a drive's negative
+    power (braking) is returned to the supply."""
+
+    torque_constant: tuple[float, ...]
+    gear_ratio: tuple[float, ...]
+    resistance: tuple[float, ...]
+    convention: str = "dq"
+    regeneration: bool = False
+
+    def describe(self, joints) -> dict:
+        return {"convention": self.convention, "regeneration": self.regeneration,
+                "joints": {j: {"torque_constant": k, "gear_ratio": n, "resistance": r}
+                           for j, k, n, r in zip(joints, self.torque_constant, self.gear_ratio, self.resistance)}}
+
+
+MOTOR_CONVENTIONS = ("dq", "dc")
+
+
+@dataclass(frozen=True)
 class Realism:
     """A parsed preset, resolved per joint (robot joint order)."""
 
@@ -84,6 +112,7 @@ class Realism:
     torque_limit: tuple[float, ...] = ()   # inf: the profile's effort limit only
     torque_loop: TorqueLoop | None = None
     hip: HipFlexibility | None = None
+    motors: Motors | None = None
     raw: dict = field(default_factory=dict, compare=False)
 
     def describe(self) -> dict:
@@ -95,7 +124,8 @@ class Realism:
                                                        self.damping, self.torque_limit)},
                 "torque_loop": self.torque_loop.__dict__ if self.torque_loop else None,
                 "hip_flexibility": ({"joints": list(self.hip.joints), "stiffness": self.hip.stiffness,
-                                     "damping": self.hip.damping} if self.hip else None)}
+                                     "damping": self.hip.damping} if self.hip else None),
+                **({"motors": self.motors.describe(self.joints)} if self.motors is not None else {})}
 
 
 _ACT_KEYS = ("coulomb", "viscous", "stiffness", "damping", "torque_limit")
@@ -144,9 +174,40 @@ def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
                 raise UnknownNameError("joint", str(j), joints, file=sec.file, key=hs.key(f"joints[{k}]"))
         hip = HipFlexibility(tuple(names), hs.float("stiffness", positive=True), hs.float("damping", 0.0, min=0.0))
         hs.finish()
+    motors = _parse_motors(sec.section("motors"), joints) if sec.has("motors") else None
     sec.finish()
     return Realism(name or Path(sec.file or "realism").stem, sec.file, tuple(joints), sensors,
-                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, dict(sec.data))
+                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, motors, dict(sec.data))
+
+
+def _parse_motors(ms: Section, joints: list[str]) -> Motors:
+    """The `motors:` section: every joint needs its three values (the electrical energy sums all joints, as the
+    mechanical one does)."""
+    convention = ms.str("convention", "dq", choices=MOTOR_CONVENTIONS)
+    regeneration = ms.bool("regeneration", False)
+    js = ms.section("joints")
+    vals = {k: np.full(len(joints), np.nan) for k in ("torque_constant", "gear_ratio", "resistance")}
+    for pattern in list(js.data):
+        group = js.section(pattern)
+        hit = [i for i, j in enumerate(joints) if fnmatch.fnmatchcase(j, str(pattern))]
+        if not hit:
+            raise UnknownNameError("joint (or pattern matching no joint)", str(pattern), joints, file=ms.file,
+                                   key=js.key(str(pattern)))
+        for k in ("torque_constant", "gear_ratio"):
+            if group.has(k):
+                vals[k][hit] = group.float(k, positive=True)
+        if group.has("resistance"):
+            vals["resistance"][hit] = group.float("resistance", min=0.0)
+        group.finish()
+    for k, v in vals.items():
+        if np.isnan(v).any():
+            missing = joints[int(np.flatnonzero(np.isnan(v))[0])]
+            raise js.error(None, f"no {k} for joint {missing} (every joint needs torque_constant, gear_ratio and "
+                                 "resistance)")
+    js.finish()
+    ms.finish()
+    return Motors(*(tuple(float(x) for x in vals[k]) for k in ("torque_constant", "gear_ratio", "resistance")),
+                  convention, regeneration)
 
 
 def load_realism(preset: "str | Path | Realism", robot) -> Realism:
@@ -183,6 +244,23 @@ def resolved_preset(path: Path, seen: tuple = ()) -> dict:
             raise ConfigError(f"extends itself through {base}", file=str(path), key="extends")
         data = {**resolved_preset(base_path, seen + (path.resolve(),)), **data}
     return {k: v for k, v in data.items() if v is not None}
+
+
+def check_realism(preset: "str | Path | Realism", robot, engine: str = "mujoco", key: str = "--realism") -> Realism:
+    """A preset loaded for `robot` and checked against the run's `engine` (the hidden mechanisms are MuJoCo
+    joints), for a command to call before anything runs. ConfigError (file and key) otherwise."""
+    if engine != "mujoco":
+        raise ConfigError(f"a realism preset needs the mujoco engine, not '{engine}'", key=key)
+    return load_realism(preset, robot)
+
+
+def realism_label(preset: "str | Path | Realism | None") -> str:
+    """How a report header names the simulated robot: 'ideal', or the preset's name (a file's stem)."""
+    if preset is None:
+        return "ideal"
+    if isinstance(preset, Realism):
+        return preset.name
+    return Path(str(preset)).stem
 
 
 class RealismProbe:

@@ -42,6 +42,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--controller", "-c", default=DEFAULT_CONTROLLER, help=f"default {DEFAULT_CONTROLLER}")
     p.add_argument("--robot", "-r", default="talos", help="robot name or profile YAML path (default: talos)")
     p.add_argument("--engine", default="mujoco", help="physics engine: mujoco (default), dart, a plugin's")
+    p.add_argument("--realism", default=None, metavar="PRESET",
+                   help="the simulated robot's hidden hardware: talos-real or a preset YAML (wbcbench/sim/realism); "
+                        "needs --mode torque or position")
     p.add_argument("--mode", "-m", default=None, help="spd (default), position or torque")
     p.add_argument("--speed", type=float, default=1.0, help="replay speed factor for recordings (default 1)")
     p.add_argument("--no-repulsors", action="store_true", help="drop the self-collision repulsor tasks")
@@ -120,14 +123,15 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
                 duration: float | None = None,
                 out: str | Path | None = None, self_collision: str = "detect", on_loss: str = "hold",
                 quiet: bool = True, progress=None, overwrite: bool = False, realtime: bool = False, view=None,
-                engine: str = "mujoco", **params):
+                engine: str = "mujoco", realism=None, **params):
     """Run one teleoperation session; returns the runner's `RunResult`.
 
     `view`: a live view (`wbcbench.viz.live.LiveView`) to show the robot and the retargeted targets in, or None.
 
     `mocap`: a recording name, a file path, `udp://HOST:PORT`, or a `MocapRecording` / `UdpPoseReceiver`.
     `reach_cap`: False turns tsid-teleop's out-of-reach caps off. `engine`: the physics engine
-    (`wbcbench.sim.engines`).
+    (`wbcbench.sim.engines`). `realism`: a realism preset (`wbcbench.sim.realism`: name, YAML file or `Realism`),
+    None for the ideal robot; it needs torque or position mode.
     Other keyword arguments are `teleop` scenario params (e.g. `proportion`, `engage_time`, `feedforward`).
 
     Raises:
@@ -158,6 +162,13 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
     except ValueError:
         raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in cls.modes)}",
                           key="--mode") from None
+    if realism is not None:  # a bad preset fails before anything runs
+        from ...sim.realism import check_realism
+
+        realism = check_realism(realism, robot, engine)
+        if mode_ is ActuationMode.SPD:
+            raise ConfigError("a realism preset needs --mode torque or position (the SPD law assumes the nominal "
+                              "joints)", key="--mode")
     scen = TeleopScenario.from_source(robot, mocap, duration=duration or 0.0, speed=speed, on_loss=on_loss,
                                       name=f"teleop-{_label(mocap)}", **params)
     ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer, reach_cap=reach_cap)
@@ -169,7 +180,8 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
         out = Path("runs") / f"teleop-{_label(mocap)}-x{speed:g}-{controller}-{mode_.value}-{stamp}"
     try:
         result = run(scen, ctrl, robot=robot, out=out, progress=progress, overwrite=overwrite, realtime=realtime,
-                     sim_options=SimOptions(self_collision=self_collision), probes=probes, engine=engine)
+                     sim_options=SimOptions(self_collision=self_collision), probes=probes, engine=engine,
+                     realism=realism)
     finally:
         close = getattr(scen.source, "close", None)
         if scen.live and close is not None:
@@ -215,7 +227,8 @@ def run_command(args: argparse.Namespace) -> int:
         return 0
     if args.mocap is None:
         raise WbcError("give --mocap FILE|NAME|udp://HOST:PORT (or --list)")
-    kwargs = dict(robot=args.robot, engine=args.engine, controller=args.controller, mode=args.mode,
+    kwargs = dict(robot=args.robot, engine=args.engine, realism=args.realism, controller=args.controller,
+                  mode=args.mode,
                   speed=args.speed,
                   repulsors=not args.no_repulsors, stabilizer=not args.no_stabilizer,
                   reach_cap=not args.no_reach_cap, duration=args.duration,
@@ -263,7 +276,8 @@ def render(console, summary: dict, run_dir) -> None:
 
     s, m = summary, summary.get("metrics", {})
     status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
-    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}: {status}",
+    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}"
+              + (f" (realism {s['realism']})" if s.get("realism") else "") + f": {status}",
               show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value")
