@@ -190,10 +190,18 @@ class RealismProbe:
         channels.update({f"true_foot_{s.value}": ["x", "y", "z"] for s in Side})
         return channels
 
+    _data = None
+
     def values(self) -> list:
         d = self._sim.data
-        feet = [d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ self._offset for g in self._soles]
-        return ([d.qpos[self._adr]] if len(self._adr) else []) + feet
+        if d is not self._data:  # MuJoCo's arrays viewed once per MjData (each attribute access makes a new view)
+            self._data = d
+            self._qpos = d.qpos
+            self._rot = [d.geom_xmat[g].reshape(3, 3) for g in self._soles]
+            self._pos = [d.geom_xpos[g] for g in self._soles]
+        off = self._offset
+        feet = [p - R @ off for p, R in zip(self._pos, self._rot)]
+        return [self._qpos[self._adr], *feet] if len(self._adr) else feet
 
     def metrics(self, log: dict) -> dict:
         from ...metrics.landing import landing_errors
