@@ -1,13 +1,14 @@
 """The simulated robot as hardware is (`--realism PRESET`): actuator chains and structural flexibility that the
 controller never sees (it keeps the nominal pinocchio model; the measurement keeps the nominal joint layout).
 
-A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections:
+A preset (`talos-real.yaml` here, or a user's YAML file) has four optional sections and one solver setting:
 
     sensors: talos-like          # the sensor profile used unless the run names one (--sensors)
     actuators:                   # joint-name pattern (fnmatch) -> parameters; later patterns override earlier
       "leg_*": {coulomb: N m, viscous: N m s/rad, stiffness: N m/rad, damping: N m s/rad, torque_limit: N m}
     torque_loop: {bandwidth: Hz, delay: s, sensor_noise: N m, seed: int}   # torque mode only
     hip_flexibility: {joints: [hip joint names], stiffness: N m/rad, damping: N m s/rad}
+    stiction_impedance: 0.999    # how hard the Coulomb friction holds below break-away (0.9 to 0.9999)
 
 How each mechanism is simulated, and why this way:
 
@@ -22,6 +23,12 @@ How each mechanism is simulated, and why this way:
 - Friction: MuJoCo's `frictionloss` (Coulomb, a constraint: the joint sticks below the break-away torque; its
   solver parameters are made near-hard, as stiff as the physics step allows, so that a joint below break-away
   creeps by micro-radians rather than milliradians per second) and `damping` (viscous) on the motor side.
+  `stiction_impedance` is the constraint's impedance d (MuJoCo `solimp` = [d, 1 - (1 - d) / 10, ...]): a joint
+  held at 80 % of its break-away torque creeps at about 0.03 (1 - d) rad/s (0.03 mrad/s at the default
+  0.999, 0.3 mrad/s at 0.99, 3 mrad/s at MuJoCo's default 0.9; measured on an elbow, no gravity). The harder,
+  the more Newton iterations MuJoCo's solver needs per step, above all when the commanded torques are noisy
+  (standing with talos-real: about 17 at 0.999, 7 at 0.99): the realism switch's largest cost
+  (docs/results/real-robot.md, "Cost").
 - Current/torque limit: the actuator's force range (the smaller of the profile's effort limit and the preset's).
 - Torque loop (torque mode): the commanded torque reaches the joint through a pure delay and a first-order lag
   of the given bandwidth; the loop servoes the joint torque sensor's reading, so the sensor's noise enters the
@@ -83,6 +90,7 @@ class Realism:
     torque_limit: tuple[float, ...] = ()   # inf: the profile's effort limit only
     torque_loop: TorqueLoop | None = None
     hip: HipFlexibility | None = None
+    stiction_impedance: float = 0.999
     raw: dict = field(default_factory=dict, compare=False)
 
     def describe(self) -> dict:
@@ -94,7 +102,8 @@ class Realism:
                                                        self.damping, self.torque_limit)},
                 "torque_loop": self.torque_loop.__dict__ if self.torque_loop else None,
                 "hip_flexibility": ({"joints": list(self.hip.joints), "stiffness": self.hip.stiffness,
-                                     "damping": self.hip.damping} if self.hip else None)}
+                                     "damping": self.hip.damping} if self.hip else None),
+                "stiction_impedance": self.stiction_impedance}
 
 
 _ACT_KEYS = ("coulomb", "viscous", "stiffness", "damping", "torque_limit")
@@ -143,9 +152,10 @@ def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
                 raise UnknownNameError("joint", str(j), joints, file=sec.file, key=hs.key(f"joints[{k}]"))
         hip = HipFlexibility(tuple(names), hs.float("stiffness", positive=True), hs.float("damping", 0.0, min=0.0))
         hs.finish()
+    stiction = sec.float("stiction_impedance", 0.999, min=0.9, max=0.9999)
     sec.finish()
     return Realism(name or Path(sec.file or "realism").stem, sec.file, tuple(joints), sensors,
-                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, dict(sec.data))
+                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, stiction, dict(sec.data))
 
 
 def load_realism(preset: "str | Path | Realism", robot) -> Realism:
