@@ -6,9 +6,15 @@ in microseconds per tick, and the real-time factor of the whole loop.
     .venv/bin/python benchmarks/bench_loop.py --against ../other-checkout [--rounds 3] [--core 0]
     .venv/bin/python benchmarks/bench_loop.py --scenario stand --realism talos-real [--rounds 3]
 
-`--realism PRESET` (without --against) times the run with the realism switch off and on, alternating round by round
-in this process, and prints the ratio on / off (the cost of the hidden actuator chains; choose a scenario that
-does not fall with the preset, e.g. stand, so that both runs have the same ticks).
+`--realism PRESET` (without --against) times three runs, alternating round by round in this process: the switch
+off, the preset with ideal sensors (`actuators`: the actuator model alone, i.e. the hidden joints, friction, torque
+loop and hip flexibility, with their probe's channels) and the preset as it is (`preset`: with its sensor profile,
+e.g. talos-like); it prints each part's ratio to the switch off. Choose a scenario in which the robot does the
+same thing in all three, e.g. stand (standing still: the same ticks, and the controller's QP meets the same
+situations; a walk on the realistic robot moves differently, falls, and its controller's time is then not the
+model's cost). The physics part is split further into `mj_step` itself (CPU time, with MuJoCo's mean Newton
+iterations per step, `solver_niter`) and the rest of `Simulator.step` (the torque loop, pushes); the sensors' cost
+(`preset` minus `actuators`) falls in `rest`, and through the noise they add, in the controller's time.
 
 The run is a normal `wbcbench.run` (log written to a temporary directory), after a 0.3 s warm-up run of the same
 pair in the same process (loading the compiled kernels is not a tick's cost); physics is timed by wrapping
@@ -55,15 +61,20 @@ class _Clock:
         return {}
 
 
-def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
+def measure(scenario: str, controller: str, realism: str | None = None, sensors: str | None = None) -> dict:
     """One run; the split per tick [us] and the real-time factor. Wall time as the run loop measures it, and
-    CPU time of the loop's thread (`time.thread_time`: what another process on the same core does not add)."""
+    CPU time of the loop's thread (`time.thread_time`: what another process on the same core does not add).
+    `sensors` overrides the scenario's or the preset's sensor profile."""
+    import mujoco
+
     from wbcbench.controllers.base import make_controller
     from wbcbench.robots import load_robot
     from wbcbench.runner import run
     from wbcbench.scenarios import load_scenario
 
     extra = {} if realism is None else {"realism": realism}  # (a checkout from before the switch has no keyword)
+    if sensors is not None:
+        extra["sensors"] = sensors
     from wbcbench.sim.simulator import Simulator
 
     with tempfile.TemporaryDirectory() as tmp:  # load the compiled kernels and warm the caches first
@@ -72,8 +83,8 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
     scen = load_scenario(scenario, robot)
     ctrl = make_controller(controller, robot, None, scen.spec.control_dt)
     clock = _Clock()
-    physics, physics_cpu, ctrl_cpu = [0.0], [0.0], [0.0]
-    step, ctrl_step = Simulator.step, ctrl.step
+    physics, physics_cpu, ctrl_cpu, mj_cpu, niter, nstep = [0.0], [0.0], [0.0], [0.0], [0], [0]
+    step, ctrl_step, mj_step = Simulator.step, ctrl.step, mujoco.mj_step
 
     def timed_step(self, n: int = 1) -> None:
         t0, c0 = time.perf_counter(), time.thread_time()
@@ -81,6 +92,14 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
         physics[0] += time.perf_counter() - t0
         if clock.first is not None:  # from the end of the first tick on, as the clock
             physics_cpu[0] += time.thread_time() - c0
+
+    def timed_mj_step(m, d) -> None:
+        c0 = time.thread_time()
+        mj_step(m, d)
+        if clock.first is not None:
+            mj_cpu[0] += time.thread_time() - c0
+            niter[0] += d.solver_niter[0]
+            nstep[0] += 1
 
     def timed_ctrl(meas, refs):
         c0 = time.thread_time()
@@ -91,11 +110,13 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
 
     ctrl.step = timed_ctrl
     Simulator.step = timed_step
+    mujoco.mj_step = timed_mj_step
     try:
         with tempfile.TemporaryDirectory() as tmp:
             result = run(scen, ctrl, robot=robot, out=Path(tmp) / "run", probes=[clock], **extra)
     finally:
         Simulator.step = step
+        mujoco.mj_step = mj_step
     s = result.summary
     ticks = len(result.log["t"])
     wall_us = s["wall_time_s"] * 1e6
@@ -107,17 +128,20 @@ def measure(scenario: str, controller: str, realism: str | None = None) -> dict:
             "rest_us": (wall_us - ctrl_us - phys_us) / ticks, "tick_us": wall_us / ticks,
             "real_time_factor": s["real_time_factor"],
             "cpu_controller_us": ctrl_cpu[0] * 1e6 / n_cpu, "cpu_physics_us": physics_cpu[0] * 1e6 / n_cpu,
+            "cpu_mj_step_us": mj_cpu[0] * 1e6 / n_cpu, "solver_niter": niter[0] / max(nstep[0], 1),
             "cpu_rest_us": (loop_cpu - (ctrl_cpu[0] + physics_cpu[0]) * 1e6) / n_cpu, "cpu_tick_us": loop_cpu / n_cpu,
             "cpu_real_time_factor": scen.spec.control_dt * 1e6 / (loop_cpu / n_cpu)}
 
 
 def _line(label: str, r: dict) -> str:
-    wall = (f"  {label:6s} wall  controller {r['controller_us']:6.1f}  physics {r['physics_us']:6.1f}  "
+    wall = (f"  {label:9s} wall  controller {r['controller_us']:6.1f}  physics {r['physics_us']:6.1f}  "
             f"rest {r['rest_us']:6.1f}  tick {r['tick_us']:6.1f} us   real-time factor {r['real_time_factor']:.2f}"
             f"{'   FELL' if r['fell'] else ''}")
     if "cpu_tick_us" not in r:  # a checkout whose benchmark measured wall time only
         return wall
-    return wall + (f"\n  {label:6s} CPU   controller {r['cpu_controller_us']:6.1f}  physics {r['cpu_physics_us']:6.1f}  "
+    mj = (f" (mj_step {r['cpu_mj_step_us']:5.1f}, {r['solver_niter']:.2f} solver iterations)"
+          if "cpu_mj_step_us" in r else "")
+    return wall + (f"\n  {label:9s} CPU   controller {r['cpu_controller_us']:6.1f}  physics {r['cpu_physics_us']:6.1f}{mj}  "
                    f"rest {r['cpu_rest_us']:6.1f}  tick {r['cpu_tick_us']:6.1f} us   real-time factor "
                    f"{r['cpu_real_time_factor']:.2f}")
 
@@ -140,20 +164,28 @@ def against(args) -> None:
 
 
 def realism_ratio(args) -> None:
-    """The realism switch's cost: off and on alternately, the median over the rounds and the ratio on / off."""
-    rounds = {"off": [], "on": []}
+    """The realism switch's cost: off, the actuator model alone (the preset with ideal sensors) and the whole
+    preset, alternately; the median over the rounds and each part's ratio to the switch off (CPU time)."""
+    legs = {"off": (None, None), "actuators": (args.realism, "ideal"), "preset": (args.realism, None)}
+    rounds = {side: [] for side in legs}
     for r in range(args.rounds):
-        rounds["off"].append(measure(args.scenario, args.controller))
-        rounds["on"].append(measure(args.scenario, args.controller, args.realism))
+        for side, (preset, sensors) in legs.items():
+            rounds[side].append(measure(args.scenario, args.controller, preset, sensors))
         print(f"  round {r + 1}/{args.rounds} done", flush=True)
     med = {side: {k: float(np.median([x[k] for x in v])) for k in v[0] if k != "fell"} | {"fell": any(x["fell"] for x in v)}
            for side, v in rounds.items()}
     print(f"{args.controller} on {args.scenario}, realism {args.realism}; median over {args.rounds} rounds [us per tick]")
     for side in med:
         print(_line(side, med[side]))
-    on, off = med["on"], med["off"]
-    print(f"  on/off: physics {on['cpu_physics_us'] / off['cpu_physics_us']:.2f}, "
-          f"tick {on['cpu_tick_us'] / off['cpu_tick_us']:.2f} (CPU); tick {on['tick_us'] / off['tick_us']:.2f} (wall)")
+    off = med["off"]
+    for side in ("actuators", "preset"):
+        on = med[side]
+        print(f"  {side}/off (CPU): " + ", ".join(
+            f"{part} {on[f'cpu_{part}_us'] / off[f'cpu_{part}_us']:.2f}"
+            for part in ("controller", "physics", "mj_step", "rest", "tick")) +
+            f"; tick {on['tick_us'] / off['tick_us']:.2f} (wall)")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"median": med, "rounds": rounds}))
 
 
 def main() -> None:

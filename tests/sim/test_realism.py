@@ -127,6 +127,25 @@ def test_torque_loop_lags_a_step_by_its_delay():
     assert tau[0] == 100.0
 
 
+def test_torque_loop_kernel_equals_the_numpy_loop():
+    """The compiled loop (noise drawn in blocks) delivers the torques of the per-step numpy code bit for bit,
+    across a noise block's end and with the limit active."""
+    spec = LoopSpec(bandwidth=80.0, delay=0.002, sensor_noise=0.3, seed=4)
+    limit = np.array([5.0, 100.0, 100.0])
+    loop = TorqueLoop(spec, 1e-3, limit)
+    rng, buf, k, out = np.random.default_rng(4), np.zeros((3, 3)), 0, np.zeros(3)
+    alpha = 1.0 - math.exp(-2.0 * math.pi * 80.0 * 1e-3)
+    targets = np.random.default_rng(9).normal(0.0, 20.0, (TorqueLoop.NOISE_BLOCK + 40, 3))
+    for target in targets:
+        loop.target[:] = target
+        buf[k] = target
+        k = (k + 1) % len(buf)
+        out += alpha * (buf[k] - out)
+        expected = np.clip(out - rng.normal(0.0, 0.3, 3), -limit, limit)
+        np.testing.assert_array_equal(loop.next(), expected)
+    assert np.abs(expected).max() > 0 and (np.abs(targets[:, 0]) > 5.0).any()
+
+
 def test_torque_loop_acts_in_the_simulator(robot):
     r = preset(robot, {"torque_loop": {"bandwidth": 100.0, "delay": 0.002, "sensor_noise": 0.0}})
     sim = Simulator(robot, mode="torque", options=SimOptions(realism=r))
@@ -141,20 +160,25 @@ def test_torque_loop_acts_in_the_simulator(robot):
 
 
 def test_friction_holds_a_joint_below_break_away(robot):
-    """No gravity: an elbow torque below the Coulomb friction does not move the joint; above it, it does."""
-    r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}})
+    """No gravity: an elbow torque below the Coulomb friction does not move the joint (it creeps by less than
+    0.1 mrad in 0.2 s); above it, it does. A softer stiction impedance lets it creep faster, in proportion to
+    1 - d."""
     moved = {}
-    for torque in (8.0, 13.0):
-        sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
-        tau = np.zeros(robot.na)
-        i = robot.joint_names.index("arm_left_4_joint")
-        tau[i] = torque
-        q0 = sim.measure().q[7 + i]
-        sim.apply(Command(tau=tau))
-        sim.step(200)
-        moved[torque] = abs(sim.measure().q[7 + i] - q0)
-    assert moved[8.0] < 1e-4
-    assert moved[13.0] > 1e-2
+    for impedance in (None, 0.99):
+        r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}}
+                   | ({"stiction_impedance": impedance} if impedance else {}))
+        for torque in (8.0, 13.0):
+            sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
+            tau = np.zeros(robot.na)
+            i = robot.joint_names.index("arm_left_4_joint")
+            tau[i] = torque
+            q0 = sim.measure().q[7 + i]
+            sim.apply(Command(tau=tau))
+            sim.step(200)
+            moved[impedance, torque] = abs(sim.measure().q[7 + i] - q0)
+    assert moved[None, 8.0] < 1e-5 and moved[0.99, 8.0] < 1e-4
+    assert 5.0 < moved[0.99, 8.0] / moved[None, 8.0] < 20.0  # (1 - 0.99) / (1 - 0.999) = 10
+    assert moved[None, 13.0] > 1e-2 and moved[0.99, 13.0] > 1e-2
 
 
 def test_preset_errors_name_file_and_key(robot):
@@ -168,6 +192,8 @@ def test_preset_errors_name_file_and_key(robot):
         preset(robot, {"hip_flexibility": {"joints": ["hip"], "stiffness": 973.0}}, "p.yaml")
     with pytest.raises(ConfigError, match=r"key 'torque_loop.latency': unknown key"):
         preset(robot, {"torque_loop": {"latency": 0.001}}, "p.yaml")
+    with pytest.raises(ConfigError, match=r"p.yaml: key 'stiction_impedance': must be <= 0.9999"):
+        preset(robot, {"stiction_impedance": 1.0}, "p.yaml")
 
 
 def _cli(*args):

@@ -207,7 +207,8 @@ def _realism_joints(spec: mujoco.MjSpec, robot: Robot, realism) -> None:
         j.frictionloss = j.frictionloss + realism.coulomb[i]
         if realism.coulomb[i] > 0:  # near-hard stiction: MuJoCo's default soft friction lets a joint creep below
             j.solref_friction = [2.0 * spec.option.timestep, 1.0]  # break-away (mrad/s); as stiff as is stable
-            j.solimp_friction = [0.999, 0.9999, 0.001, 0.5, 2.0]
+            d = realism.stiction_impedance  # (the preset's; 0.999 by default)
+            j.solimp_friction = [d, 1.0 - (1.0 - d) / 10.0, 0.001, 0.5, 2.0]
         damping = np.array(j.damping, dtype=float).reshape(-1)
         damping[0] += realism.viscous[i]
         j.damping = damping

@@ -18,6 +18,7 @@ from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, st
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
 from .spd_kernel import spd_torque
+from .torque_loop_kernel import torque_loop_step
 from ..scene import Terrain
 
 
@@ -44,14 +45,18 @@ def _f64(x) -> np.ndarray:
 class TorqueLoop:
     """The low-level torque loop of a realism preset (torque mode): the command through a pure delay of whole
     physics steps and a first-order lag (exact discretization of the bandwidth), minus the torque sensor's noise
-    (the loop makes the sensor's reading follow the reference), clipped to the torque limit."""
+    (the loop makes the sensor's reading follow the reference), clipped to the torque limit. The noise is drawn
+    `NOISE_BLOCK` physics steps at a time (the same numbers, in the same order, as one draw per step)."""
+
+    NOISE_BLOCK = 256
 
     def __init__(self, spec, dt: float, limit: np.ndarray):
         self.delay = int(round(spec.delay / dt))
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * spec.bandwidth * dt) if spec.bandwidth > 0 else 1.0
         self.noise = float(spec.sensor_noise)
         self.seed = int(spec.seed)
-        self.limit = np.asarray(limit, dtype=float)
+        self.limit = np.ascontiguousarray(limit, dtype=np.float64)
+        self._all = np.arange(len(self.limit), dtype=np.int64)
         self.reset()
 
     def reset(self) -> None:
@@ -61,15 +66,29 @@ class TorqueLoop:
         self.k = 0
         self.out = np.zeros(n)
         self.target = np.zeros(n)
+        self._noise = np.zeros((0, n))
+        self._row = 0
+
+    def _next_noise(self) -> np.ndarray:
+        """The torque sensor's noise of the next physics step (empty without noise)."""
+        if self.noise <= 0:
+            return _NONE
+        if self._row == len(self._noise):
+            self._noise = self.rng.normal(0.0, self.noise, (self.NOISE_BLOCK, len(self.limit)))
+            self._row = 0
+        self._row += 1
+        return self._noise[self._row - 1]
+
+    def write(self, dst: np.ndarray, idx: np.ndarray) -> None:
+        """The torque delivered during the next physics step into ``dst[idx]`` (MuJoCo's ctrl, the actuators)."""
+        self.k = torque_loop_step(self.buf, self.k, self.target, self.out, self.alpha, self._next_noise(), self.limit,
+                                  dst, idx)
 
     def next(self) -> np.ndarray:
         """The torque delivered during the next physics step."""
-        buf = self.buf
-        buf[self.k] = self.target
-        self.k = (self.k + 1) % len(buf)
-        self.out += self.alpha * (buf[self.k] - self.out)  # buf[k]: the command of `delay` steps ago
-        tau = self.out - self.rng.normal(0.0, self.noise, len(self.out)) if self.noise > 0 else self.out
-        return np.clip(tau, -self.limit, self.limit)
+        tau = np.empty(len(self.limit))
+        self.write(tau, self._all)
+        return tau
 
 
 class Simulator:
@@ -127,6 +146,7 @@ class Simulator:
         act = b.actuator_idx
         self._act = (slice(int(act[0]), int(act[0]) + len(act))
                      if len(act) and act[0] >= 0 and np.array_equal(act, np.arange(act[0], act[0] + len(act))) else act)
+        self._act_idx = np.ascontiguousarray(act, dtype=np.int64)
         self._command = Command(tau=np.zeros(robot.na))
         self._tick = 0
         self._spd_M = np.zeros((self.model.nv, self.model.nv))
@@ -353,7 +373,7 @@ class Simulator:
             if self.mode is ActuationMode.SPD:
                 self.data.ctrl[self._act] = self._spd_torque()
             elif self._torque_loop is not None:
-                self.data.ctrl[self._act] = self._torque_loop.next()
+                self._torque_loop.write(self._data_views()[6], self._act_idx)
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
 

@@ -1,8 +1,9 @@
 """The simulated robot as hardware is (`--realism PRESET`): actuator chains and structural flexibility that the
 controller never sees (it keeps the nominal pinocchio model; the measurement keeps the nominal joint layout).
 
-A preset (`talos-real.yaml` here, or a user's YAML file) has five optional sections, and may start from another
-preset (`extends: talos-real`: its sections, each replaced by this file's; a section set to null is removed):
+A preset (`talos-real.yaml` here, or a user's YAML file) has five optional sections and one solver setting, and may
+start from another preset (`extends: talos-real`: its sections, each replaced by this file's; a section set to null
+is removed):
 
     sensors: talos-like          # the sensor profile used unless the run names one (--sensors)
     actuators:                   # joint-name pattern (fnmatch) -> parameters; later patterns override earlier
@@ -13,6 +14,7 @@ preset (`extends: talos-real`: its sections, each replaced by this file's; a sec
       convention: dq             # dq (default) or dc, see `Motors`
       regeneration: false        # false (default): no drive returns energy; true: negative power counts
       joints: {"leg_*": {torque_constant: N m/A, gear_ratio: -, resistance: ohm}}
+    stiction_impedance: 0.999    # how hard the Coulomb friction holds below break-away (0.9 to 0.9999)
 
 How each mechanism is simulated, and why this way:
 
@@ -27,6 +29,12 @@ How each mechanism is simulated, and why this way:
 - Friction: MuJoCo's `frictionloss` (Coulomb, a constraint: the joint sticks below the break-away torque; its
   solver parameters are made near-hard, as stiff as the physics step allows, so that a joint below break-away
   creeps by micro-radians rather than milliradians per second) and `damping` (viscous) on the motor side.
+  `stiction_impedance` is the constraint's impedance d (MuJoCo `solimp` = [d, 1 - (1 - d) / 10, ...]): a joint
+  held at 80 % of its break-away torque creeps at about 0.03 (1 - d) rad/s (0.03 mrad/s at the default
+  0.999, 0.3 mrad/s at 0.99, 3 mrad/s at MuJoCo's default 0.9; measured on an elbow, no gravity). The harder,
+  the more Newton iterations MuJoCo's solver needs per step, above all when the commanded torques are noisy
+  (standing with talos-real: about 17 at 0.999, 7 at 0.99): the realism switch's largest cost
+  (docs/results/real-robot.md, "Cost").
 - Current/torque limit: the actuator's force range (the smaller of the profile's effort limit and the preset's).
 - Torque loop (torque mode): the commanded torque reaches the joint through a pure delay and a first-order lag
   of the given bandwidth; the loop servoes the joint torque sensor's reading, so the sensor's noise enters the
@@ -113,6 +121,7 @@ class Realism:
     torque_loop: TorqueLoop | None = None
     hip: HipFlexibility | None = None
     motors: Motors | None = None
+    stiction_impedance: float = 0.999
     raw: dict = field(default_factory=dict, compare=False)
 
     def describe(self) -> dict:
@@ -125,6 +134,7 @@ class Realism:
                 "torque_loop": self.torque_loop.__dict__ if self.torque_loop else None,
                 "hip_flexibility": ({"joints": list(self.hip.joints), "stiffness": self.hip.stiffness,
                                      "damping": self.hip.damping} if self.hip else None),
+                "stiction_impedance": self.stiction_impedance,
                 **({"motors": self.motors.describe(self.joints)} if self.motors is not None else {})}
 
 
@@ -175,9 +185,11 @@ def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
         hip = HipFlexibility(tuple(names), hs.float("stiffness", positive=True), hs.float("damping", 0.0, min=0.0))
         hs.finish()
     motors = _parse_motors(sec.section("motors"), joints) if sec.has("motors") else None
+    stiction = sec.float("stiction_impedance", 0.999, min=0.9, max=0.9999)
     sec.finish()
     return Realism(name or Path(sec.file or "realism").stem, sec.file, tuple(joints), sensors,
-                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, motors, dict(sec.data))
+                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, motors, stiction,
+                   dict(sec.data))
 
 
 def _parse_motors(ms: Section, joints: list[str]) -> Motors:
@@ -292,10 +304,18 @@ class RealismProbe:
         channels.update({f"true_foot_{s.value}": ["x", "y", "z"] for s in Side})
         return channels
 
+    _data = None
+
     def values(self) -> list:
         d = self._sim.data
-        feet = [d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ self._offset for g in self._soles]
-        return ([d.qpos[self._adr]] if len(self._adr) else []) + feet
+        if d is not self._data:  # MuJoCo's arrays viewed once per MjData (each attribute access makes a new view)
+            self._data = d
+            self._qpos = d.qpos
+            self._rot = [d.geom_xmat[g].reshape(3, 3) for g in self._soles]
+            self._pos = [d.geom_xpos[g] for g in self._soles]
+        off = self._offset
+        feet = [p - R @ off for p, R in zip(self._pos, self._rot)]
+        return [self._qpos[self._adr], *feet] if len(self._adr) else feet
 
     def metrics(self, log: dict) -> dict:
         from ...metrics.landing import landing_errors
