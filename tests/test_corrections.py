@@ -168,7 +168,7 @@ def test_built_in_types_are_a_lazy_table(talos):
 @pytest.mark.parametrize("entries, extra, key, match", [
     ([{"type": "plan_lead", "time": 0.02}], {"base_feedback": {"time_constant": 0.3}}, "corrections",
      "given twice"),
-    ([{"type": "plan_leed", "time": 0.02}], {}, "corrections[0].type", "known: base_feedback, lift_off_wait"),
+    ([{"type": "plan_leed", "time": 0.02}], {}, "corrections[0].type", "known: base_feedback, hip_compensation, lift_off_wait"),
     ([{"type": "plan_lead", "time": 0.02, "tme": 1.0}], {}, "corrections[0].tme", "unknown key"),
     ([{"type": "plan_lead"}], {}, "corrections[0].time", None),
     ([{"type": "plan_lead", "time": -1.0}], {}, "corrections[0].time", None),

@@ -58,6 +58,7 @@ BUILTIN_CORRECTIONS: dict[str, str] = {
     "touchdown_search": "wbcbench.controllers.touchdown:TouchdownSearch",
     "base_feedback": "wbcbench.controllers.corrections:BaseFeedbackStage",
     "swing_tilt": "wbcbench.controllers.swing_tilt:SwingTilt",
+    "hip_compensation": "wbcbench.controllers.hip_compensation:HipCompensation",
     "stabilizer": "wbcbench.controllers.corrections:StabilizerStage",
 }
 #: physics engines (wbcbench.sim.engines): name -> ("module:Attr", the package it needs installed or None)

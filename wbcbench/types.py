@@ -40,6 +40,9 @@ class Measurement:
     ft_force / ft_torque: per foot (3,) [N], [N m], the ankle F/T sensor reading in the sensor frame: the
         wrench the leg above exerts on the foot below, about the sensor origin (MuJoCo's convention). Standing
         still, the ground contact force is F = -R F_s - m_foot g.
+    tau: (na,) [N m] the joint torque sensors' reading (pinocchio joint order), or None when the robot gives none.
+        The MuJoCo simulator gives the actuators' output torque at the motor side of each joint (after a torque
+        loop's delay and lag; friction and rotor inertia not subtracted); the sensor layer passes it unchanged.
     """
 
     t: float
@@ -50,6 +53,7 @@ class Measurement:
     accelerometer: np.ndarray
     ft_force: dict[Side, np.ndarray] = field(default_factory=dict)
     ft_torque: dict[Side, np.ndarray] = field(default_factory=dict)
+    tau: np.ndarray | None = None
 
 
 @dataclass

@@ -112,7 +112,7 @@ class SensorModel:
             v[6:] = self._v_fd
             self._q_prev = q[7:].copy()
         return Measurement(t=m.t, q=q, v=v, imu_quat=quat, gyro=gyro, accelerometer=accel, ft_force=ft_force,
-                           ft_torque=ft_torque)
+                           ft_torque=ft_torque, tau=m.tau)
 
 
 def make_sensor_model(profile: SensorProfile | str | None, robot, dt: float, seed: int = 0) -> SensorModel:

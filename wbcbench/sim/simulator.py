@@ -221,10 +221,12 @@ class Simulator:
         return buf
 
     def measurement(self, state: np.ndarray) -> Measurement:
-        """The `Measurement` whose arrays are views of `state` (from `read_state`, not to be reused)."""
+        """The `Measurement` whose arrays are views of `state` (from `read_state`, not to be reused), with the joint
+        torque sensors' reading (`Measurement.tau`: the actuators' output torque now)."""
         q, v, imu, gyro, acc, fl, tl, fr, tr = self._measurement_slices
         return Measurement(self._tick * self.dt, state[q], state[v], state[imu], state[gyro], state[acc],
-                           {_LEFT: state[fl], _RIGHT: state[fr]}, {_LEFT: state[tl], _RIGHT: state[tr]})
+                           {_LEFT: state[fl], _RIGHT: state[fr]}, {_LEFT: state[tl], _RIGHT: state[tr]},
+                           self.data.actuator_force[self._act].copy())
 
     def contact_wrenches(self) -> dict[Side, np.ndarray]:
         """Ground-truth contact wrench on each sole, world frame, (force (3), moment about the world origin (3))."""
