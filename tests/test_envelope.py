@@ -54,6 +54,16 @@ def test_limits_reproducible_and_resumed(tmp_path, payload_stand):
     assert all(r["wall_s"] < 1.0 for r in again)
     saved = json.loads((tmp_path / "env" / "envelope.json").read_text())
     assert [r["limit"] for r in saved["results"]] == [r["limit"] for r in results]
+    # the report's key frames: the last success and the first failure of each cell, rendered from their runs
+    from PIL import Image
+
+    from wbcbench.envelope.report import write_report
+
+    md = write_report(study, results[:1], tmp_path / "env", keyframes=True).read_text()
+    assert "last success 30, first failure 45 (fell)" in md
+    for kind in ("pass", "fail"):
+        png = tmp_path / "env" / "keyframes" / f"joint-pd-push-{kind}.png"
+        assert f"](keyframes/{png.name})" in md and Image.open(png).size == (4 * 240, 300)
 
 
 def test_report(tmp_path, payload_stand):

@@ -30,6 +30,8 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--jobs", "-j", type=int, default=1, help="processes (default 1)")
     p.add_argument("--ray", default=None, metavar="ADDRESS|auto", help="run the searches on Ray")
     p.add_argument("--out", "-o", required=True, help="output directory (a finished trial there is not re-run)")
+    p.add_argument("--no-keyframes", action="store_true",
+                   help="do not render the key frames of each cell's last success and first failure")
 
 
 def _parse(args):
@@ -97,7 +99,7 @@ def run_command(args) -> int:
 
     with make_executor(args.jobs, args.ray) as ex:
         results = run_envelope(study, args.out, executor=ex, progress=progress)
-    md = write_report(study, results, args.out)
+    md = write_report(study, results, args.out, keyframes=not args.no_keyframes)
     console.print(md.read_text(), markup=False)
     crashed = [r for r in results if r["limit"] is None and r["mode"] == "error"]
     if crashed:  # a crash (not a fall) at the easy value: the controller cannot run the axis's scenario

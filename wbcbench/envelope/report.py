@@ -1,6 +1,7 @@
 """The envelope report: envelope.md and envelope.html (a table controller x axis: the limit, the first failing value
-and its failure mode, the resolution), envelope.json (written by the search), and radar-<robot>.png (one polygon
-per controller, each axis's limit as the fraction of its range passed)."""
+and its failure mode, the resolution), envelope.json (written by the search), radar-<robot>.png (one polygon
+per controller, each axis's limit as the fraction of its range passed), and keyframes/ (per controller and axis,
+the key frames of the last passing trial and of the first failing one: what the failure looks like)."""
 
 from __future__ import annotations
 
@@ -57,7 +58,50 @@ def _radar(results: list[dict], robot: str, path: Path) -> None:
     plt.close(fig)
 
 
-def write_report(study, results: list[dict], out_dir) -> Path:
+def _trial_dir(r: dict, value) -> Path | None:
+    """The run directory of the trial of `r` at `value` (None: not run, or no log: e.g. the planner refused)."""
+    if value is None:
+        return None
+    for v, _passed, _mode, _reason, d in r["trials"]:
+        if math.isclose(v, value, rel_tol=1e-9, abs_tol=1e-12):
+            run = Path(d) / "run"
+            return run if (run / "log.parquet").exists() else None
+    return None
+
+
+def _keyframes(results: list[dict], out: Path, frames: int = 4) -> dict:
+    """(controller, axis) -> {"pass": png or None, "fail": png or None, "note": why one is missing}: the key frames
+    of the last passing and the first failing trial. A run that cannot be rendered (no OpenGL) says so once."""
+    from ..viz.render import keyframe_strip
+
+    kdir = out / "keyframes"
+    kdir.mkdir(parents=True, exist_ok=True)
+    shots, broken = {}, None
+    for r in results:
+        entry, notes = {}, []
+        for kind, value in (("pass", r["limit"]), ("fail", r["first_failure"])):
+            run = _trial_dir(r, value)
+            entry[kind] = None
+            if run is None:
+                if value is not None:
+                    notes.append(f"no run to show at {value:g} ({r['mode']})" if kind == "fail"
+                                 else f"no run to show at {value:g}")
+                continue
+            if broken is not None:
+                continue
+            png = kdir / f"{r['controller']}-{r['axis']}-{kind}.png"
+            try:
+                entry[kind] = keyframe_strip(run, png, frames=frames, size="240x300")
+            except Exception as e:  # noqa: BLE001 - rendering is optional: the table stands without it
+                broken = f"key frames not rendered: {type(e).__name__}: {e}"
+        entry["note"] = "; ".join(notes + ([broken] if broken else []))
+        shots[(r["controller"], r["axis"])] = entry
+    return shots
+
+
+def write_report(study, results: list[dict], out_dir, *, keyframes: bool = False) -> Path:
+    """The report's files (module docstring); `keyframes`: render the last success and first failure of each
+    cell (a few seconds each)."""
     from .axes import AXES
 
     out = Path(out_dir)
@@ -87,6 +131,18 @@ def write_report(study, results: list[dict], out_dir) -> Path:
     md += ["| " + " | ".join(r) + " |" for r in rows]
     md += ["", "Axes:", *desc, "", f"![radar]({radar.name})", "", "Wall time per search:", ""]
     md += [f"- {r['controller']} / {r['axis']}: {r['wall_s']:.1f} s, {len(r['trials'])} trials" for r in results]
+    shots = _keyframes(results, out) if keyframes else {}
+    if shots:
+        md += ["", "## The last success and the first failure", ""]
+        for r in results:
+            e = shots[(r["controller"], r["axis"])]
+            passed = "-" if r["limit"] is None else f"{r['limit']:g}"
+            failed = "-" if r["first_failure"] is None else f"{r['first_failure']:g} ({r['mode']})"
+            md.append(f"**{r['controller']}, {r['axis']}**: last success {passed}, first failure {failed}"
+                      + (f"; {e['note']}" if e["note"] else ""))
+            md += [f"![{r['controller']} {r['axis']} {kind}]({e[kind].relative_to(out)})" for kind in ("pass", "fail")
+                   if e[kind] is not None]
+            md.append("")
     path = out / "envelope.md"
     path.write_text("\n".join(md) + "\n")
     esc = html.escape
@@ -95,7 +151,10 @@ def write_report(study, results: list[dict], out_dir) -> Path:
     (out / "envelope.html").write_text(
         f"<!doctype html><meta charset=utf-8><title>Capability envelope: {esc(study.robot)}</title>"
         f"<h1>Capability envelope: {esc(study.robot)}</h1><p>{esc(intro)}</p>{table}"
-        f"<ul>{''.join(f'<li>{esc(d[2:])}</li>' for d in desc)}</ul><img src='{radar.name}' width=600>")
+        f"<ul>{''.join(f'<li>{esc(d[2:])}</li>' for d in desc)}</ul><img src='{radar.name}' width=600>"
+        + "".join(f"<h3>{esc(c)}, {esc(a)}</h3><p>{esc(e['note'])}</p>"
+                  + "".join(f"<p>{k}<br><img src='{esc(str(e[k].relative_to(out)))}'></p>" for k in ("pass", "fail")
+                            if e[k] is not None) for (c, a), e in shots.items()))
     return path
 
 
