@@ -141,6 +141,17 @@ class Realism:
 _ACT_KEYS = ("coulomb", "viscous", "stiffness", "damping", "torque_limit")
 
 
+def _joint_groups(sec: Section, joints: list[str]):
+    """(pattern, its section, the indices of the joints it matches) of a mapping joint-name pattern (fnmatch) ->
+    settings; a pattern matching no joint is an error naming its key."""
+    for pattern in list(sec.data):
+        hit = [i for i, j in enumerate(joints) if fnmatch.fnmatchcase(j, str(pattern))]
+        if not hit:
+            raise UnknownNameError("joint (or pattern matching no joint)", str(pattern), joints, file=sec.file,
+                                   key=sec.key(str(pattern)))
+        yield pattern, sec.section(pattern), hit
+
+
 def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
     """A preset's mapping for `robot` (errors name the file and key)."""
     joints = list(robot.joint_names)
@@ -152,12 +163,7 @@ def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
     if sensors is not None and not isinstance(sensors, str):
         raise sec.error("sensors", f"must be a sensor profile name or file, got {sensors!r}")
     act = sec.section("actuators", {})
-    for pattern in list(act.data):
-        group = act.section(pattern)
-        hit = [i for i, j in enumerate(joints) if fnmatch.fnmatchcase(j, str(pattern))]
-        if not hit:
-            raise UnknownNameError("joint (or pattern matching no joint)", str(pattern), joints, file=sec.file,
-                                   key=act.key(str(pattern)))
+    for pattern, group, hit in _joint_groups(act, joints):
         for k in _ACT_KEYS:
             if group.has(k):
                 vals[k][hit] = group.float(k, min=0.0) if k != "torque_limit" else group.float(k, positive=True)
@@ -199,12 +205,7 @@ def _parse_motors(ms: Section, joints: list[str]) -> Motors:
     regeneration = ms.bool("regeneration", False)
     js = ms.section("joints")
     vals = {k: np.full(len(joints), np.nan) for k in ("torque_constant", "gear_ratio", "resistance")}
-    for pattern in list(js.data):
-        group = js.section(pattern)
-        hit = [i for i, j in enumerate(joints) if fnmatch.fnmatchcase(j, str(pattern))]
-        if not hit:
-            raise UnknownNameError("joint (or pattern matching no joint)", str(pattern), joints, file=ms.file,
-                                   key=js.key(str(pattern)))
+    for _pattern, group, hit in _joint_groups(js, joints):
         for k in ("torque_constant", "gear_ratio"):
             if group.has(k):
                 vals[k][hit] = group.float(k, positive=True)
