@@ -112,6 +112,11 @@ FAMILIES = {
                          "{s}hipjoint": "{s}hipjoint"},
                         extra={"{s}hipjoint": ("{s}hipjoint", "pelvis"), "{s}hip": ("{s}femur", "{s}hipjoint")}),
                 "CMU ASF"),
+    # Poser / Second Life (the BVH conversion of CMU's data for Second Life): lower-case side prefix, camel case
+    "poser": (_family({"pelvis": "hip", "spine": "abdomen", "chest": "chest", "neck": "neck", "head": "head",
+                       "{s}clavicle": "{s}Collar", "{s}shoulder": "{s}Shldr", "{s}elbow": "{s}ForeArm",
+                       "{s}wrist": "{s}Hand", "{s}hip": "{s}Thigh", "{s}knee": "{s}Shin",
+                       "{s}ankle": "{s}Foot", "{s}toe": "{s}Toe"}), "Poser/Second Life"),
     # side as a lower-case prefix
     "prefix": (_family({"pelvis": "hips", "spine": "spine", "chest": "chest", "neck": "neck", "head": "head",
                         "{s}clavicle": "{s}_clavicle", "{s}shoulder": "{s}_upperarm", "{s}elbow": "{s}_forearm",

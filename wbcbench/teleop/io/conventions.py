@@ -18,8 +18,8 @@ rotation order per joint, rest pose and the segment naming family.
 * Rest pose: the skeleton at zero joint angles (BVH offsets; the first frame for formats without a hierarchy
   pose): the upper arms' angle from the down direction: "T" (above 70 deg), "A" (20 to 70 deg), else "other".
 * Naming family: from the segment names (Xsens MVN, Xsens BVH export, CMU, CMU ASF, Mixamo, 3ds Max Biped,
-  Blender/Rigify, SMPL, Bandai-Namco, generic), informative; the mapping to the canonical segments is by names,
-  then by the hierarchy (:mod:`.skeleton_map`).
+  Blender/Rigify, SMPL, Bandai-Namco, Poser/Second Life, generic), informative; the mapping to the canonical
+  segments is by names, then by the hierarchy (:mod:`.skeleton_map`).
 
 `--length-unit`, `--up-axis` and `--segment-map` override what is detected.
 """
@@ -122,6 +122,7 @@ _FAMILIES: tuple[tuple[str, re.Pattern], ...] = (
     ("CMU ASF", re.compile(r"^[lr](humerus|radius|femur|tibia|clavicle)$|^(upper|lower)back$", re.I)),
     ("CMU", re.compile(r"^([LR]HipJoint|LowerBack|(Left|Right)(FingerBase|HandIndex1?))$|^[LR]Thumb$")),
     ("Bandai-Namco", re.compile(r"^(UpperArm|LowerArm|UpperLeg|LowerLeg|Hand|Foot|Shoulder)_[LR]$")),
+    ("Poser/Second Life", re.compile(r"^(hip|abdomen|[lr](Collar|Shldr|ForeArm|Hand|Buttock|Thigh|Shin|Foot))$")),
     ("Rokoko/Axis Neuron", re.compile(r"^(Left|Right)(Thigh|Shin|UpLeg|Leg|Arm|ForeArm)$")),
 )
 
