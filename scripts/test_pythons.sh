@@ -2,7 +2,8 @@
 # The supported Python versions, each in a fresh virtual environment outside the checkout: build the wheel once,
 # install it with its dependencies from the package index (with the pip that the Python's venv ships, as a user
 # would), run `wbcbench run stand` and `wbcbench list` from it; with --tests also install the 'test' extra and run a
-# subset of the test suite (the bridge, the QP solvers, the tasks, standing, inverse dynamics, the fast command line)
+# subset of the test suite (the bridge, the QP solvers, the tasks, the simulator, standing, IK, inverse dynamics, the
+# loop, the fast command line)
 # against the installed wheel, from a copy of tests/ that holds no source tree.
 # Usage: bash scripts/test_pythons.sh [--tests] [PYTHON ...]   (default: python3.10 python3.11 python3.12 python3.13,
 # each from the PATH or pyenv's installed versions; the wheel is built with .venv/bin/python, or $BUILD_PY)
@@ -13,8 +14,8 @@ TESTS=0
 if [ "${1:-}" = "--tests" ]; then TESTS=1; shift; fi
 PYTHONS=("$@")
 [ ${#PYTHONS[@]} -eq 0 ] && PYTHONS=(python3.10 python3.11 python3.12 python3.13)
-SUBSET=(tests/test_bridge.py tests/qp tests/tasks tests/test_stand.py tests/test_inverse_dynamics.py
-        tests/test_cli_fast.py)
+SUBSET=(tests/test_bridge.py tests/qp tests/tasks tests/sim tests/test_stand.py tests/test_ik.py
+        tests/test_inverse_dynamics.py tests/test_loop.py tests/test_cli_fast.py)
 WORK="$(mktemp -d)"
 trap 'rm -rf "$WORK"' EXIT
 git clone -q . "$WORK/src"
