@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The supported Python versions, each in a fresh virtual environment outside the checkout: build the wheel once,
 # install it with its dependencies from the package index (with the pip that the Python's venv ships, as a user
-# would), run `wbcbench run stand` and `wbcbench list` from it; with --tests also install the 'test' extra and run a
-# subset of the test suite (the bridge, the QP solvers, the tasks, the simulator, standing, IK, inverse dynamics, the
-# loop, the fast command line)
-# against the installed wheel, from a copy of tests/ that holds no source tree.
+# would), run `wbcbench run stand` and `wbcbench list` from it. With --tests, also install the extras 'test', 'dart'
+# and 'c3d' and run a part of the test suite (the bridge, the QP solvers, the tasks, the simulator and the DART
+# engine, standing, IK, inverse dynamics, the loop, the fast command line, C3D files) against the installed wheel,
+# from a copy of tests/ without the source tree.
 # Usage: bash scripts/test_pythons.sh [--tests] [PYTHON ...]   (default: python3.10 python3.11 python3.12 python3.13,
 # each from the PATH or pyenv's installed versions; the wheel is built with .venv/bin/python, or $BUILD_PY)
-# About 1-2 minutes a version without --tests, 4-8 with (most of it the numba kernels' first compilation).
+# About 1-2 minutes a version without --tests, 3-4 with; see docs/release.md.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 TESTS=0
@@ -15,7 +15,7 @@ if [ "${1:-}" = "--tests" ]; then TESTS=1; shift; fi
 PYTHONS=("$@")
 [ ${#PYTHONS[@]} -eq 0 ] && PYTHONS=(python3.10 python3.11 python3.12 python3.13)
 SUBSET=(tests/test_bridge.py tests/qp tests/tasks tests/sim tests/test_stand.py tests/test_ik.py
-        tests/test_inverse_dynamics.py tests/test_loop.py tests/test_cli_fast.py)
+        tests/test_inverse_dynamics.py tests/test_loop.py tests/test_cli_fast.py tests/teleop/test_c3d.py)
 WORK="$(mktemp -d)"
 trap 'rm -rf "$WORK"' EXIT
 git clone -q . "$WORK/src"
@@ -38,7 +38,7 @@ for name in "${PYTHONS[@]}"; do
     v="$WORK/venv-$tag"
     log="$WORK/$tag.log"
     target="$WHEEL"
-    [ $TESTS -eq 1 ] && target="$WHEEL[test]"
+    [ $TESTS -eq 1 ] && target="$WHEEL[test,dart,c3d]"
     start=$SECONDS
     if ! { "$py" -m venv "$v" > "$log" 2>&1 && "$v/bin/pip" install --quiet "$target" >> "$log" 2>&1; }; then
         echo "$name ($py): install FAILED: $(grep -v '^\s*$' "$log" | tail -1)"
