@@ -43,6 +43,28 @@ def test_detect_leaves_the_simulated_model_unchanged(talos):
     np.testing.assert_array_equal(off.data.qpos, det.data.qpos)
 
 
+def test_each_collision_geom_has_its_own_urdf_mesh(talos):
+    """Two URDF meshes of the same file name in different folders (TALOS: gripper/ and torso/
+    base_link_collision.STL) stay two meshes: MuJoCo 3's URDF import alone gave the pelvis's to the grippers."""
+    from wbcbench.sim.model import _collision_mesh_files, _urdf_for_mujoco, build_self_collision_model, \
+        self_collision_geom_name
+
+    m = build_self_collision_model(talos)
+    keep = frozenset(link for c in talos.profile.collision_check.values() for link in (*c.effector, *c.bodies))
+    files = _collision_mesh_files(_urdf_for_mujoco(talos, keep))
+    mesh_of_file: dict[str, set[int]] = {}
+    for link in keep:
+        for k, item in enumerate(files[link]):
+            g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, self_collision_geom_name(link, k))
+            if item is not None:
+                mesh_of_file.setdefault(item[0], set()).add(int(m.geom_dataid[g]))
+    gripper = [f for f in mesh_of_file if f.endswith("gripper/base_link_collision.STL")]
+    pelvis = [f for f in mesh_of_file if f.endswith("torso/base_link_collision.STL")]
+    assert gripper and pelvis  # the case this test is about is in the check
+    meshes = list(mesh_of_file.values())
+    assert len(set().union(*meshes)) == sum(len(a) for a in meshes)  # no mesh serves two files
+
+
 def test_monitor_counts_gripper_in_hip_and_nothing_in_half_sitting(talos):
     sim = Simulator(talos, mode="spd", options=SimOptions(self_collision="detect"))
     mon = SelfCollisionMonitor(sim)

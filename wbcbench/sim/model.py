@@ -22,6 +22,7 @@ hundreds of far-away contacts per step and penetrations deeper than `gap` would 
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field
 
@@ -112,8 +113,44 @@ def self_collision_geom_name(link: str, k: int) -> str:
     return f"selfcol:{link}:{k}"
 
 
-def _self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
-    """Name the kept URDF collision geoms and put them in the self-collision bits (module docstring)."""
+def _collision_mesh_files(urdf: str) -> dict[str, list[tuple[str, list[float] | None] | None]]:
+    """Per URDF link, its collision elements in order: (mesh file, scale or None), None for a primitive shape."""
+    out: dict[str, list[tuple[str, list[float] | None] | None]] = {}
+    for link in re.finditer(r"<link\b[^>]*?\bname=\"([^\"]+)\"[^>]*?(?<!/)>(.*?)</link>", urdf, flags=re.S):
+        items = []
+        for col in re.findall(r"<collision\b.*?</collision>", link.group(2), flags=re.S):
+            mesh = re.search(r"<mesh\b[^>]*?\bfilename=\"([^\"]+)\"[^>]*?>", col)
+            if mesh is None:
+                items.append(None)
+                continue
+            scale = re.search(r"\bscale=\"([^\"]+)\"", mesh.group(0))
+            items.append((mesh.group(1), [float(x) for x in scale.group(1).split()] if scale else None))
+        out[link.group(1)] = items
+    return out
+
+
+def _own_meshes(spec: mujoco.MjSpec, link: str, geoms: list, files: list) -> None:
+    """Give each mesh geom of `link` the mesh of its own URDF collision element. MuJoCo 3's URDF import names a
+    mesh by its file's base name and gives a second file of the same base name the first one's mesh (TALOS:
+    gripper/base_link_collision.STL got torso/base_link_collision.STL, the pelvis inside every gripper);
+    MuJoCo 4 names them apart, and there nothing changes."""
+    for k, (g, item) in enumerate(zip(geoms, files)):
+        if item is None or g.type != mujoco.mjtGeom.mjGEOM_MESH:
+            continue
+        path, scale = item
+        current = spec.mesh(g.meshname)
+        if current is not None and os.path.normpath(current.file) == os.path.normpath(path):
+            continue
+        mesh = spec.add_mesh(name=f"selfcol_mesh:{link}:{k}", file=path)
+        if scale is not None:
+            mesh.scale = scale
+        g.meshname = mesh.name
+
+
+def _self_collision_geoms(spec: mujoco.MjSpec, check: dict, urdf: str) -> None:
+    """Name the kept URDF collision geoms (each with its own URDF mesh) and put them in the self-collision bits
+    (module docstring)."""
+    files = _collision_mesh_files(urdf)
     owner: dict[str, Side | None] = {}
     contype: dict[str, int] = {}
     conaffinity: dict[str, int] = {}
@@ -128,6 +165,7 @@ def _self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
         body = spec.body(link)
         geoms = list(body.geoms) if body is not None else []
         side = owner[link]
+        _own_meshes(spec, link, geoms, files.get(link, []))
         for k, g in enumerate(geoms):
             g.name = self_collision_geom_name(link, k)
             g.contype = contype.get(link, 0)
@@ -238,7 +276,8 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         raise ConfigError("self-collision checking needs a `collision_check` section for both sides",
                           file=robot.profile.file, key="collision_check")
     keep = frozenset(link for c in check.values() for link in (*c.effector, *c.bodies))
-    spec = mujoco.MjSpec.from_string(_urdf_for_mujoco(robot, keep))
+    urdf = _urdf_for_mujoco(robot, keep)
+    spec = mujoco.MjSpec.from_string(urdf)
     pmodel = robot.model
     base = spec.worldbody.first_body()
     base.add_freejoint(name="root")
@@ -272,7 +311,7 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         _realism_joints(spec, robot, options.realism)
 
     if check:
-        _self_collision_geoms(spec, check)
+        _self_collision_geoms(spec, check, urdf)
     if options.visuals:
         _visual_geoms(spec, robot, body_of_joint)
         _visual_scene(spec)

@@ -44,6 +44,9 @@ class _MovedModules(_abc.MetaPathFinder, _abc.Loader):
     """`import wbcbench.teleop.<old>` gives the module at its new place (imported when first asked for, so that
     importing the package, or the command line's `commands`, stays light)."""
 
+    def __init__(self) -> None:
+        self._specs: dict[str, object] = {}  # module name -> its own spec
+
     def find_spec(self, fullname, path=None, target=None):
         head, _, old = fullname.rpartition(".")
         if head == __name__ and old in _MOVED:
@@ -51,10 +54,14 @@ class _MovedModules(_abc.MetaPathFinder, _abc.Loader):
         return None
 
     def create_module(self, spec):
-        return _importlib.import_module(f"{__name__}.{_MOVED[spec.name.rpartition('.')[2]]}")
+        module = _importlib.import_module(f"{__name__}.{_MOVED[spec.name.rpartition('.')[2]]}")
+        self._specs[module.__name__] = module.__spec__
+        return module
 
     def exec_module(self, module) -> None:
-        pass
+        # the import system has given the module the old path's spec: its own back, so that its relative imports
+        # keep resolving from its package (Python 3.12+ warns when __spec__ and __package__ disagree)
+        module.__spec__ = self._specs[module.__name__]
 
 
 if not any(isinstance(f, _MovedModules) for f in _sys.meta_path):
