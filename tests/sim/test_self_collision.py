@@ -5,9 +5,10 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+import yaml
 
 from wbcbench.errors import ConfigError
-from wbcbench.robots import Side
+from wbcbench.robots import Side, load_robot
 from wbcbench.sim.model import SimOptions
 from wbcbench.sim.self_collision import SelfCollisionMonitor, SelfCollisionProbe
 from wbcbench.sim.simulator import Simulator
@@ -124,10 +125,14 @@ def test_probe_counts_events_and_ticks(talos):
     assert all(k.startswith("left:") for k in m["self_collision_pairs"])
 
 
-def test_errors(talos, g1):
+def test_errors(talos, g1, tmp_path):
     with pytest.raises(ConfigError, match="self_collision"):
         SimOptions(self_collision="yes")
     with pytest.raises(ConfigError, match="detect"):
         SelfCollisionMonitor(Simulator(talos, mode="spd"))
+    data = yaml.safe_load(open(g1.profile.file).read())  # a profile without the section
+    del data["collision_check"]
+    (tmp_path / "g1-unchecked.yaml").write_text(yaml.safe_dump(data))
+    unchecked = load_robot(str(tmp_path / "g1-unchecked.yaml"))
     with pytest.raises(ConfigError, match="collision_check"):
-        Simulator(g1, mode="spd", options=SimOptions(self_collision="detect"))
+        Simulator(unchecked, mode="spd", options=SimOptions(self_collision="detect"))

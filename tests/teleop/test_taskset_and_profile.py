@@ -84,8 +84,11 @@ def test_self_collision_task_errors(talos, g1, tmp_path):
     # a robot whose profile has no repulsors
     g1_set = {"tasks": [{"name": "sc", "type": "self_collision", "side": "left", "weight": 1.0, "kp": 1.0}],
               "contacts": {"kp": 30.0}, "swing_foot": {"weight": 1.0, "kp": 1.0}}
+    data = yaml.safe_load(open(g1.profile.file).read())
+    del data["repulsors"]
+    bare = load_robot(str(_write(tmp_path, "g1-bare.yaml", data)))
     with pytest.raises(ConfigError, match="no `repulsors.left` section"):
-        load_taskset(_write(tmp_path, "e.yaml", g1_set), g1)
+        load_taskset(_write(tmp_path, "e.yaml", g1_set), bare)
 
 
 def _profile_with(tmp_path, **sections) -> Path:

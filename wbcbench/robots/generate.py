@@ -13,7 +13,8 @@ What it finds, from the pinocchio model and its collision geometry at the joints
 * gains from the masses: position kp = m g l / 0.01 rad (the load's weight times its lever, stiff enough for a
   1 cm-rad sag; legs carry the whole robot at 0.1 m), torque-PD kp = 1/15 of it; kd ratios as the shipped
   profiles';
-* fall thresholds from the base height, stepping limits from the leg length, limits the URDF lacks.
+* fall thresholds from the base height, stepping limits from the leg length, limits the URDF lacks;
+* the self-collision repulsors and the self-collision check from the collision geometry (collision.py).
 
 The result is a commented YAML profile; `missing` lists what could not be found (and the key to fill).
 """
@@ -27,6 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
+from .collision import self_collision_keys, self_collision_yaml
 from .robot import MJCF_SUFFIXES, _model_files, mjcf_error
 
 G = 9.81
@@ -334,6 +336,11 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     w("fall:")
     w(f"  min_base_height: {0.5 * base_h:.3f}")
     w("  max_tilt: 0.7")
+    keys = self_collision_keys(model, geom, hands, torso, q_ref) if len(hands) == 2 else None
+    if keys is not None:
+        L.extend(self_collision_yaml(keys))
+    else:
+        missing.append("repulsors, collision_check (no hands, or no collision geometry on an arm)")
     return Generated("\n".join(L) + "\n", missing)
 
 

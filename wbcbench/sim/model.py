@@ -69,7 +69,7 @@ INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "implicitfast": mujoco
 
 def _urdf_for_mujoco(robot: Robot, keep_collision: frozenset[str] = frozenset()) -> str:
     """URDF text with visuals and collision meshes removed (except those of the links in `keep_collision`) and
-    mesh packages resolved."""
+    mesh packages and paths relative to the URDF resolved."""
     txt = robot.files.urdf.read_text()
     txt = re.sub(r"<visual\b.*?</visual>", "", txt, flags=re.S)
     if keep_collision:
@@ -86,6 +86,10 @@ def _urdf_for_mujoco(robot: Robot, keep_collision: frozenset[str] = frozenset())
     else:
         txt = re.sub(r"<collision\b.*?</collision>", "", txt, flags=re.S)
     txt = txt.replace("package://", str(robot.files.package_root) + "/")
+    # mesh paths relative to the URDF (MjSpec.from_string has no directory to resolve them against)
+    base = robot.files.urdf.parent
+    txt = re.sub(r'(<mesh\b[^>]*?\bfilename=")(?![/\\]|[A-Za-z]:)([^"]+)"',
+                 lambda m: f'{m.group(1)}{(base / m.group(2)).resolve()}"', txt)
     compiler = ('<mujoco><compiler discardvisual="true" fusestatic="true" strippath="false" '
                 'balanceinertia="false" autolimits="true"/></mujoco>')
     return re.sub(r"(<robot\b[^>]*>)", r"\1" + compiler, txt, count=1)
