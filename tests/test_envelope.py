@@ -195,3 +195,24 @@ def test_new_axes_walk_at_an_easy_value(tmp_path, axis, value):
     assert not summary["fell"]
     if axis == "stair-down":
         assert summary["metrics"]["com_final_m"][2] < 0.7
+
+
+def test_reproduce_section_takes_the_realism_preset(tmp_path, monkeypatch):
+    """`reproduce --realism P --envelope`: the realistic report's envelope runs every trial on P (the study the
+    section searches carries it; the search itself is replaced here: nothing runs)."""
+    from wbcbench.envelope import report, search
+
+    seen = []
+
+    def fake_run_envelope(study, out, executor=None, progress=None):
+        seen.append(study)
+        out.mkdir(parents=True, exist_ok=True)
+        return [{"controller": "joint-pd", "axis": "push", "unit": "N s", "largest": True, "easy": 0.0,
+                 "hard": 60.0, "resolution": 8.0, "limit": 30.0, "first_failure": 38.0, "mode": "fell",
+                 "reason": "", "trials": [], "wall_s": 0.0}]
+
+    monkeypatch.setattr(search, "run_envelope", fake_run_envelope)
+    monkeypatch.setattr(report, "QUICK_AXES", ("push",))
+    report.reproduce_section(tmp_path, controllers="joint-pd", realism="talos-actuation")
+    assert seen[0].realism == "talos-actuation"
+    assert "realism preset talos-actuation" in (tmp_path / "envelope" / "envelope.md").read_text()

@@ -164,16 +164,17 @@ DEFAULT_CONTROLLERS = ("tsid-torque", "tsid-position", "ik")
 
 
 def reproduce_section(report_dir, robot: str = "talos", controllers: str | None = None, jobs: int = 1,
-                      ray: str | None = None, engine: str = "mujoco") -> Path:
+                      ray: str | None = None, engine: str = "mujoco", realism: str | None = None) -> Path:
     """`reproduce --envelope`: the envelopes of QUICK_AXES at coarse resolution into REPORT_DIR/envelope, and their
-    table appended to report.md and linked from report.html. Returns the envelope report."""
+    table appended to report.md and linked from report.html (`realism`: every trial on that preset's robot, as
+    `reproduce --realism` gives its realistic report). Returns the envelope report."""
     from ..study.execute import make_executor
     from .axes import get_axis
     from .search import EnvelopeStudy, run_envelope
 
     out = Path(report_dir) / "envelope"
     ctrls = tuple(controllers.split(",")) if controllers else DEFAULT_CONTROLLERS
-    study = EnvelopeStudy(axes=QUICK_AXES, controllers=ctrls, robot=robot, engine=engine,
+    study = EnvelopeStudy(axes=QUICK_AXES, controllers=ctrls, robot=robot, engine=engine, realism=realism,
                           resolutions={a: 4 * get_axis(a).resolution for a in QUICK_AXES})
     with make_executor(jobs, ray) as ex:
         results = run_envelope(study, out, executor=ex)

@@ -106,6 +106,13 @@ def run_command(args: argparse.Namespace) -> int:
             reports, _ = reproduce_realism(args.out, args.realism, engine=args.engine,
                                            posture_gains=not args.no_posture_gains, **kwargs)
             _print_side_by_side(console, reports, Path(args.out), "ideal vs realistic", "real-robot")
+            if args.envelope:  # the envelopes of both robots, each in its own report
+                from ..envelope.report import reproduce_section
+
+                for r, preset in zip(reports, (None, args.realism)):
+                    env = reproduce_section(r.out_dir, args.robot, args.controllers, args.jobs or 1, args.ray,
+                                            args.engine, realism=preset)
+                    console.print(f"envelope ({r.out_dir.name}): {env}")
             return 0
         if args.engines:
             from .reproduce import reproduce_engines
