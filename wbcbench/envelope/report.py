@@ -51,6 +51,7 @@ def _radar(results: list[dict], robot: str, path: Path) -> None:
                        fontsize=8)
     ax.set_ylim(0, 1)
     ax.set_yticks([0.25, 0.5, 0.75, 1.0])
+    ax.set_rlabel_position(180.0 / n)   # the fraction labels between the first two axes, off their labels
     ax.set_title(f"Capability envelope, {robot} (fraction of each axis's range passed)")
     ax.legend(loc="lower right", bbox_to_anchor=(1.15, -0.1))
     fig.tight_layout()
