@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from wbcbench.cli import main
@@ -47,6 +48,17 @@ def test_limits_reproducible_and_resumed(tmp_path, payload_stand):
         # each trial a normal run directory
         trial = tmp_path / "env" / "trials" / "talos" / "joint-pd" / r["axis"] / f"{r['limit']:.6g}"
         assert (trial / "run" / "summary.json").exists() and (trial / "envelope-scenario.yaml").exists()
+        if r["axis"] == "push":   # its trials share their start: branched from it, the same runs as from the start
+            assert json.loads((trial / "cell.json").read_text())["branched_at"] == 1.0
+            from wbcbench.recorder import read_log
+
+            branched = read_log(trial / "run" / "log.parquet")
+            direct = read_log(fresh / "trials" / "talos" / "joint-pd" / "push" / f"{r['limit']:.6g}" / "run"
+                              / "log.parquet")
+            assert branched.keys() == direct.keys()
+            for k in branched:
+                if k != "controller_time_us":
+                    np.testing.assert_array_equal(branched[k], direct[k], err_msg=k)
     assert results[0]["axis"] == "push" and results[0]["limit"] == 30.0   # 0..60 N s at 15: 60 fell, 0, 30, 45 fell
     # resumed: a second search re-runs nothing (every trial has its verdict)
     again = run_envelope(study, tmp_path / "env")

@@ -49,6 +49,9 @@ class Axis:
     random: bool = False
     #: the terrain itself is drawn at random: `build(data, value, seed=...)` gets the study's seed
     seeded: bool = False
+    #: [s] the trials share their run up to this time and differ only in their `pushes` (which start at or after
+    #: it): a search simulates that start once and branches every trial from it (`wbcbench.runner.BranchPoint`)
+    branch_at: float | None = None
 
     @property
     def largest(self) -> bool:
@@ -335,6 +338,6 @@ for _axis in (
          "proportion)", "walk-20cm-quick", 3.0, 100.0, 5.0, _ft_bias, allowed=lambda robot: (0.0, 1000.0),
          random=True),
     Axis("push", "N s", "standing, a lateral push on the base in double support (the push protocol's trial), "
-         "impulse", "push", 0.0, 60.0, 2.0, _push, allowed=lambda robot: (0.0, 1000.0)),
+         "impulse", "push", 0.0, 60.0, 2.0, _push, allowed=lambda robot: (0.0, 1000.0), branch_at=PUSH_TIME),
 ):
     register_axis(_axis)

@@ -16,6 +16,7 @@ failure mode: fell, QP infeasible, planner refused, off the plan (final CoM erro
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -138,8 +139,29 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     return v
 
 
+def _bisection(easy: float, hard: float, res: float):
+    """The search of one (controller, axis) as a generator: yields the values to try, is sent each trial's verdict
+    (a dict with "passed", "mode", "reason"), returns (limit, first failure, mode, reason)."""
+    top = yield hard
+    if top["passed"]:
+        return hard, None, "limit reached", f"passed the hardest value tried, {hard:g}"
+    bottom = yield easy
+    if not bottom["passed"]:
+        return None, easy, bottom["mode"], bottom["reason"]
+    ok, bad, last_bad = easy, hard, top
+    while abs(bad - ok) > res * (1 + 1e-9):
+        mid = 0.5 * (ok + bad)
+        r = yield mid
+        if r["passed"]:
+            ok = mid
+        else:
+            bad, last_bad = mid, r
+    return ok, bad, last_bad["mode"], last_bad["reason"]
+
+
 def search_axis(study: EnvelopeStudy, controller: str, axis_name: str, out: str) -> dict:
-    """The bisection of one (controller, axis) (see the module docstring); its EnvelopeResult as a dict."""
+    """The bisection of one (controller, axis) (see the module docstring); its EnvelopeResult as a dict. An axis
+    whose trials share their start (`Axis.branch_at`) simulates it once and branches every trial from it."""
     from .axes import get_axis
 
     t0 = time.perf_counter()
@@ -148,32 +170,111 @@ def search_axis(study: EnvelopeStudy, controller: str, axis_name: str, out: str)
     easy, hard = study.range_of(axis)
     res = study.resolution_of(axis)
     trials = []
-
-    def trial(v: float) -> dict:
-        r = run_trial(study, controller, axis_name, round(float(v), 9), out_p)
-        trials.append([r["value"], r["passed"], r["mode"], r["reason"], r["dir"]])
-        return r
-
-    top = trial(hard)
-    if top["passed"]:
-        limit, fail, mode, reason = hard, None, "limit reached", f"passed the hardest value tried, {hard:g}"
-    else:
-        bottom = trial(easy)
-        if not bottom["passed"]:
-            limit, fail, mode, reason = None, easy, bottom["mode"], bottom["reason"]
-        else:
-            ok, bad, last_bad = easy, hard, top
-            while abs(bad - ok) > res * (1 + 1e-9):
-                mid = 0.5 * (ok + bad)
-                r = trial(mid)
-                if r["passed"]:
-                    ok = mid
-                else:
-                    bad, last_bad = mid, r
-            limit, fail, mode, reason = ok, bad, last_bad["mode"], last_bad["reason"]
+    found = None
+    if axis.branch_at is not None and hasattr(os, "fork"):
+        found = _search_branched(study, controller, axis, _bisection(easy, hard, res), out_p, trials)
+    if found is not None:
+        limit, fail, mode, reason = found
+    else:   # trials from the start (and the fallback of a start that never reached its branch point)
+        trials.clear()
+        steps = _bisection(easy, hard, res)
+        try:
+            v = next(steps)
+            while True:
+                r = run_trial(study, controller, axis_name, round(float(v), 9), out_p)
+                trials.append([r["value"], r["passed"], r["mode"], r["reason"], r["dir"]])
+                v = steps.send(r)
+        except StopIteration as done:
+            limit, fail, mode, reason = done.value
     result = EnvelopeResult(controller, axis_name, axis.unit, axis.largest, easy, hard, res, limit, fail, mode,
                             reason, trials, time.perf_counter() - t0)
     return asdict(result)
+
+
+def _search_branched(study: EnvelopeStudy, controller: str, axis, steps, out: Path, trials: list) -> tuple | None:
+    """`search_axis` for an axis whose trials differ only in their pushes after `axis.branch_at`: the start is
+    simulated once (prepared as the easy value's trial, its pushes dropped) and each trial is a `Branch` from it
+    that writes the same trial directory (scenario, run, cell row, verdict) a trial from the start would. Trials
+    already judged are read back, not run again."""
+    import shutil
+
+    from ..runner import Branch, BranchPoint, run
+    from ..study.cell import DONE_FILE, prepare
+    from ..study.sweep import code_version
+
+    result: list = []
+
+    def trial_files(value: float) -> tuple[Path, dict, tuple]:
+        data, extra = axis.trial(value, study.robot, seed=study.seed)
+        d = trial_dir(out, study.robot, controller, axis.name, value)
+        d.mkdir(parents=True, exist_ok=True)
+        scen = d / "envelope-scenario.yaml"
+        scen.write_text(yaml.safe_dump(data, sort_keys=False))
+        params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
+                  "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+        return d, params, data
+
+    def plan():
+        from ..scene import parse_push
+        from ..config import Section
+
+        try:
+            v = round(float(next(steps)), 9)
+            while True:
+                d, params, data = trial_files(v)
+                vfile = d / VERDICT_FILE
+                if vfile.exists():
+                    r = json.loads(vfile.read_text())
+                else:
+                    pushes = tuple(parse_push(Section(p, str(d / "envelope-scenario.yaml"), f"pushes[{k}]"))
+                                   for k, p in enumerate(data.get("pushes") or []))
+                    summary = yield Branch(d / "run", pushes)
+                    row = {"cell_id": d.name, **{f"param.{k}": x for k, x in params.items()},
+                           "code_version": code_version(), "branched_at": axis.branch_at}
+                    reason = str(summary.get("fall_reason") or "")
+                    if "error" in summary or reason.startswith("error:"):
+                        row.update(status="error", error=summary.get("error") or reason[len("error: "):])
+                    else:
+                        row.update(status="fell" if summary.get("fell") else "ok", error=None)
+                    (d / DONE_FILE).write_text(json.dumps(row, indent=1, default=str))
+                    passed, mode, why = _verdict(d / "run", row, study.tolerance)
+                    r = {"value": v, "passed": passed, "mode": mode, "reason": why, "dir": str(d), "wall_s": None}
+                    vfile.write_text(json.dumps(r, indent=1))
+                trials.append([r["value"], r["passed"], r["mode"], r["reason"], r["dir"]])
+                v = round(float(steps.send(r)), 9)
+        except StopIteration as done:
+            result.append(done.value)
+
+    # a search whose every trial is judged already (resumed) needs no start: read it back
+    easy, hard = study.range_of(axis)
+    cached = _bisection(easy, hard, study.resolution_of(axis))
+    seen = []
+    try:
+        v = round(float(next(cached)), 9)
+        while (vfile := trial_dir(out, study.robot, controller, axis.name, v) / VERDICT_FILE).exists():
+            r = json.loads(vfile.read_text())
+            seen.append([r["value"], r["passed"], r["mode"], r["reason"], r["dir"]])
+            v = round(float(cached.send(r)), 9)
+    except StopIteration as done:
+        trials.extend(seen)
+        return done.value
+    approach = out / "trials" / study.robot / controller / axis.name / "approach"
+    approach.mkdir(parents=True, exist_ok=True)
+    data, extra = axis.trial(easy, study.robot, seed=study.seed)
+    (approach / "envelope-scenario.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
+    params = {"scenario": str((approach / "envelope-scenario.yaml").resolve()), "controller": controller,
+              "robot": study.robot, "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+    scen, ctrl, robot, options, mode = prepare(params, approach)
+    from dataclasses import replace
+
+    scen.spec = replace(scen.spec, pushes=())
+    run(scen, ctrl, robot, mode if not hasattr(ctrl, "step") else None, None, approach / "run", sim_options=options,
+        overwrite=True, seed=int(study.seed), engine=study.engine, realism=study.realism,
+        branch=BranchPoint(axis.branch_at, plan))
+    shutil.rmtree(approach, ignore_errors=True)   # a partial run: the trials are the runs
+    # None: the start ended before its branch point (e.g. a fall while standing): the caller runs the trials from
+    # the start instead
+    return result[0] if result else None
 
 
 def validate(study: EnvelopeStudy) -> None:
