@@ -111,6 +111,17 @@ def _verdict(run_dir: Path, row: dict, tolerance: float) -> tuple[bool, str, str
     return True, "", f"passed (final CoM error {err:.3f} m)"
 
 
+def _write_trial(study: EnvelopeStudy, controller: str, axis, value: float, d: Path) -> tuple[dict, dict]:
+    """The trial's generated scenario written to D/envelope-scenario.yaml; (its mapping, the cell's params)."""
+    data, extra = axis.trial(value, study.robot, seed=study.seed)
+    d.mkdir(parents=True, exist_ok=True)
+    scen = d / "envelope-scenario.yaml"
+    scen.write_text(yaml.safe_dump(data, sort_keys=False))
+    params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
+              "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+    return data, params
+
+
 def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: float, out: Path) -> dict:
     """One trial (resumed from its verdict.json when done): {value, passed, mode, reason, dir}."""
     from ..study.cell import DONE_FILE, run_cell
@@ -121,13 +132,7 @@ def run_trial(study: EnvelopeStudy, controller: str, axis_name: str, value: floa
     vfile = d / VERDICT_FILE
     if vfile.exists():
         return json.loads(vfile.read_text())
-    axis = get_axis(axis_name)
-    data, extra = axis.trial(value, study.robot, seed=study.seed)
-    d.mkdir(parents=True, exist_ok=True)
-    scen = d / "envelope-scenario.yaml"
-    scen.write_text(yaml.safe_dump(data, sort_keys=False))
-    params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
-              "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+    _, params = _write_trial(study, controller, get_axis(axis_name), value, d)
     done = d / DONE_FILE
     # a run finished but not judged (killed in between): judged from its row and log, not run again
     row = json.loads(done.read_text()) if done.exists() else run_cell(params, str(d.resolve()), code_version(),
@@ -204,14 +209,9 @@ def _search_branched(study: EnvelopeStudy, controller: str, axis, steps, out: Pa
 
     result: list = []
 
-    def trial_files(value: float) -> tuple[Path, dict, tuple]:
-        data, extra = axis.trial(value, study.robot, seed=study.seed)
+    def trial_files(value: float) -> tuple[Path, dict, dict]:
         d = trial_dir(out, study.robot, controller, axis.name, value)
-        d.mkdir(parents=True, exist_ok=True)
-        scen = d / "envelope-scenario.yaml"
-        scen.write_text(yaml.safe_dump(data, sort_keys=False))
-        params = {"scenario": str(scen.resolve()), "controller": controller, "robot": study.robot,
-                  "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+        data, params = _write_trial(study, controller, axis, value, d)
         return d, params, data
 
     def plan():
@@ -259,11 +259,7 @@ def _search_branched(study: EnvelopeStudy, controller: str, axis, steps, out: Pa
         trials.extend(seen)
         return done.value
     approach = out / "trials" / study.robot / controller / axis.name / "approach"
-    approach.mkdir(parents=True, exist_ok=True)
-    data, extra = axis.trial(easy, study.robot, seed=study.seed)
-    (approach / "envelope-scenario.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
-    params = {"scenario": str((approach / "envelope-scenario.yaml").resolve()), "controller": controller,
-              "robot": study.robot, "seed": study.seed, "engine": study.engine, **_realism_param(study), **extra}
+    _, params = _write_trial(study, controller, axis, easy, approach)
     scen, ctrl, robot, options, mode = prepare(params, approach)
     from dataclasses import replace
 
