@@ -1,7 +1,7 @@
 """wbcbench's inverse-dynamics formulation against C++ TSID's numbers, built with public options only: the contacts'
 classical drift, TSID's wrench metric (`tsid_wrench_metric`), TSID's weights and gains.
 
-The reference (tests/data/tsid_reference/talos_stand.npz) is recorded by benchmarks/peers/tsid_record.py in the
+The reference (tests/data/tsid_reference/talos_stand.json, the recorded numbers as text) is recorded by benchmarks/peers/tsid_record.py in the
 peers' venv (TSID 1.7.1 with pinocchio 3.4): TALOS standing on both soles, CoM, waist orientation, angular momentum,
 posture, joint position bounds, at three states (at rest, the CoM reference moved with a velocity and an
 acceleration, joints and velocities perturbed with the contacts off their references).
@@ -19,18 +19,18 @@ from wbcbench.controllers.taskset import ContactSpec, TsidWrenchMetric
 from wbcbench.qp import QPStatus, make_solver
 from wbcbench.tasks import AngularMomentumTask, CoMTask, Contact6D, FrameTask, PostureTask, tsid_wrench_metric
 
-REF = Path(__file__).parent / "data" / "tsid_reference" / "talos_stand.npz"
+REF = Path(__file__).parent / "data" / "tsid_reference" / "talos_stand.json"
 
 
 @pytest.fixture(scope="module")
 def ref():
-    with np.load(REF) as z:
-        return {k: z[k] for k in z.files}
+    raw = json.loads(REF.read_text())
+    return {k: v if k in ("params", "tsid_version", "pinocchio_version") else np.asarray(v) for k, v in raw.items()}
 
 
 def _formulation(talos, ref, drift="classical", metric=True):
     """wbcbench's formulation of the recorded TSID problem (the record's parameters, the robot's model)."""
-    P = json.loads(str(ref["params"]))
+    P = ref["params"]
     m = talos.model
     corners = ref["corners"]
     length, width = np.ptp(corners[:, 0]), np.ptp(corners[:, 1])
@@ -108,7 +108,7 @@ def test_formulation_matches_tsid(talos, ref, state):
     assert _rel(dv, ref[f"{state}/dv"]) < 1e-10
     assert _rel(tau, ref[f"{state}/tau"]) < 1e-10
     assert _rel(w, ref[f"{state}/wrenches"]) < 1e-10
-    mu = json.loads(str(ref["params"]))["mu"]
+    mu = ref["params"]["mu"]
     f = ref[f"{state}/corner_forces"].reshape(-1, 4, 3)
     assert np.all(np.abs(f[..., :2]).max(axis=-1) < mu * f[..., 2])
 

@@ -6,7 +6,7 @@ the recorded numbers).
 Two steps, from the repository root:
 
     .venv/bin/python benchmarks/peers/tsid_record.py --prepare DIR     # wbcbench's TALOS: URDF, q0, armature, sole
-    PEERS/tsid/bin/python benchmarks/peers/tsid_record.py DIR --out tests/data/tsid_reference/talos_stand.npz
+    PEERS/tsid/bin/python benchmarks/peers/tsid_record.py DIR --out tests/data/tsid_reference/talos_stand.json
 
 (PEERS from benchmarks/peers/setup.sh). The model is wbcbench's (the URDF with its armature, which enters the mass
 matrix in both). States: `stand` (half-sitting at rest, references where the robot is), `com_moved` (the CoM
@@ -79,7 +79,7 @@ def record(src: Path, out: Path) -> None:
                             np.array([0.1, -0.3, 0.0])),
               "perturbed": (pin.integrate(model, q0, dq), v_pert, np.zeros(3), np.zeros(3), np.zeros(3))}
     data = {"tsid_version": metadata.version("tsid"), "pinocchio_version": pin.__version__,
-            "params": json.dumps(P), "corners": corners.T, "states": np.array(list(states))}
+            "params": P, "corners": corners.T, "states": list(states)}
     for name, (q, v, dcom, vcom, acom) in states.items():
         robot = tsid.RobotWrapper(model, tsid.RootJointType.FLOATING_BASE_SYSTEM, False)
         form = tsid.InverseDynamicsFormulationAccForce("tsid", robot, False)
@@ -146,7 +146,9 @@ def record(src: Path, out: Path) -> None:
                      f"{name}/tau": form.getActuatorForces(sol), f"{name}/corner_forces": corner_forces,
                      f"{name}/wrenches": wrenches})
     out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out, **data)
+    # text, so that the test data can be read and reviewed: every array as nested lists (floats round-trip exactly)
+    out.write_text(json.dumps({k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in data.items()},
+                              indent=1) + "\n")
     print(f"{out}: TSID {data['tsid_version']}, states {', '.join(states)}")
 
 
@@ -154,6 +156,6 @@ if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("dir", help="the directory --prepare writes (URDF, q0, armature, sole) and the recording reads")
     p.add_argument("--prepare", action="store_true", help="write DIR from wbcbench (run in wbcbench's venv)")
-    p.add_argument("--out", type=Path, default=Path("tests/data/tsid_reference/talos_stand.npz"))
+    p.add_argument("--out", type=Path, default=Path("tests/data/tsid_reference/talos_stand.json"))
     a = p.parse_args()
     prepare(Path(a.dir)) if a.prepare else record(Path(a.dir), a.out)
