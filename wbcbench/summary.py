@@ -29,13 +29,20 @@ def pacing_text(rt: dict) -> str:
     return text
 
 
-def render_summary(console: Console, s: dict, run_dir: Path) -> None:
+def summary_table(s: dict) -> Table:
+    """A run summary's key-value table, titled with the scenario, controller, mode, robot (and realism preset) and
+    whether the run completed or fell; the rows are the caller's."""
     status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
     t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}"
               + (f" (realism {s['realism']})" if s.get("realism") else "") + f": {status}",
               show_header=False, title_justify="left")
     t.add_column("key", style="bold")
     t.add_column("value")
+    return t
+
+
+def render_summary(console: Console, s: dict, run_dir: Path) -> None:
+    t = summary_table(s)
     t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s")
     rtf = s.get("real_time_factor")
     t.add_row("wall time", f"{s['wall_time_s']:.2f} s (real-time factor {rtf:.2f})" if rtf else f"{s['wall_time_s']:.2f} s")

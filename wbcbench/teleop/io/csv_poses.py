@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ConfigError
+from .bvh import _is_float
 from .recording import MocapRecording, parents_from_names
 from .segments import MVN_PARENTS
 
@@ -154,12 +155,6 @@ def _check_complete(frame, segments, fail, *, last: bool = False, last_line: int
     raise fail(where, f"frame at t = {t:g} s lacks segments {missing[:4]}{'...' if len(missing) > 4 else ''}{hint}")
 
 
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def write_pose_csv(path: str | Path, recording: MocapRecording, *, decimals: int = 6) -> Path:

@@ -272,23 +272,16 @@ def run_command(args: argparse.Namespace) -> int:
 
 def render(console, summary: dict, run_dir) -> None:
     """The teleoperation summary: status, Table II statistics, self-collisions, source health."""
-    from rich.table import Table
+    from ...summary import pacing_text, summary_table
 
     s, m = summary, summary.get("metrics", {})
-    status = f"[red]FELL: {s['fall_reason']}[/red]" if s["fell"] else "[green]completed[/green]"
-    t = Table(title=f"{s['scenario']} / {s['controller']} ({s['mode']}) on {s['robot']}"
-              + (f" (realism {s['realism']})" if s.get("realism") else "") + f": {status}",
-              show_header=False, title_justify="left")
-    t.add_column("key", style="bold")
-    t.add_column("value")
+    t = summary_table(s)
     t.add_row("simulated", f"{s['sim_time_s']:.3f} s of {s['duration_s']:.3f} s (wall {s['wall_time_s']:.1f} s)")
     sk = m.get("teleop", {}).get("skeleton") or {}
     if sk.get("length_unit") or sk.get("mapping") not in (None, "names"):
         t.add_row("skeleton", f"segments by {sk.get('mapping')}; length unit {sk.get('length_unit') or 'metres'}; "
                               f"up {sk.get('up_axis')}")
     if s.get("realtime"):
-        from ...summary import pacing_text
-
         t.add_row("wall-clock pacing", pacing_text(s["realtime"]))
     st = s["step_time_us"]
     if st["median"] is not None:
