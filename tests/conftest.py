@@ -13,6 +13,19 @@ settings.load_profile("explore" if os.environ.get("WBCBENCH_EXPLORE") else "repr
 
 
 @pytest.fixture(scope="session")
+def one_line_exit_2():
+    """The check of a command-line process that must fail as bad input does: exit 2, one line on stderr (no
+    traceback), and that line naming each of `needles`. Usage: `one_line_exit_2(proc, *needles)`."""
+    def check(proc, *needles):
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+        for n in needles:
+            assert n in lines[0], lines[0]
+    return check
+
+
+@pytest.fixture(scope="session")
 def talos():
     return load_robot("talos")
 

@@ -23,51 +23,42 @@ def test_help_lists_scenarios_controllers_robots(capsys):
         assert name in out
 
 
-def _one_line_error(proc, *needles):
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert "Traceback" not in proc.stderr
-    for n in needles:
-        assert n in lines[0], lines[0]
+def test_unknown_robot_lists_known_ones(one_line_exit_2):
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--robot", "atlas"), "atlas", "talos", "g1")
 
 
-def test_unknown_robot_lists_known_ones():
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", "atlas"), "atlas", "talos", "g1")
+def test_unknown_controller_and_scenario(one_line_exit_2):
+    one_line_exit_2(run_cli("run", "stand", "-c", "nope"), "nope", "joint-pd")
+    one_line_exit_2(run_cli("run", "standing", "-c", "joint-pd"), "standing", "stand")
 
 
-def test_unknown_controller_and_scenario():
-    _one_line_error(run_cli("run", "stand", "-c", "nope"), "nope", "joint-pd")
-    _one_line_error(run_cli("run", "standing", "-c", "joint-pd"), "standing", "stand")
-
-
-def test_malformed_profile_names_file_and_key(tmp_path: Path):
+def test_malformed_profile_names_file_and_key(tmp_path: Path, one_line_exit_2):
     bad = tmp_path / "bad_robot.yaml"
     text = (Path(__file__).parents[1] / "wbcbench/robots/profiles/talos.yaml").read_text()
     bad.write_text(text.replace("length: 0.20", "length: -0.2"))
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), str(bad), "sole.length", "> 0")
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), str(bad), "sole.length", "> 0")
     bad.write_text(text.replace("torso_frame: torso_2_link", "torso_frame: torso_9_link"))
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "torso_9_link",
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "torso_9_link",
                     "torso_frame")
     bad.write_text(text + "\nunexpected_key: 1\n")
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "unexpected_key", "unknown key")
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "unexpected_key", "unknown key")
     bad.write_text("name: [unclosed\n")
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "invalid YAML")
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--robot", str(bad)), "invalid YAML")
 
 
-def test_malformed_terrain_names_file_and_key(tmp_path: Path):
+def test_malformed_terrain_names_file_and_key(tmp_path: Path, one_line_exit_2):
     bad = tmp_path / "scene.yaml"
     bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: lava}\n")
-    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), str(bad), "terrain.type", "flat")
+    one_line_exit_2(run_cli("run", str(bad), "-c", "joint-pd"), str(bad), "terrain.type", "flat")
     bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: boxes, boxes: [{center: [0, 0], "
                    "size: [1, 1, 1]}]}\n")
-    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.boxes[0].center", "3 values")
+    one_line_exit_2(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.boxes[0].center", "3 values")
     bad.write_text("name: s\nkind: stand\nduration: 1\nterrain: {type: stairs, count: 3, height: -0.1, depth: 0.3}\n")
-    _one_line_error(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.height", "> 0")
+    one_line_exit_2(run_cli("run", str(bad), "-c", "joint-pd"), "terrain.height", "> 0")
 
 
-def test_unsupported_mode():
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--mode", "velocity"), "velocity", "torque")
+def test_unsupported_mode(one_line_exit_2):
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--mode", "velocity"), "velocity", "torque")
 
 
 def test_run_writes_a_run_directory(tmp_path: Path):
@@ -78,23 +69,23 @@ def test_run_writes_a_run_directory(tmp_path: Path):
     assert "completed" in proc.stdout
 
 
-def test_unwritable_run_directory(tmp_path: Path):
+def test_unwritable_run_directory(tmp_path: Path, one_line_exit_2):
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
     proc = run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--out", str(blocker / "run"))
-    _one_line_error(proc, "--out", "cannot write the run directory", str(blocker / "run"))
+    one_line_exit_2(proc, "--out", "cannot write the run directory", str(blocker / "run"))
 
 
-def test_missing_taskset_file(tmp_path: Path):
+def test_missing_taskset_file(tmp_path: Path, one_line_exit_2):
     proc = run_cli("run", "stand", "-c", "tsid-torque", "--duration", "0.01", "--taskset", str(tmp_path / "no.yaml"),
                    "--out", str(tmp_path / "r"))
-    _one_line_error(proc, "--taskset", "no such file")
+    one_line_exit_2(proc, "--taskset", "no such file")
 
 
-def test_existing_run_directory_is_not_overwritten_silently(tmp_path: Path):
+def test_existing_run_directory_is_not_overwritten_silently(tmp_path: Path, one_line_exit_2):
     out = tmp_path / "r"
     assert run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--quiet", "--out", str(out)).returncode == 0
-    _one_line_error(run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--out", str(out)),
+    one_line_exit_2(run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--out", str(out)),
                     "already holds a run", "--overwrite")
     assert run_cli("run", "stand", "-c", "joint-pd", "--duration", "0.01", "--quiet", "--overwrite", "--out",
                    str(out)).returncode == 0
