@@ -64,12 +64,14 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
     tasks = _frame_tasks(m, rng)
     com = CoMTask(m, kp=10.0, mask=[1, 0, 1])
     com.set_reference(np.array([0.0, 0.1, 0.8]), np.array([0.1, 0.0, 0.2]))
+    com_y = CoMTask(m, kp=4.0, kd=3.0, mask=[0, 1, 0], name="com_y")  # a second CoM task, its own reference
+    com_y.set_reference(np.array([0.3, -0.2, 0.5]), None, np.array([0.0, 0.4, 0.0]))
     contacts = [Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0),
                 Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0),
                 Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0, drift="classical", name="classical")]
     for c, angle in zip(contacts, (0.3, 2.5, 0.7)):  # a small and a large rotation error
         c.set_reference(pin.SE3(pin.exp3(angle * np.array([0.6, 0.0, 0.8])), rng.normal(size=3)))
-    stacked = [contacts[0], tasks[0], com, *tasks[1:], contacts[1], contacts[2]]
+    stacked = [contacts[0], tasks[0], com, *tasks[1:], com_y, contacts[1], contacts[2]]
     plain = TaskStack(stacked, m.nv)
     batch = TaskStack(stacked, m.nv, compiled_frames=True)
     for seed in range(12):
@@ -81,8 +83,9 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
         assert np.allclose(b2, b, rtol=0, atol=1e-11 * (1 + np.abs(b).max()))
         bv = plain.velocity_rows(m, d).b.copy()
         assert np.allclose(batch.velocity_rows(m, d).b, bv, rtol=0, atol=1e-12 * (1 + np.abs(bv).max()))
-    # a new reference and a new mask reach the batch
+    # a new reference and a new mask reach the batch, and a CoM reference shared between CoM tasks
     tasks[2].set_reference(pin.SE3.Identity())
+    com_y.share_reference(com)
     tasks[3].mask = [1, 1, 1, 1, 1, 1]
     A, b = (x.copy() for x in plain.acceleration_rows(m, d))
     A2, b2 = batch.acceleration_rows(m, d)
@@ -204,6 +207,40 @@ def test_tsid_teleop_commands_are_the_same_with_pinocchios_rows(talos):
     for k in range(150):
         a, b = compiled.step(meas, refs), plain.step(meas, refs)
         worst = max(worst, float(np.abs(a.q - b.q).max()))
+        sim.apply(a)
+        sim.step()
+        meas = sim.measure()
+    assert worst < 1e-9, worst
+
+
+@pytest.mark.parametrize("name", ["tsid-torque", "tsid-position"])
+def test_inverse_dynamics_commands_are_the_same_with_pinocchios_rows(talos, name):
+    """The paper's inverse-dynamics controllers evaluate their frame, contact and CoM rows compiled: walking the
+    first second of a plan (CoM moving over a foot, a contact schedule), their commands equal those of the same
+    controller on pinocchio's rows, to rounding."""
+    from wbcbench.controllers.base import make_controller
+    from wbcbench.scenarios import load_scenario
+    from wbcbench.side import Side
+    from wbcbench.sim.simulator import Simulator
+
+    compiled = make_controller(name, talos, None, 1e-3)
+    plain = make_controller(name, talos, None, 1e-3)
+    plain.formulation.compiled_frames = False
+    assert compiled.formulation.compiled_frames
+    scenario = load_scenario("walk-20cm-quick", talos)
+    sim = Simulator(talos, mode=compiled.mode)
+    meas = sim.measure()
+    scenario.setup(meas.q, pin.centerOfMass(talos.model, talos.model.createData(), meas.q))
+    lift_off = min(int(np.flatnonzero(~np.asarray(scenario.walk.feet[s].in_contact, dtype=bool))[0]) for s in Side)
+    refs = scenario.references(meas.t)
+    compiled.reset(meas, refs)
+    plain.reset(meas, refs)
+    worst = 0.0
+    for k in range(lift_off + 300):  # into the first single support
+        refs = scenario.references(meas.t)
+        a, b = compiled.step(meas, refs), plain.step(meas, refs)
+        x, y = (a.tau, b.tau) if a.tau is not None else (a.q, b.q)
+        worst = max(worst, float(np.abs(x - y).max() / (1.0 + np.abs(y).max())))
         sim.apply(a)
         sim.step()
         meas = sim.measure()

@@ -68,8 +68,14 @@ class TaskReferences:
         pitch about instead of its own lateral one (`with_swing_pitch`)."""
         com = refs.com
         if com is not None:
+            first = None
             for task in self.com_tasks:
+                if first is not None and type(task) is CoMTask:  # the same checked arrays, not checked again
+                    task.share_reference(first)
+                    continue
                 task.set_reference(com.position, com.velocity, com.acceleration)
+                if first is None and type(task) is CoMTask:
+                    first = task
         for name, target in refs.targets.items():
             task = self.by_name.get(name)
             if task is None:

@@ -162,7 +162,6 @@ class TSIDTeleop(InverseDynamicsController):
 
     name = "tsid-teleop"
     default_mode = ActuationMode.SPD
-    compiled_frames = True
     modes = (ActuationMode.SPD, ActuationMode.POSITION, ActuationMode.TORQUE)
     #: daqp's iteration limit on the torque-limited QP in SPD and position modes (see `__init__`)
     TORQUE_QP_ITERATIONS = 60

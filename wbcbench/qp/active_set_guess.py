@@ -86,24 +86,27 @@ class ActiveSetGuessSolver(QPSolver):
         self.n_backend = 0
         self._guesses: dict[tuple[int, int, int, bool], _Guess] = {}
         self._empty: dict[int, tuple[FloatArray, FloatArray]] = {}
+        self._flat: dict[int, tuple] = {}
 
     def reset(self) -> None:
         """Forget the guesses and the backend's workspace."""
         self._guesses.clear()
+        self._flat.clear()
         self.backend.reset()
 
     # ------------------------------------------------------------------------------------------ solve
     def solve(self, problem: QPProblem) -> QPResult:
         p = problem
-        m_eq = 0 if p.A_eq is None else p.A_eq.shape[0]
-        m_in = 0 if p.C is None else p.C.shape[0]
-        key = (p.H.shape[0], m_eq, m_in, p.lb is not None)
+        entry = self._flat.get(id(p))
+        if entry is None or entry[0] is not p:
+            entry = self._flatten(p)
+        _, key, arrays = entry
         guess = self._guesses.get(key)
         if guess is None:
             guess = self._guesses[key] = _Guess()
-        certified = self._certified(p, guess, m_eq)
-        if certified is not None:
-            x, objective = certified
+        ok, x, objective = kernels._certify_equality_qp(*arrays, guess.c_up, guess.c_lo, guess.x_up, guess.x_lo,
+                                                        self.primal_tol, self.dual_tol)
+        if ok:
             self.n_guessed += 1
             return QPResult(x, QPStatus.OPTIMAL, 0, objective, self.name, "guess")
         self.n_backend += 1
@@ -113,19 +116,33 @@ class ActiveSetGuessSolver(QPSolver):
             self._guesses[key] = _Guess(*ws) if ws is not None else self._active_set(p, result.x)
         return result
 
-    def _certified(self, p: QPProblem, guess: _Guess, m_eq: int) -> tuple[FloatArray, float] | None:
-        """The solution with ``guess`` active and its objective if it passes the KKT test, else None
-        (:func:`wbcbench.qp.kernels.certify_equality_qp`)."""
+    def _flatten(self, p: QPProblem) -> tuple:
+        """(p, its structure key, the kernel's arrays of p: `kernels.QPArrays` with (0, n) / size-0 arrays for
+        the absent parts), kept for the next solves of the same problem object (a controller refills one
+        problem's arrays in place every tick; a `QPProblem` cannot be re-pointed at other arrays)."""
         n = p.H.shape[0]
         empty = self._empty.get(n)
         if empty is None:
             empty = self._empty[n] = (np.zeros((0, n)), np.zeros(0))
         E, z = empty
-        qp = kernels.QPArrays(p.H, p.g, E if p.A_eq is None else p.A_eq, z if p.b_eq is None else p.b_eq,
-                              E if p.C is None else p.C, z if p.l is None else p.l, z if p.u is None else p.u,
-                              z if p.lb is None else p.lb, z if p.ub is None else p.ub)
+        m_eq = 0 if p.A_eq is None else p.A_eq.shape[0]
+        m_in = 0 if p.C is None else p.C.shape[0]
+        key = (n, m_eq, m_in, p.lb is not None)
+        arrays = kernels.QPArrays(p.H, p.g, E if p.A_eq is None else p.A_eq, z if p.b_eq is None else p.b_eq,
+                                  E if p.C is None else p.C, z if p.l is None else p.l, z if p.u is None else p.u,
+                                  z if p.lb is None else p.lb, z if p.ub is None else p.ub)
+        if len(self._flat) >= 16:  # problems made anew for each solve: keep only the recent ones
+            self._flat.clear()
+        entry = self._flat[id(p)] = (p, key, tuple(arrays))
+        return entry
+
+    def _certified(self, p: QPProblem, guess: _Guess, m_eq: int) -> tuple[FloatArray, float] | None:
+        """The solution with ``guess`` active and its objective if it passes the KKT test, else None
+        (:func:`wbcbench.qp.kernels.certify_equality_qp`)."""
+        arrays = self._flatten(p)[2]
         ok, x, objective = kernels.certify_equality_qp(
-            qp, kernels.ActiveSet(guess.c_up, guess.c_lo, guess.x_up, guess.x_lo), self.primal_tol, self.dual_tol)
+            kernels.QPArrays(*arrays), kernels.ActiveSet(guess.c_up, guess.c_lo, guess.x_up, guess.x_lo),
+            self.primal_tol, self.dual_tol)
         return (x, objective) if ok else None
 
     def _active_set(self, p: QPProblem, x: FloatArray) -> _Guess:

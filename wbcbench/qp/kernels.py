@@ -18,8 +18,19 @@ __all__ = ["ActiveSet", "QPArrays", "certify_equality_qp", "selection_lsq", "bou
 @njit
 def _cholesky_lower(A, L) -> bool:
     """L = lower Cholesky factor of the symmetric A (only A's lower triangle is read); False if A is not
-    positive definite. Zeros of A's lower triangle stay cheap (block-diagonal Hessians)."""
+    positive definite. An entry left of a row's first nonzero column (A's envelope, which L keeps) is zero
+    without its dot product: a block-diagonal Hessian (the joint accelerations' block, then the contact wrenches'
+    diagonal or 6x6 blocks) skips the blocks' coupling. The dot products themselves start at column 0 (zeros
+    included), which LLVM vectorises; starting them at the envelope measured twice slower."""
     n = A.shape[0]
+    first = np.empty(n, dtype=np.intp)
+    for i in range(n):
+        f = i
+        for j in range(i):
+            if A[i, j] != 0.0:
+                f = j
+                break
+        first[i] = f
     for j in range(n):
         s = A[j, j]
         for k in range(j):
@@ -29,6 +40,9 @@ def _cholesky_lower(A, L) -> bool:
         d = np.sqrt(s)
         L[j, j] = d
         for i in range(j + 1, n):
+            if first[i] > j:
+                L[i, j] = 0.0
+                continue
             s = A[i, j]
             for k in range(j):
                 s -= L[i, k] * L[j, k]

@@ -96,6 +96,13 @@ class CoMTask(Task):
         self._store_derivatives(derivatives)
         self._p_ref = val.frozen(p)
 
+    def share_reference(self, other: CoMTask) -> None:
+        """Take the reference another CoM task was given at its last `set_reference` (the same read-only arrays:
+        a plan's CoM handed to several CoM tasks, e.g. ``com_xy`` and ``com_z``, is checked and copied once)."""
+        if other._p_ref is None:
+            raise ReferenceNotSetError(f"{other.owner}: call set_reference before sharing its reference")
+        self._p_ref, self._v_ref, self._a_ref = other._p_ref, other._v_ref, other._a_ref
+
     def set_reference_to_current(self, model: pin.Model, data: pin.Data) -> None:
         """Set the reference to the current CoM position, with zero velocity and acceleration."""
         self.set_reference(self.position(model, data))

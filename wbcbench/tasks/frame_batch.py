@@ -1,5 +1,5 @@
 """The rows of several frame tasks (:class:`~wbcbench.tasks.FrameTask`), contacts
-(:class:`~wbcbench.tasks.Contact6D`) and a CoM task (:class:`~wbcbench.tasks.CoMTask`) of a stack in one compiled
+(:class:`~wbcbench.tasks.Contact6D`) and CoM tasks (:class:`~wbcbench.tasks.CoMTask`) of a stack in one compiled
 call.
 
 A frame task's rows cost three pinocchio queries from Python per tick (``updateFramePlacement``,
@@ -18,7 +18,7 @@ the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
   ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``) and the drift the
   spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL), or for a
   contact with the classical drift the classical acceleration above in the frame's axes, ``R^T [p_ddot; w_dot]``;
-* the CoM task's rows from the centroidal map: ``Ag[:3] / m``, ``p_ref - com``, ``dAg[:3] v / m``.
+* each CoM task's rows from the centroidal map: ``Ag[:3] / m``, ``p_ref - com``, ``dAg[:3] v / m``.
 
 The same quantities as pinocchio's to rounding (the tests compare them on random states), not the same bits: a
 stack uses this path only when asked (``TaskStack(..., compiled_frames=True)``), so that the controllers whose
@@ -45,7 +45,7 @@ FloatArray = npt.NDArray[np.float64]
 
 
 class FrameBatch:
-    """The frame tasks, contacts and CoM task ``tasks`` of a stack, whose selected rows start at ``starts`` in the
+    """The frame tasks, contacts and CoM tasks ``tasks`` of a stack, whose selected rows start at ``starts`` in the
     stack's buffers.
 
     `supported` is False when the model has a joint the compiled forward kinematics does not know (or there is no
@@ -57,27 +57,30 @@ class FrameBatch:
         pairs = list(zip(tasks, starts, strict=True))
         framed = [(t, start) for t, start in pairs if not isinstance(t, CoMTask)]
         self._com = [(t, start) for t, start in pairs if isinstance(t, CoMTask)]
-        self.tasks = tuple(t for t, _ in framed)  # the frame tasks and contacts (the CoM task is `_com`)
+        self.tasks = tuple(t for t, _ in framed)  # the frame tasks and contacts (the CoM tasks are `_com`)
         self.supported = self.fk.supported and len(framed) > 0
         if not self.supported:
             return
-        if len(self._com) > 1:
-            raise ValueError("FrameBatch: at most one CoM task")
         nv = model.nv
         k = len(framed)
         parents, self._Rf, self._tf = self.fk.frame_arrays([t.frame_id for t in self.tasks])
         self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
         self._classical = np.array([getattr(t, "drift_convention", "spatial") == "classical" for t in self.tasks],
                                    dtype=np.bool_)
-        if self._com:
-            task, start = self._com[0]
-            self._com_rows = np.array([start + r for r in range(len(task.rows))], dtype=np.intp)
-            self._com_axes = task.rows.astype(np.intp)
-            self._com_inv_mass = float(task._inv_mass)
-        else:
-            self._com_rows = self._com_axes = np.zeros(0, dtype=np.intp)
-            self._com_inv_mass = 0.0
-        self._com_ref = np.zeros(3)
+        # the CoM tasks' rows (e.g. com_xy and com_z, each with its own reference): one row per selected axis
+        self._com_rows = np.array([start + r for t, start in self._com for r in range(len(t.rows))], dtype=np.intp)
+        self._com_axes = np.array([a for t, _ in self._com for a in t.rows], dtype=np.intp)
+        self._com_slices = []
+        first = 0
+        for t, _ in self._com:
+            self._com_slices.append((t, slice(first, first + len(t.rows)), t.rows.astype(np.intp)))
+            first += len(t.rows)
+        masses = {float(t._inv_mass) for t, _ in self._com}
+        if len(masses) > 1:
+            raise ValueError("FrameBatch: CoM tasks of different models")
+        self._com_inv_mass = masses.pop() if masses else 0.0
+        self._com_ref = np.zeros(len(self._com_rows))  # per row, the reference of its task's axis
+        self._com_seen: list = [None] * len(self._com)
         self._parents = parents
         support = np.zeros((k, nv), dtype=np.bool_)
         for i, j in enumerate(parents):
@@ -100,6 +103,8 @@ class FrameBatch:
         self._seen: list = [None] * k
         self._R = np.zeros((k, 3, 3))
         self._t = np.zeros((k, 3))
+        self._args: tuple | None = None
+        self._args_key: tuple = (None,) * 4
 
     def fill(self, model: pin.Model, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> None:
         """Write the tasks' Jacobian rows into ``A``, error rows into ``e`` and, unless None, drift rows into
@@ -116,21 +121,36 @@ class FrameBatch:
                 seen[i] = ref
         com_ref = self._com_ref
         if self._com:
-            task = self._com[0][0]
-            if task._p_ref is None:
-                raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
-            com_ref[:] = task._p_ref
+            com_seen = self._com_seen
+            for i, (task, rows, axes) in enumerate(self._com_slices):
+                p_ref = task._p_ref
+                if p_ref is not com_seen[i]:  # set_reference stores a new array
+                    if p_ref is None:
+                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+                    com_ref[rows] = p_ref[axes]
+                    com_seen[i] = p_ref
+        args, key = self._args, self._args_key
+        if args is None or key[0] is not data or key[1] is not A or key[2] is not e or key[3] is not drift:
+            args = self._args = self._arguments(data, A, e, drift)
+            self._args_key = (data, A, e, drift)
+        _frame_rows(*args)
+
+    def _arguments(self, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> tuple:
+        """The kernel's arguments for these buffers: views of pinocchio's (fixed-size, filled in place by every
+        kinematics update and ``data.q_in = q``), the stack's and our own arrays, made once and reused (building
+        the tuple of 35 arguments each tick cost a few us)."""
+        fk = self.fk
+        with_drift = drift is not None
+        if self._com:
             Ag, dAg, com = data.Ag, data.dAg, data.com[0]
         else:
             Ag = dAg = _EMPTY2
             com = _EMPTY
-        fk = self.fk
-        with_drift = drift is not None
-        _frame_rows(data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
-                    self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                    if with_drift else _EMPTY, self._support, self._local, self._classical, self._p_ref, self._R_ref,
-                    self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
-                    com, com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
+        return (data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
+                self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
+                if with_drift else _EMPTY, self._support, self._local, self._classical, self._p_ref, self._R_ref,
+                self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
+                com, self._com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
 
 
 _EMPTY = np.zeros(0)
@@ -230,10 +250,10 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
                 classical, p_ref,
                 R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
-    # the CoM task's rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m
+    # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (com_ref per row)
     for r in range(com_rows.shape[0]):
         ax, row = com_axes[r], com_rows[r]
-        e[row] = com_ref[ax] - com[ax]
+        e[row] = com_ref[r] - com[ax]
         s = 0.0
         for c in range(Ag.shape[1]):
             A[row, c] = Ag[ax, c] * inv_mass

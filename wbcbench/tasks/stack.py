@@ -67,7 +67,7 @@ class TaskStack:
         skip_zero_weight: leave out the tasks whose weight is 0 (nothing they give counts in a weighted cost);
             re-evaluated when a weight changes. True for every task, or the collection of tasks it applies to
             (e.g. the cost tasks of a stack that also holds constraints).
-        compiled_frames: fill the rows of the frame tasks, contacts and the first CoM task
+        compiled_frames: fill the rows of the frame tasks, contacts and CoM tasks
             (:class:`~wbcbench.tasks.FrameTask`, :class:`~wbcbench.tasks.Contact6D`, :class:`~wbcbench.tasks.CoMTask`,
             not subclasses) with one compiled call (:mod:`wbcbench.tasks.frame_batch`): the same rows to rounding, not the same
             bits, faster by a few us per task. Models the compiled kinematics does not support keep the tasks'
@@ -116,8 +116,7 @@ class TaskStack:
             sw[rows] = math.sqrt(task.weight)
             # (task, its hooks and row views; [last v_ref, last a_ref] seen); no Jacobian hook when constant
             # how the rows are written: the frame batch, the task's own combined hook, or its three hooks (None)
-            if self._compiled_frames and (type(task) in (FrameTask, Contact6D) or (type(task) is CoMTask and not any(
-                    type(t) is CoMTask for t, _ in batched))):
+            if self._compiled_frames and type(task) in (FrameTask, Contact6D, CoMTask):
                 how = _IN_BATCH
                 batched.append((task, start))
             elif type(task)._write_rows is not Task._write_rows and not task._constant_jacobian:
