@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from wbcbench.jit import njit
 from wbcbench.tasks.com_task import CoMTask
 from wbcbench.tasks.contact_6d import Contact6D
 from wbcbench.tasks.frame_batch import FrameBatch
@@ -102,7 +103,6 @@ class TaskStack:
         self._v_ref = np.zeros(m)
         self._a_ref = np.zeros(m)
         self._jv = np.zeros(m)
-        self._tmp = np.zeros(m)
         kp, kd, sw = np.empty(m), np.empty(m), np.empty(m)
         items: list[tuple] = []
         slices: list[slice] = []
@@ -133,6 +133,7 @@ class TaskStack:
         self._refs_changed = False
         self._sqrt_weights = _read_only(sw)
         self._items = items
+        self._split_items()
         self._batched = batched
         self._batch = None  # FrameBatch, built at the first evaluation (it needs the model)
         self._tasks = tuple(tasks)
@@ -141,6 +142,15 @@ class TaskStack:
         self._pending_constant = any(t._constant_jacobian for t in tasks)
         self._layout_signature = self._signature()
         self._epoch = Task._config_epoch
+
+    def _split_items(self) -> None:
+        """From `_items`: the hooks to call per tick (the tasks not in the frame batch) and, for every task, where
+        its references go (two loops with nothing to test per item, instead of one over everything)."""
+        self._hooks = [(how, write_jacobian, J, write_error, e, write_drift, a)
+                       for _, write_jacobian, J, write_error, e, write_drift, a, _, _, _, how in self._items
+                       if how is not _IN_BATCH]
+        self._ref_rows = [(task, v_ref_rows, a_ref_rows, seen)
+                          for task, _, _, _, _, _, _, v_ref_rows, a_ref_rows, seen, _ in self._items]
 
     def _signature(self) -> tuple:
         """What the layout depends on: each task's weight, gains and rows (setters store new arrays)."""
@@ -174,23 +184,25 @@ class TaskStack:
             batch = self._batch = FrameBatch(model, *zip(*self._batched))
             if not batch.supported:  # the model's joints: the tasks' own hooks
                 self._items = [item[:-1] + (None if item[-1] is _IN_BATCH else item[-1],) for item in self._items]
+                self._split_items()
         if batch is not None and batch.supported:
             batch.fill(model, data, self._A, self._e, self._drift if drift else None)
-        for task, write_jacobian, J, write_error, e, write_drift, a, v_ref_rows, a_ref_rows, seen, how in self._items:
+        for how, write_jacobian, J, write_error, e, write_drift, a in self._hooks:
             if how is None:
                 if write_jacobian is not None:
                     write_jacobian(model, data, J)
                 write_error(model, data, e)
-            elif how is not _IN_BATCH:
+                if drift:
+                    write_drift(model, data, a)
+            else:
                 how(model, data, J, e, a if drift else None)
+        for task, v_ref_rows, a_ref_rows, seen in self._ref_rows:
             v_ref = task._v_ref
             if v_ref is not seen[0]:  # set_reference stores new (read-only) arrays: copy only when replaced
                 v_ref_rows[...] = v_ref if task._all_selected else v_ref[task._selection]
                 seen[0] = v_ref
                 self._refs_changed = True
             if drift:
-                if how is None:
-                    write_drift(model, data, a)
                 a_ref = task._a_ref
                 if a_ref is not seen[1]:
                     a_ref_rows[...] = a_ref if task._all_selected else a_ref[task._selection]
@@ -212,19 +224,8 @@ class TaskStack:
         if self._epoch != Task._config_epoch or self._pending_constant:
             self._refresh(model, data)
         self._fill(model, data, True)
-        b, tmp = self._b, self._tmp
-        np.matmul(self._A, data.v_in, out=self._jv)
-        # terms of zero references are skipped (the same numbers: 0 - Jv = -Jv, 0 + x = x)
-        if self._v_ref_zero:
-            np.multiply(self._jv, self._minus_kd, out=b)
-        else:
-            np.subtract(self._v_ref, self._jv, out=b)
-            b *= self._kd
-        if not self._a_ref_zero:
-            np.add(self._a_ref, b, out=b)
-        np.multiply(self._kp, self._e, out=tmp)
-        b += tmp
-        b -= self._drift
+        _acceleration_law(self._A, data.v_in, self._kp, self._minus_kd, self._e, self._v_ref, self._a_ref,
+                          self._drift, not self._v_ref_zero, not self._a_ref_zero, self._jv, self._b)
         return Rows(self._A_out, self._b_out)
 
     def velocity_rows(self, model: pin.Model, data: pin.Data) -> Rows:
@@ -269,3 +270,22 @@ class TaskStack:
     def n_rows(self) -> int:
         """Number of stacked rows ``m``."""
         return self.sqrt_weights.shape[0]
+
+
+@njit
+def _acceleration_law(A, v, kp, minus_kd, e, v_ref, a_ref, drift, with_v_ref, with_a_ref, jv, b):
+    """``b = a_ref + Kd (v_ref - A v) + Kp e - drift`` row by row (``jv = A v``), in the order of the numpy
+    expression it replaces; the terms of zero references skipped (the same numbers: 0 - Jv = -Jv, 0 + x = x)."""
+    m, n = A.shape
+    for r in range(m):
+        s = 0.0
+        for c in range(n):
+            s += A[r, c] * v[c]
+        jv[r] = s
+        if with_v_ref:
+            x = (v_ref[r] - s) * -minus_kd[r]
+        else:
+            x = s * minus_kd[r]
+        if with_a_ref:
+            x = a_ref[r] + x
+        b[r] = x + kp[r] * e[r] - drift[r]
