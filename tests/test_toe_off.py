@@ -64,6 +64,17 @@ def test_swing_pitch_about_a_given_axis():
     np.testing.assert_allclose(tilted.rotation, pin.exp3(axis * 0.4) @ R, atol=1e-12)
     np.testing.assert_allclose(tilted.velocity[3:], axis * 2.0, atol=1e-12)
     np.testing.assert_allclose(tilted.acceleration[3:], axis * -5.0, atol=1e-12)
+    # a moving foot: v_w += y rate, a_w += y acc + (omega x y) rate, the linear parts unchanged
+    rng = np.random.default_rng(3)
+    vel, acc = rng.normal(size=6), rng.normal(size=6)
+    moving = PoseReference.unchecked(np.ones(3), R, vel, acc)
+    for ax, y in ((None, R[:, 1]), (axis, axis)):
+        out = with_swing_pitch({Side.LEFT: moving}, {Side.LEFT: d}, None if ax is None else {Side.LEFT: ax})
+        got = out[Side.LEFT]
+        np.testing.assert_allclose(got.velocity, np.r_[vel[:3], vel[3:] + y * 2.0], atol=1e-12)
+        np.testing.assert_allclose(got.acceleration, np.r_[acc[:3], acc[3:] + y * -5.0 + np.cross(vel[3:], y) * 2.0],
+                                   atol=1e-12)
+        np.testing.assert_array_equal(got.position, np.ones(3))
 
 
 def test_toe_off_bad_config_is_one_line_error(talos, tmp_path):

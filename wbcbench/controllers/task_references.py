@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..jit import njit
 from ..side import Side
 from ..tasks import CoMTask, FrameTask, Task
 from ..types import JointReference, PoseReference, References
@@ -27,26 +28,49 @@ def with_swing_pitch(feet: Mapping, pitch: Mapping, axes: Mapping | None = None)
         foot = feet.get(side)
         if foot is None or foot.rotation is None:
             continue
-        delta, rate, acc = (float(x) for x in d[:3])
-        R = foot.rotation
-        c, s = math.cos(delta), math.sin(delta)
         axis = axes.get(side) if axes else None
-        if axis is None:
-            R_new = R @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-            yx, yy, yz = R[:, 1].tolist()
-        else:  # about a given world axis (unit): R_new = Rot(axis, delta) R
-            yx, yy, yz = (float(x) for x in axis)
-            K = np.array([[0.0, -yz, yy], [yz, 0.0, -yx], [-yy, yx, 0.0]])
-            R_new = (np.eye(3) + s * K + (1.0 - c) * (K @ K)) @ R
-        # in floats, term by term as numpy would (v_w += y rate, a_w += y acc + (omega x y) rate): a tick's few
-        # numbers cost less than numpy's small-array calls
-        v0, v1, v2, wx, wy, wz = np.asarray(foot.velocity, dtype=float).tolist()
-        a0, a1, a2, ax, ay, az = np.asarray(foot.acceleration, dtype=float).tolist()
-        v = np.array([v0, v1, v2, wx + yx * rate, wy + yy * rate, wz + yz * rate])
-        a = np.array([a0, a1, a2, ax + (yx * acc + (wy * yz - wz * yy) * rate),
-                      ay + (yy * acc + (wz * yx - wx * yz) * rate), az + (yz * acc + (wx * yy - wy * yx) * rate)])
+        R_new, v, a = np.empty((3, 3)), np.empty(6), np.empty(6)
+        _pitched(foot.rotation, float(d[0]), float(d[1]), float(d[2]), _NO_AXIS if axis is None else
+                 np.asarray(axis, dtype=float), np.asarray(foot.velocity, dtype=float),
+                 np.asarray(foot.acceleration, dtype=float), R_new, v, a)
         out[side] = PoseReference.unchecked(np.asarray(foot.position, dtype=float), R_new, v, a)
     return out
+
+
+_NO_AXIS = np.zeros(0)
+
+
+@njit
+def _pitched(R, delta, rate, acc, axis, vel, accel, R_new, v, a):
+    """`with_swing_pitch` for one foot: its rotation ``R`` turned by ``delta`` about its own lateral axis (``axis``
+    empty) or about the world ``axis`` (unit, (3,)), into ``R_new``; ``v_w += y rate``, ``a_w += y acc + (omega x
+    y) rate`` with y that axis, into ``v`` and ``a`` (one compiled call for a tick's few numbers)."""
+    c, s = math.cos(delta), math.sin(delta)
+    if axis.shape[0] == 0:  # R_new = R Ry(delta)
+        for i in range(3):
+            r0, r1, r2 = R[i, 0], R[i, 1], R[i, 2]
+            R_new[i, 0] = r0 * c + r2 * -s
+            R_new[i, 1] = r1
+            R_new[i, 2] = r0 * s + r2 * c
+        yx, yy, yz = R[0, 1], R[1, 1], R[2, 1]
+    else:  # R_new = Rot(axis, delta) R = (I + s K + (1 - c) K^2) R
+        yx, yy, yz = axis[0], axis[1], axis[2]
+        K = np.array([[0.0, -yz, yy], [yz, 0.0, -yx], [-yy, yx, 0.0]])
+        K2 = K @ K
+        Q = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                Q[i, j] = (1.0 if i == j else 0.0) + s * K[i, j] + (1.0 - c) * K2[i, j]
+        for i in range(3):
+            for j in range(3):
+                R_new[i, j] = Q[i, 0] * R[0, j] + Q[i, 1] * R[1, j] + Q[i, 2] * R[2, j]
+    wx, wy, wz = vel[3], vel[4], vel[5]
+    v[0], v[1], v[2] = vel[0], vel[1], vel[2]
+    v[3], v[4], v[5] = wx + yx * rate, wy + yy * rate, wz + yz * rate
+    a[0], a[1], a[2] = accel[0], accel[1], accel[2]
+    a[3] = accel[3] + (yx * acc + (wy * yz - wz * yy) * rate)
+    a[4] = accel[4] + (yy * acc + (wz * yx - wx * yz) * rate)
+    a[5] = accel[5] + (yz * acc + (wx * yy - wy * yx) * rate)
 
 
 class TaskReferences:
