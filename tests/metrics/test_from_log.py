@@ -169,3 +169,29 @@ def test_reference_channels_give_tracking_errors(stand_log, talos):
     assert list(feet) == ["left"]
     assert feet["left"]["x"]["mean"] == pytest.approx(0.01, abs=1e-12)
     assert feet["left"]["z"]["peak"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_foot_kinematics_compiled_equals_pinocchio(talos, monkeypatch):
+    """The feet's sensor and sole placements of every logged tick, computed in one compiled call, are pinocchio's
+    (the per-tick loop kept for models the compiled kinematics lacks) to rounding; a NaN row and an unnormalised
+    quaternion are handled alike."""
+    from wbcbench.metrics import from_log
+
+    m = talos.model
+    rng = np.random.default_rng(1)
+    qs = np.array([pin.randomConfiguration(m, -np.ones(m.nq), np.ones(m.nq)) for _ in range(40)])
+    qs[:, 3:7] *= rng.uniform(0.5, 2.0, size=(40, 1))  # not unit: the kinematics normalises
+    qs[7, 9] = np.nan
+    names = [f"q.{c}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")] + [f"q.{j}" for j in talos.joint_names]
+    log = {name: qs[:, i] for i, name in enumerate(names)}
+    fast = from_log.foot_kinematics(log, talos)
+    monkeypatch.setattr(from_log.ForwardKinematics, "__init__",
+                        lambda self, model: setattr(self, "supported", False))
+    slow = from_log.foot_kinematics(log, talos)
+    assert not fast.valid[7] and fast.valid.sum() == 39
+    np.testing.assert_array_equal(fast.valid, slow.valid)
+    for s in Side:
+        for a, b in ((fast.R_world_sensor[s], slow.R_world_sensor[s]), (fast.p_world_sensor[s], slow.p_world_sensor[s]),
+                     (fast.p_world_sole[s], slow.p_world_sole[s])):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+            assert np.isnan(a[7]).all()

@@ -48,6 +48,7 @@ import pinocchio as pin
 
 from ..estimation import FootMass, Plane, Wrench, contact_wrench_from_ft, zmp_from_wrenches
 from ..side import Side
+from ..tasks.placements import ForwardKinematics
 from .energy import (STANDARD_GRAVITY, cost_of_transport, electrical_cost_of_transport, electrical_energy,
                      horizontal_distance, mechanical_energy)
 from .pgm import passivity_gait_measure
@@ -175,8 +176,21 @@ def foot_kinematics(log: dict[str, np.ndarray], robot) -> FootKinematics | None:
     R = {s: np.full((n, 3, 3), np.nan) for s in Side}
     p = {s: np.full((n, 3), np.nan) for s in Side}
     sole = {s: np.full((n, 3), np.nan) for s in Side}
+    rows = np.flatnonzero(valid)
+    fk = ForwardKinematics(model)
+    if fk.supported:  # every tick in one compiled call (pinocchio's placements to rounding)
+        Q = q[rows]
+        Q[:, 3:7] /= quat_norm[rows, None]
+        arrays = fk.frame_arrays([sensor_ids[Side.LEFT], sensor_ids[Side.RIGHT], sole_ids[Side.LEFT],
+                                  sole_ids[Side.RIGHT]])
+        Rs, ts = fk.frames_along(Q, arrays)
+        for i, s in enumerate((Side.LEFT, Side.RIGHT)):
+            R[s][rows] = Rs[:, i]
+            p[s][rows] = ts[:, i]
+            sole[s][rows] = ts[:, 2 + i]
+        return FootKinematics(valid, R, p, sole)
     qk = np.empty(model.nq)
-    for k in np.flatnonzero(valid):
+    for k in rows:
         qk[:] = q[k]
         qk[3:7] /= quat_norm[k]
         pin.forwardKinematics(model, data, qk)

@@ -83,6 +83,15 @@ class ForwardKinematics:
         _forward(q, self._kinds, self._parents, self._idx_q, self._R0, self._t0, self.R, self.t)
         _frames(self.R, self.t, *arrays, R_out, t_out)
 
+    def frames_along(self, Q: FloatArray, arrays: tuple) -> tuple[FloatArray, FloatArray]:
+        """`frames` for every row of ``Q`` (N, nq) (e.g. a run's logged configurations, quaternions normalised):
+        rotations (N, k, 3, 3) and translations (N, k, 3), in one compiled call."""
+        n, k = Q.shape[0], arrays[0].shape[0]
+        R_out, t_out = np.empty((n, k, 3, 3)), np.empty((n, k, 3))
+        _frames_along(np.ascontiguousarray(Q, dtype=float), self._kinds, self._parents, self._idx_q, self._R0,
+                      self._t0, self.R, self.t, *arrays, R_out, t_out)
+        return R_out, t_out
+
 
 class CenterOfMass:
     """The centre of mass of ``model`` and its velocity for (q, v), compiled: pinocchio's
@@ -242,6 +251,14 @@ def _frames(R, t, parent, Rf, tf, R_out, t_out):
             for b in range(3):
                 R_out[i, a, b] = R[p, a, 0] * Rf[i, 0, b] + R[p, a, 1] * Rf[i, 1, b] + R[p, a, 2] * Rf[i, 2, b]
             t_out[i, a] = R[p, a, 0] * tf[i, 0] + R[p, a, 1] * tf[i, 1] + R[p, a, 2] * tf[i, 2] + t[p, a]
+
+
+@njit
+def _frames_along(Q, kinds, parents, idx_q, R0, t0, R, t, parent, Rf, tf, R_out, t_out):
+    """`_forward` then `_frames` for each row of Q."""
+    for r in range(Q.shape[0]):
+        _forward(Q[r], kinds, parents, idx_q, R0, t0, R, t)
+        _frames(R, t, parent, Rf, tf, R_out[r], t_out[r])
 
 
 @njit
