@@ -303,3 +303,34 @@ def test_leg_reach_validation():
         LegReach(hip_offset=REACH.hip_offset, ankle_offset=REACH.ankle_offset, max_length=0.6, swing_max_length=-1.0)
     with pytest.raises(ValueError, match="leg_reach"):
         CentroidalConfig(mass=MASS, leg_reach=0.6)
+
+
+def test_a_plan_is_made_once_per_inputs(monkeypatch, tmp_path):
+    """The same inputs give the plan made before (in this process, or by another one through the shared directory)
+    without solving again, equal to the solve's; other inputs are solved."""
+    from wbcbench.planning import centroidal
+
+    solves = []
+    solve = centroidal._plan_centroidal
+    monkeypatch.setattr(centroidal, "_plan_centroidal", lambda *a: solves.append(1) or solve(*a))
+    monkeypatch.setattr(centroidal, "_MEMO", {})
+    monkeypatch.setenv(centroidal.PLAN_CACHE_ENV, str(tmp_path))
+    terrain = ContactTerrain.from_boxes(platform_boxes())
+    plan = contacts_from_placements(terrain, START, [("right", 0.3, -0.085), ("left", 0.6, 0.085)],
+                                    timing=StepTiming(0.8, 0.3, 0.6, 1.0), sole=SOLE).footsteps
+    cfg = CentroidalConfig(mass=MASS, knot_dt=0.2, am_iterations=1, friction=0.7, leg_reach=REACH)
+    first = plan_centroidal(plan, cfg)
+    again = plan_centroidal(plan, cfg)
+    assert len(solves) == 1
+    assert len(list(tmp_path.glob("*.pickle"))) == 1
+    monkeypatch.setattr(centroidal, "_MEMO", {})  # another process: from the shared directory
+    shared = plan_centroidal(plan, cfg)
+    assert len(solves) == 1
+    for other in (again, shared):
+        assert other is not first
+        for name in ("p_world_com", "v_world_com", "a_world_com", "p_world_zmp", "knot_ticks"):
+            np.testing.assert_array_equal(getattr(other, name), getattr(first, name))
+        for s in Side:
+            np.testing.assert_array_equal(other.wrenches[s].force, first.wrenches[s].force)
+    plan_centroidal(plan, cfg, p_world_com_init=first.p_world_com[0] + [0.01, 0.0, 0.0])
+    assert len(solves) == 2

@@ -63,9 +63,15 @@ plane is `ContactWrenchTrajectory.cop()`.
 
 from __future__ import annotations
 
+import copyreg
+import hashlib
+import io
+import os
+import pickle
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
@@ -636,9 +642,35 @@ def _contacts_on_knots(spans: list[tuple[Side, int, int, Footstep]], knot_ticks:
     return out
 
 
+#: environment variable naming a directory where `plan_centroidal` keeps the plans it made, shared by processes
+#: (set by `reproduce` for its workers, in a directory of its own that lives as long as the command: the three
+#: controllers of a scene start from the same state and need the same plan)
+PLAN_CACHE_ENV = "WBCBENCH_PLAN_CACHE"
+_MEMO: dict[str, bytes] = {}
+#: pickling as the standard library does, and the read-only mappings of the planning types as dicts
+_DISPATCH = copyreg.dispatch_table.copy()
+_DISPATCH[MappingProxyType] = lambda m: (_read_only_mapping, (dict(m),))
+
+
+def _read_only_mapping(d: dict) -> Mapping:
+    return MappingProxyType(d)
+
+
+def _pickled(obj) -> bytes:
+    buf = io.BytesIO()
+    pickler = pickle.Pickler(buf, protocol=5)
+    pickler.dispatch_table = _DISPATCH
+    pickler.dump(obj)
+    return buf.getvalue()
+
+
 def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_init: np.ndarray | None = None,
                     swings: Sequence[SwingTrajectory] | None = None) -> CentroidalTrajectory:
     """Plan the CoM and contact forces for a footstep plan (see the module docstring).
+
+    The same inputs give the same plan: a plan made earlier in this process (the last few), or by another
+    process in the directory named by ``WBCBENCH_PLAN_CACHE`` if set, is returned (a copy) instead of being
+    solved again.
 
     Args:
         plan: feet poses (possibly tilted) and timing; each foot is a contact while on the ground.
@@ -657,6 +689,65 @@ def plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_in
     """
     if not isinstance(plan, FootstepPlan):
         raise PlanningError(f"plan must be a FootstepPlan, got {type(plan).__name__}")
+    try:
+        key = hashlib.sha256(_pickled((plan, config, None if p_world_com_init is None else
+                                       np.asarray(p_world_com_init, float), swings))).hexdigest()
+    except (pickle.PicklingError, TypeError, AttributeError):  # an input of the user's that does not pickle
+        key = None
+    if key is not None:
+        cached = _cached_plan(key)
+        if cached is not None:
+            return cached
+    out = _plan_centroidal(plan, config, p_world_com_init, swings)
+    if key is not None:
+        _keep_plan(key, out)
+    return out
+
+
+def _cached_plan(key: str) -> CentroidalTrajectory | None:
+    """A copy of the plan made for `key` in this process or found in the shared directory; None if none."""
+    data = _MEMO.get(key)
+    if data is None:
+        folder = os.environ.get(PLAN_CACHE_ENV)
+        if not folder:
+            return None
+        try:
+            data = (Path(folder) / f"{key}.pickle").read_bytes()
+        except OSError:
+            return None
+    try:
+        out = pickle.loads(data)
+    except (pickle.UnpicklingError, EOFError, AttributeError, TypeError):
+        return None
+    _remember(key, data)
+    return out
+
+
+def _remember(key: str, data: bytes) -> None:
+    if key not in _MEMO and len(_MEMO) >= 8:
+        _MEMO.clear()
+    _MEMO[key] = data
+
+
+def _keep_plan(key: str, plan: CentroidalTrajectory) -> None:
+    try:
+        data = _pickled(plan)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return
+    _remember(key, data)
+    folder = os.environ.get(PLAN_CACHE_ENV)
+    if folder:  # written whole, then renamed: another process reads the old state or the new file
+        path = Path(folder) / f"{key}.pickle"
+        try:
+            tmp = path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_bytes(data)
+            os.replace(tmp, path)
+        except OSError:  # a cache: a full disk only costs the next process the solve
+            pass
+
+
+def _plan_centroidal(plan: FootstepPlan, config: CentroidalConfig, p_world_com_init: np.ndarray | None,
+                     swings: Sequence[SwingTrajectory] | None) -> CentroidalTrajectory:
     cfg = config
     sole = plan.sole
     if min(sole.length, sole.width) <= 2.0 * cfg.cop_margin:

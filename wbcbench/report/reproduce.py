@@ -12,10 +12,12 @@ Output directory:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing as mp
 import os
 import queue as queue_mod
+import tempfile
 import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -64,9 +66,12 @@ _SINK: Callable[[tuple], None] | None = None
 """Where `execute` reports progress: a queue to the parent in a worker process, the progress bar inline."""
 
 
-def _init_worker(q) -> None:
+def _init_worker(q, plan_cache: str | None = None) -> None:
     global _SINK
     _SINK = q.put_nowait
+    if plan_cache:  # the workers share their centroidal plans (planning/centroidal.py)
+        from ..planning.centroidal import PLAN_CACHE_ENV
+        os.environ[PLAN_CACHE_ENV] = plan_cache
 
 
 def _send(*msg) -> None:
@@ -179,6 +184,7 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path | list[Path], n_jobs: int,
                 why = f" ({outcome.reason})" if outcome.reason else ""
                 prog.console.print(f"  {job.label}: {outcome.status}{why}")
 
+    stack = contextlib.ExitStack()
     try:
         if ray:  # the sweeps' execution layer (wbcbench.study.execute): a local Ray or a cluster
             from ..study.execute import RayExecutor
@@ -196,8 +202,10 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path | list[Path], n_jobs: int,
         else:
             ctx = mp.get_context("spawn")
             q = ctx.Queue()
+            # the scenes' centroidal plans, made once for the three controllers that start from the same state
+            plans = stack.enter_context(tempfile.TemporaryDirectory(prefix="wbcbench-plans-"))
             with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx, initializer=_init_worker,
-                                     initargs=(q,)) as pool:
+                                     initargs=(q, plans)) as pool:
                 pending = {pool.submit(execute, job, root_of[id(job)]): job for job in runnable}
                 try:
                     while pending:
@@ -221,6 +229,7 @@ def _run_jobs(jobs: list[matrix.Job], runs_root: Path | list[Path], n_jobs: int,
                     pool.shutdown(wait=False, cancel_futures=True)
                     raise
     finally:
+        stack.close()
         if prog is not None:
             prog.stop()
     return [results[id(j)] for j in jobs]
