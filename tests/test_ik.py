@@ -123,3 +123,13 @@ def test_ik_rejects_the_contacts_dynamics_options(talos, tmp_path, option):
     with pytest.raises(ConfigError, match=f"contacts.{option.split(':')[0]}.*inverse-dynamics") as err:
         IKController(talos, ActuationMode.POSITION, 1e-3, spec)
     assert str(p) in str(err.value)
+
+
+def test_ik_contacts_take_the_pose_error_option(talos, tmp_path):
+    """`contacts.error: split` (the pose error of the contact rows, the kinematic hierarchy's too) reaches the IK's
+    contacts."""
+    text = taskset_path(talos, "ik").read_text().replace("contacts: {kp: 1000.0}", "contacts: {kp: 1000.0, error: split}")
+    p = tmp_path / "ik.yaml"
+    p.write_text(text)
+    ctrl = IKController(talos, ActuationMode.POSITION, 1e-3, load_taskset(p, talos, max_level=8))
+    assert all(c.error_convention == "split" for c in ctrl.formulation.contacts.values())

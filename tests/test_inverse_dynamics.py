@@ -132,7 +132,7 @@ def test_contact_options_from_the_task_set(talos, tmp_path):
     assert reg in text
     diag = np.diag(1e-5 * np.array([1.0, 1.0, 0.1, 2.0, 2.0, 2.0]) ** 2)
     full = text.replace(reg, "regularization: {dv: 1.0e-6}").replace(
-        "  kp: 30.0\n", f"  kp: 30.0\n  drift: classical\n  wrench_metric: {diag.tolist()}\n")
+        "  kp: 30.0\n", f"  kp: 30.0\n  drift: classical\n  error: split\n  wrench_metric: {diag.tolist()}\n")
     tsid = text.replace(reg, "regularization: {dv: 1.0e-6}").replace(
         "  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsid, weight: 1.0e-5}\n")
     com = PointReference([0.0, 0.03, 0.87])
@@ -146,7 +146,8 @@ def test_contact_options_from_the_task_set(talos, tmp_path):
         out[name] = (ctrl.dv.copy(), ctrl.contacts[Side.LEFT].contact, ctrl.wrench[Side.LEFT].copy())
     assert out["shipped"][1].drift_convention == "spatial" and out["shipped"][1].wrench_metric is None
     assert out["full"][1].drift_convention == "classical" and np.array_equal(out["full"][1].wrench_metric, diag)
-    assert np.abs(out["full"][0] - out["shipped"][0]).max() < 1e-9  # at rest the two drifts are the same
+    assert out["full"][1].error_convention == "split" and out["shipped"][1].error_convention == "log6"
+    assert np.abs(out["full"][0] - out["shipped"][0]).max() < 1e-9  # at rest the two drifts (and errors) agree
     assert np.abs(out["tsid"][2] - out["shipped"][2]).max() > 1.0  # [N]: the feet share the load otherwise
 
 
@@ -239,6 +240,7 @@ def _bad_taskset(tmp_path, talos, old, new):
     ("wrench_axes: [1.0, 1.0, 0.1,", "wrench_axes: [1.0, 1.0, -0.1,", ["regularization.wrench_axes", ">= 0"]),
     ("pitch_with_leg: true", "pitch_with_leg: 1", ["swing_foot.pitch_with_leg", "true or false"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  drift: exact\n", ["contacts.drift", "'exact'", "spatial, classical"]),
+    ("  kp: 30.0\n", "  kp: 30.0\n  error: se3\n", ["contacts.error", "'se3'", "log6, split"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: [[1, 0], [0, 1]]\n", ["contacts.wrench_metric", "6 x 6"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsdi}\n", ["contacts.wrench_metric.form", "tsid"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsid}\n", ["regularization.wrench", "one or the other"]),

@@ -1,10 +1,10 @@
 """wbcbench's inverse-dynamics formulation against C++ TSID's numbers, built with public options only: the contacts'
-classical drift, TSID's wrench metric (`tsid_wrench_metric`), TSID's weights and gains.
+classical drift and split pose error, TSID's wrench metric (`tsid_wrench_metric`), TSID's weights and gains.
 
 The reference (tests/data/tsid_reference/talos_stand.json, the recorded numbers as text) is recorded by benchmarks/peers/tsid_record.py in the
 peers' venv (TSID 1.7.1 with pinocchio 3.4): TALOS standing on both soles, CoM, waist orientation, angular momentum,
-posture, joint position bounds, at three states (at rest, the CoM reference moved with a velocity and an
-acceleration, joints and velocities perturbed with the contacts off their references).
+posture, joint position bounds, at four states (at rest, the CoM reference moved with a velocity and an
+acceleration, joints and velocities perturbed, and that state with the contacts' references off the soles).
 """
 
 import json
@@ -28,7 +28,7 @@ def ref():
     return {k: v if k in ("params", "tsid_version", "pinocchio_version") else np.asarray(v) for k, v in raw.items()}
 
 
-def _formulation(talos, ref, drift="classical", metric=True):
+def _formulation(talos, ref, drift="classical", metric=True, error="split"):
     """wbcbench's formulation of the recorded TSID problem (the record's parameters, the robot's model)."""
     P = ref["params"]
     m = talos.model
@@ -40,7 +40,7 @@ def _formulation(talos, ref, drift="classical", metric=True):
     # TSID's mu is its corner pyramids' slope; Contact6D's pyramid is mu / sqrt(2)
     contacts = {f: Contact6D(m, f, length=length, width=width, center=center, kp=P["contact_kp"],
                              kd=P["contact_kd"], mu=P["mu"] * np.sqrt(2.0), min_normal_force=P["min_normal_force"],
-                             max_normal_force=P["max_normal_force"], drift=drift, wrench_metric=W)
+                             max_normal_force=P["max_normal_force"], drift=drift, wrench_metric=W, error=error)
                 for f in P["frames"]}
     free = {f: FrameTask(m, f, kp=1.0, name=f"free_{f}") for f in P["frames"]}
     com = CoMTask(m, kp=P["com_kp"], kd=P["com_kd"], weight=P["com_weight"])
@@ -95,7 +95,7 @@ def _rel(a, b):
     return float(np.abs(a - b).max() / np.abs(b).max())
 
 
-STATES = ["stand", "com_moved", "perturbed"]
+STATES = ["stand", "com_moved", "perturbed", "contacts_off"]
 
 
 @pytest.mark.parametrize("state", STATES)
@@ -135,14 +135,20 @@ def test_recorded_model_is_wbcbench_talos(talos, ref):
 
 
 def test_each_option_is_needed(talos, ref):
-    """Without the classical drift (a moving state) or without TSID's metric, the optimum is not TSID's: the
-    cross-check sees both options."""
+    """Without the classical drift (a moving state), without TSID's metric or without the split pose error (the
+    contacts off their references), the optimum is not TSID's: the cross-check sees the three options."""
     F, contacts, tasks = _formulation(talos, ref, drift="spatial")
     dv, _, _ = _split(F, _optimum(_problem(F, contacts, tasks, ref, "perturbed")))
     assert _rel(dv, ref["perturbed/dv"]) > 1e-4
     F, contacts, tasks = _formulation(talos, ref, metric=False)
     _, _, w = _split(F, _optimum(_problem(F, contacts, tasks, ref, "com_moved")))
     assert _rel(w, ref["com_moved/wrenches"]) > 1e-4
+    F, contacts, tasks = _formulation(talos, ref, error="log6")
+    dv, _, _ = _split(F, _optimum(_problem(F, contacts, tasks, ref, "contacts_off")))
+    assert _rel(dv, ref["contacts_off/dv"]) > 1e-3
+    # the two errors agree where the contacts are on their references
+    dv, _, _ = _split(F, _optimum(_problem(F, contacts, tasks, ref, "perturbed")))
+    assert _rel(dv, ref["perturbed/dv"]) < 1e-10
 
 
 def test_taskset_tsid_metric_is_the_helper(talos):

@@ -11,7 +11,8 @@ Two steps, from the repository root:
 (PEERS from benchmarks/peers/setup.sh). The model is wbcbench's (the URDF with its armature, which enters the mass
 matrix in both). States: `stand` (half-sitting at rest, references where the robot is), `com_moved` (the CoM
 reference 1-2 cm away with a velocity and an acceleration), `perturbed` (joint positions and all velocities
-perturbed, the references those of half-sitting but the contacts', set where the soles are). Recorded per state:
+perturbed, the references those of half-sitting but the contacts', set where the soles are), `contacts_off` (the
+perturbed state with the contacts' references 1-2.6 cm and 1.6-3 degrees off the soles). Recorded per state:
 q, v, the references, and TSID's joint accelerations dv, torques tau, corner forces (12 per contact) and contact
 wrenches (its force generator matrix times them, at the sole frame).
 """
@@ -78,6 +79,11 @@ def record(src: Path, out: Path) -> None:
               "com_moved": (q0, np.zeros(model.nv), np.array([0.01, -0.02, -0.01]), np.array([0.0, 0.05, 0.02]),
                             np.array([0.1, -0.3, 0.0])),
               "perturbed": (pin.integrate(model, q0, dq), v_pert, np.zeros(3), np.zeros(3), np.zeros(3))}
+    # the perturbed state with each contact's reference off its sole (in the sole's frame: a translation [m] and a
+    # rotation vector [rad], about 1-2.6 cm and 1.6-3 degrees): where TSID's contact error differs from log6's
+    offsets = {"contacts_off": [(np.array([0.008, -0.026, 0.004]), np.array([0.03, -0.04, 0.02])),
+                                (np.array([-0.012, 0.01, -0.003]), np.array([-0.02, 0.01, 0.015]))]}
+    states["contacts_off"] = states["perturbed"]
     data = {"tsid_version": metadata.version("tsid"), "pinocchio_version": pin.__version__,
             "params": P, "corners": corners.T, "states": list(states)}
     for name, (q, v, dcom, vcom, acom) in states.items():
@@ -88,6 +94,8 @@ def record(src: Path, out: Path) -> None:
         # half-sitting at rest (the CoM's moved by dcom)
         form.computeProblemData(0.0, q, v)
         soles = [robot.framePosition(form.data(), model.getFrameId(f)).copy() for f in P["frames"]]
+        if name in offsets:
+            soles = [M * pin.SE3(pin.exp3(w), p) for M, (p, w) in zip(soles, offsets[name])]
         form.computeProblemData(0.0, q0, np.zeros(model.nv))
         d0 = form.data()
         contact_refs, contacts = [], []

@@ -68,10 +68,11 @@ def test_frame_batch_rows_match_pinocchio(erd_talos):
     com_y.set_reference(np.array([0.3, -0.2, 0.5]), None, np.array([0.0, 0.4, 0.0]))
     contacts = [Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0),
                 Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0),
-                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0, drift="classical", name="classical")]
-    for c, angle in zip(contacts, (0.3, 2.5, 0.7)):  # a small and a large rotation error
+                Contact6D(m, "right_sole_link", length=0.2, width=0.1, kp=30.0, drift="classical", name="classical"),
+                Contact6D(m, "left_sole_link", length=0.2, width=0.1, kp=30.0, error="split", name="split")]
+    for c, angle in zip(contacts, (0.3, 2.5, 0.7, 0.4)):  # a small and a large rotation error
         c.set_reference(pin.SE3(pin.exp3(angle * np.array([0.6, 0.0, 0.8])), rng.normal(size=3)))
-    stacked = [contacts[0], tasks[0], com, *tasks[1:], com_y, contacts[1], contacts[2]]
+    stacked = [contacts[0], tasks[0], com, *tasks[1:], com_y, contacts[1], contacts[2], contacts[3]]
     plain = TaskStack(stacked, m.nv)
     batch = TaskStack(stacked, m.nv, compiled_frames=True)
     for seed in range(12):

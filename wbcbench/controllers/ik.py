@@ -66,7 +66,7 @@ class IKController(Controller):
         sole = robot.profile.sole
         c = spec.contacts
         contacts = {s: Contact6D(m, robot.profile.feet[s].frame, length=sole.length, width=sole.width, kp=c.kp,
-                                 kd=0.0, name=f"contact_{s.value}") for s in Side}
+                                 kd=0.0, name=f"contact_{s.value}", error=c.error) for s in Side}
         sw = spec.swing_foot
         swing = {s: FrameTask(m, robot.profile.feet[s].frame, name=f"swing_{s.value}", kp=sw.kp, kd=0.0,
                               mask=sw.mask) for s in Side}

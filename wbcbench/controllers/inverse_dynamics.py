@@ -87,7 +87,7 @@ class InverseDynamicsController(Controller):
         contacts = {s: Contact6D(m, robot.profile.feet[s].frame, length=length, width=width, center=sole.center,
                                  kp=c.kp, kd=c.kd, mu=c.mu, min_normal_force=c.min_normal_force,
                                  max_normal_force=c.max_normal_force, name=f"contact_{s.value}", drift=c.drift,
-                                 wrench_metric=metric) for s in Side}
+                                 error=c.error, wrench_metric=metric) for s in Side}
         sw = spec.swing_foot
         swing = {s: FrameTask(m, robot.profile.feet[s].frame, name=f"swing_{s.value}", weight=sw.weight, kp=sw.kp,
                               kd=sw.kd, mask=sw.mask) for s in Side}

@@ -33,7 +33,7 @@ import numpy as np
 from ..config import Section, load_yaml
 from ..errors import ConfigError
 from ..robots import Robot
-from ..tasks.contact_6d import DRIFTS, TSID_WRENCH_AXIS_WEIGHTS, as_wrench_metric, sole_corners, tsid_wrench_metric
+from ..tasks.contact_6d import DRIFTS, ERRORS, TSID_WRENCH_AXIS_WEIGHTS, as_wrench_metric, sole_corners, tsid_wrench_metric
 from ..tasks.registry import TaskSpec, resolve_frame, task_class
 from .corrections import SECTIONS, CorrectionSpec, parse_corrections, parse_settings, specs_from_sections
 
@@ -56,7 +56,7 @@ class ContactSpec:
     `model_sole` (length, width) [m] replaces the profile's sole rectangle in the
     controller's model: position controllers relax it so a stabilizer moving the CoM does not saturate the
     model's CoP limits (SIM-NOTES); None keeps the real sole. `drift`: the contacts' drift convention
-    (`Contact6D`'s: ``"spatial"``, ``"classical"``). `wrench_metric`: None (the `regularization:` section's
+    (`Contact6D`'s: ``"spatial"``, ``"classical"``); `error`: their pose error (``"log6"``, ``"split"``). `wrench_metric`: None (the `regularization:` section's
     diagonal), a (6, 6) metric as rows, or `TsidWrenchMetric` (C++ TSID's, from the sole's corners)."""
 
     kp: float
@@ -68,6 +68,7 @@ class ContactSpec:
     unload_before_lift_off: bool = False
     model_sole: tuple[float, float] | None = None
     drift: str = "spatial"
+    error: str = "log6"
     wrench_metric: "tuple[tuple[float, ...], ...] | TsidWrenchMetric | None" = None
 
     def wrench_metric_matrix(self, length: float, width: float, center) -> np.ndarray | None:
@@ -286,6 +287,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                            unload_before_lift_off=c.bool("unload_before_lift_off", False),
                            model_sole=tuple(c.vector("model_sole", length=2)) if c.has("model_sole") else None,
                            drift=c.str("drift", "spatial", choices=DRIFTS),
+                           error=c.str("error", "log6", choices=ERRORS),
                            wrench_metric=_wrench_metric(c) if c.has("wrench_metric") else None)
     if contacts.model_sole is not None and min(contacts.model_sole) <= 0:
         raise c.error("model_sole", "length and width must be > 0")

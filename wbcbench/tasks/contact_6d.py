@@ -46,6 +46,8 @@ FORCE_ROW_NAMES: tuple[str, ...] = (
 
 #: The drift conventions of a contact's motion rows (`Contact6D`'s ``drift``).
 DRIFTS: tuple[str, ...] = ("spatial", "classical")
+#: The pose-error conventions of a contact's motion rows (`Contact6D`'s ``error``).
+ERRORS: tuple[str, ...] = ("log6", "split")
 
 #: TSID's Contact6d weights of the wrench axes (fx fy fz tx ty tz) in its force regularisation.
 TSID_WRENCH_AXIS_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 1e-3, 2.0, 2.0, 2.0)
@@ -67,7 +69,10 @@ class Contact6D(Task):
     **Motion rows** (the :class:`~wbcbench.tasks.task.Task` contract, 6 axes ``x y z roll pitch yaw`` in the
     LOCAL frame). Twist ``nu = J v`` with ``J = pin.getFrameJacobian(..., LOCAL)``; error
     ``e = log6(T_world_frame^-1 T_world_ref)`` (the local twist that takes the frame to its reference pose;
-    ``d e/dt = -J v`` for small errors); drift ``J_dot v`` by the convention ``drift``:
+    ``d e/dt = -J v`` for small errors), or with ``error="split"`` the translation and the rotation apart,
+    ``e = [R^T (p_ref - p); log3(R^T R_ref)]`` (C++ TSID's contacts; the two agree to first order, they differ
+    off the reference by terms in rotation error x translation error); drift ``J_dot v`` by the convention
+    ``drift``:
 
     * ``"spatial"`` (default): the spatial acceleration in LOCAL at zero joint acceleration
       (``pin.getFrameAcceleration(..., LOCAL)``), the exact time derivative of the local twist ``J v``;
@@ -118,11 +123,13 @@ class Contact6D(Task):
         weight: weight if a formulation treats contact motion as a soft task (hard constraints ignore it).
         name: contact name; defaults to the frame name.
         drift: the motion rows' drift convention, ``"spatial"`` (default) or ``"classical"`` (see above).
+        error: the motion rows' pose error, ``"log6"`` (default) or ``"split"`` (see above).
         wrench_metric: (6, 6) symmetric PSD metric of the wrench regularisation, None: the formulation's.
 
     Raises:
         UnknownNameError: ``frame`` is not in the model.
-        TaskConfigError: invalid geometry, friction, force bounds, gains, weight, drift or wrench metric.
+        TaskConfigError: invalid geometry, friction, force bounds, gains, weight, drift, error or wrench
+            metric.
     """
 
     AXES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -146,6 +153,7 @@ class Contact6D(Task):
         name: str | None = None,
         drift: str = "spatial",
         wrench_metric: npt.ArrayLike | None = None,
+        error: str = "log6",
     ) -> None:
         owner_name = frame if name is None else name
         owner = f"{type(self).__name__} {owner_name!r}"
@@ -168,6 +176,9 @@ class Contact6D(Task):
         if drift not in DRIFTS:
             raise TaskConfigError(owner, "drift", f"must be one of {', '.join(DRIFTS)}, got {drift!r}")
         self._drift = drift
+        if error not in ERRORS:
+            raise TaskConfigError(owner, "error", f"must be one of {', '.join(ERRORS)}, got {error!r}")
+        self._error_convention = error
         self._wrench_metric = None
         if wrench_metric is not None:
             try:
@@ -189,6 +200,11 @@ class Contact6D(Task):
     def drift_convention(self) -> str:
         """The motion rows' drift convention: ``"spatial"`` or ``"classical"`` (class docstring)."""
         return self._drift
+
+    @property
+    def error_convention(self) -> str:
+        """The motion rows' pose error: ``"log6"`` or ``"split"`` (class docstring)."""
+        return self._error_convention
 
     @property
     def wrench_metric(self) -> FloatArray | None:
@@ -404,11 +420,16 @@ class Contact6D(Task):
         return pin.SE3(pin.updateFramePlacement(model, data, self._frame_id))
 
     def error(self, model: pin.Model, data: pin.Data) -> FloatArray:
-        """``log6(T_world_frame^-1 T_world_ref)``, (6,), m and rad in the LOCAL frame."""
+        """``log6(T_world_frame^-1 T_world_ref)`` (or by ``error``), (6,), m and rad in the LOCAL frame."""
         if self._M_ref is None:
             raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the contact")
-        oMf = pin.updateFramePlacement(model, data, self._frame_id)
-        return pin.log6(oMf.actInv(self._M_ref)).vector
+        return self._pose_error(pin.updateFramePlacement(model, data, self._frame_id))
+
+    def _pose_error(self, oMf: pin.SE3) -> FloatArray:
+        M = oMf.actInv(self._M_ref)
+        if self._error_convention == "split":  # [R^T (p_ref - p); log3(R^T R_ref)]
+            return np.concatenate([M.translation, pin.log3(M.rotation)])
+        return pin.log6(M).vector
 
     def jacobian(self, model: pin.Model, data: pin.Data) -> FloatArray:
         """LOCAL frame Jacobian (6, nv); also the wrench map ``J^T w`` of the dynamics."""
@@ -433,7 +454,7 @@ class Contact6D(Task):
     def _write_error(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
         if self._M_ref is None:
             raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the contact")
-        e = pin.log6(pin.updateFramePlacement(model, data, self._frame_id).actInv(self._M_ref)).vector
+        e = self._pose_error(pin.updateFramePlacement(model, data, self._frame_id))
         out[...] = e if self._all_selected else e[self._selection]
 
     def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:

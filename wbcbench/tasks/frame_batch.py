@@ -15,7 +15,8 @@ the frames' placements (forward kinematics of `ForwardKinematics`, compiled):
 * drift (classical acceleration at zero joint acceleration): with the spatial velocity ``(v_o, w) = J v`` and
   acceleration ``(a_o, w_dot) = dJ v`` at the world origin, ``p_ddot = a_o + w_dot x p + w x (v_o + w x p)``;
 * a contact's rows are in its LOCAL frame: the Jacobian above rotated by ``R^T``, the error
-  ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``) and the drift the
+  ``log6(M^-1 M_ref)`` (``w = log3(R^T R_ref)``, linear part ``V(w)^-1 R^T (p_ref - p)``; a contact with the
+  split error ``[R^T (p_ref - p); w]``) and the drift the
   spatial acceleration ``R^T [a_o + w_dot x p; w_dot]`` (pinocchio's ``getFrameAcceleration``, LOCAL), or for a
   contact with the classical drift the classical acceleration above in the frame's axes, ``R^T [p_ddot; w_dot]``;
 * each CoM task's rows from the centroidal map: ``Ag[:3] / m``, ``p_ref - com``, ``dAg[:3] v / m``.
@@ -67,6 +68,7 @@ class FrameBatch:
         self._local = np.array([not isinstance(t, FrameTask) for t in self.tasks], dtype=np.bool_)
         self._classical = np.array([getattr(t, "drift_convention", "spatial") == "classical" for t in self.tasks],
                                    dtype=np.bool_)
+        self._split = np.array([getattr(t, "error_convention", "log6") == "split" for t in self.tasks], dtype=np.bool_)
         # the CoM tasks' rows (e.g. com_xy and com_z, each with its own reference): one row per selected axis
         self._com_rows = np.array([start + r for t, start in self._com for r in range(len(t.rows))], dtype=np.intp)
         self._com_axes = np.array([a for t, _ in self._com for a in t.rows], dtype=np.intp)
@@ -148,7 +150,7 @@ class FrameBatch:
             com = _EMPTY
         return (data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
                 self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                if with_drift else _EMPTY, self._support, self._local, self._classical, self._p_ref, self._R_ref,
+                if with_drift else _EMPTY, self._support, self._local, self._classical, self._split, self._p_ref, self._R_ref,
                 self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
                 com, self._com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
 
@@ -248,7 +250,7 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 
 @njit
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
-                classical, p_ref,
+                classical, split, p_ref,
                 R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
     # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (com_ref per row)
     for r in range(com_rows.shape[0]):
@@ -283,17 +285,20 @@ def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t
                     M[a, b] = R[i, 0, a] * R_ref[i, 0, b] + R[i, 1, a] * R_ref[i, 1, b] + R[i, 2, a] * R_ref[i, 2, b]
                     d[a] += R[i, b, a] * (p_ref[i, b] - t[i, b])
             log3(M, w)
-            th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
-            if th2 < 1e-8:  # (1 - th sin(th) / (2 (1 - cos(th)))) / th^2 = 1/12 + th^2 / 720 + O(th^4)
-                c = 1.0 / 12.0 + th2 / 720.0
+            if split[i]:  # [R^T (p_ref - p); log3(R^T R_ref)]
+                err[i, 0], err[i, 1], err[i, 2] = d[0], d[1], d[2]
             else:
-                th = math.sqrt(th2)
-                c = (1.0 - th * math.sin(th) / (2.0 * (1.0 - math.cos(th)))) / th2
-            # V^-1 d = d - 1/2 w x d + c w x (w x d)
-            wd0, wd1, wd2 = w[1] * d[2] - w[2] * d[1], w[2] * d[0] - w[0] * d[2], w[0] * d[1] - w[1] * d[0]
-            err[i, 0] = d[0] - 0.5 * wd0 + c * (w[1] * wd2 - w[2] * wd1)
-            err[i, 1] = d[1] - 0.5 * wd1 + c * (w[2] * wd0 - w[0] * wd2)
-            err[i, 2] = d[2] - 0.5 * wd2 + c * (w[0] * wd1 - w[1] * wd0)
+                th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+                if th2 < 1e-8:  # (1 - th sin(th) / (2 (1 - cos(th)))) / th^2 = 1/12 + th^2 / 720 + O(th^4)
+                    c = 1.0 / 12.0 + th2 / 720.0
+                else:
+                    th = math.sqrt(th2)
+                    c = (1.0 - th * math.sin(th) / (2.0 * (1.0 - math.cos(th)))) / th2
+                # V^-1 d = d - 1/2 w x d + c w x (w x d)
+                wd0, wd1, wd2 = w[1] * d[2] - w[2] * d[1], w[2] * d[0] - w[0] * d[2], w[0] * d[1] - w[1] * d[0]
+                err[i, 0] = d[0] - 0.5 * wd0 + c * (w[1] * wd2 - w[2] * wd1)
+                err[i, 1] = d[1] - 0.5 * wd1 + c * (w[2] * wd0 - w[0] * wd2)
+                err[i, 2] = d[2] - 0.5 * wd2 + c * (w[0] * wd1 - w[1] * wd0)
         else:
             for a in range(3):
                 err[i, a] = p_ref[i, a] - t[i, a]
