@@ -4,7 +4,8 @@ profile from the MJCF's geoms with which the robot stands; bad input is one line
 
 The MJCF is made here, offline, from the G1 URDF of example-robot-data: compiled by MuJoCo (collision geometry
 kept, fixed links kept as bodies), a free joint and a reflected rotor inertia added, one joint moved off its body's
-origin, saved with MjSpec.to_xml (meshes by absolute path): a model the code reads only as MJCF."""
+origin, a floor, actuators, a sensor and a keyframe added (which wbcbench replaces by its own), saved with
+MjSpec.to_xml (meshes by absolute path): a model the code reads only as MJCF."""
 
 import json
 import re
@@ -43,6 +44,15 @@ def write_g1_mjcf(out: Path) -> Path:
         if j.type == mujoco.mjtJoint.mjJNT_HINGE:
             j.armature = 0.01
     spec.joint(OFFSET_JOINT).pos = list(OFFSET)
+    # what an MJCF robot file carries and wbcbench replaces: a floor, actuators (named as the joints), a sensor, a key
+    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
+    for j in spec.joints:
+        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
+            spec.add_actuator(name=j.name, target=j.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    spec.add_sensor(name="gyro", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                    objname="left_knee_joint")
+    spec.compile()
+    spec.add_key(name="home", qpos=list(np.r_[0, 0, 0.8, 1, 0, 0, 0, np.zeros(len(spec.joints) - 1)]))
     spec.compile()
     out.write_text(spec.to_xml())
     return out
@@ -224,6 +234,18 @@ def test_an_mjcf_without_feet(tmp_path, one_line_exit_2):
                      'actuatorfrcrange="-10 10"/><geom type="capsule" size="0.03 0.1"/></body></body></worldbody>'
                      '</mujoco>')
     one_line_exit_2(["robot", "init", str(stick), "--out", str(tmp_path / "x.yaml")], "stick.xml", "'feet'")
+
+
+def test_a_body_whose_mass_mujoco_infers_from_its_mesh(g1_mjcf, profile, tmp_path, one_line_exit_2):
+    """Without its <inertial> the knee's mass comes from its mesh in MuJoCo and not in pinocchio: refused."""
+    text = re.sub(r'(<body name="left_knee_link"[^>]*>\s*)<inertial[^>]*/>', r"\1", g1_mjcf.read_text())
+    assert "left_knee_link" in text and text != g1_mjcf.read_text()
+    (tmp_path / "massless_knee.xml").write_text(text)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(profile.read_text().replace(f"loader: {yaml.safe_load(profile.read_text())['loader']}",
+                                               "loader: massless_knee.xml"))
+    one_line_exit_2(["run", "stand", "-c", "tsid-torque", "--robot", str(bad), "-d", "0.1"],
+                    "bad.yaml", "'loader'", "massless_knee.xml", "<inertial>")
 
 
 def test_a_profile_naming_a_frame_the_mjcf_lacks(tmp_path, profile, one_line_exit_2):
