@@ -272,3 +272,25 @@ def test_a_menagerie_model_without_the_package_says_so(tmp_path, one_line_exit_2
         pytest.skip("mujoco-menagerie is installed: a Menagerie source would download (never in tests)")
     one_line_exit_2(["robot", "init", "menagerie:unitree_g1", "--out", str(tmp_path / "x.yaml")],
                     "menagerie:unitree_g1", "pip install mujoco-menagerie", "SOURCE")
+
+
+def test_a_menagerie_source_from_a_local_checkout(g1_mjcf, tmp_path, monkeypatch, one_line_exit_2):
+    """`menagerie:unitree_g1` through mujoco-menagerie, offline: MENAGERIE_ROOT names a checkout (here holding the
+    test MJCF as unitree_g1/g1.xml, the G1's default model file), so nothing is downloaded."""
+    pytest.importorskip("mujoco_menagerie")
+    (tmp_path / "unitree_g1").mkdir()
+    (tmp_path / "unitree_g1" / "g1.xml").write_text(g1_mjcf.read_text())
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path))
+    out = tmp_path / "menagerie_g1.yaml"
+    assert main(["robot", "init", "menagerie:unitree_g1", "--out", str(out)]) == 0
+    assert yaml.safe_load(out.read_text())["loader"] == "menagerie:unitree_g1"
+    robot = load_robot(out)
+    assert robot.files.path == (tmp_path / "unitree_g1" / "g1.xml").resolve() and robot.files.is_mjcf
+    Simulator(robot, Terrain(floor=False), "torque")  # the MuJoCo model builds and its mass agrees
+    one_line_exit_2(["robot", "init", "menagerie:unitree_g9", "--out", str(tmp_path / "x.yaml")],
+                    "unknown Menagerie robot 'unitree_g9'", "unitree_g1", "SOURCE")
+    one_line_exit_2(["robot", "init", "menagerie:unitree_g1/nope", "--out", str(tmp_path / "x.yaml")],
+                    "nope", "g1_with_hands", "SOURCE")
+    monkeypatch.setenv("MENAGERIE_ROOT", str(tmp_path / "empty"))  # a checkout without the robot: one line
+    one_line_exit_2(["robot", "init", "menagerie:unitree_g1", "--out", str(tmp_path / "x.yaml")],
+                    "menagerie:unitree_g1", "MENAGERIE_ROOT", "SOURCE")

@@ -90,28 +90,27 @@ def _mjcf_files(path: Path, file: str, key: str) -> ModelFiles:
 
 
 def menagerie_model(source: str, file: str, key: str) -> Path:
-    """The MJCF file of `menagerie:<robot>[/<entry>]` in the `mujoco-menagerie` package's cache, downloaded on first
-    use; one-line errors when the package or the network is absent, or the name unknown."""
+    """The MJCF file of `menagerie:<robot>[/<entry>]` (the robot's default model, without a scene, unless an entry
+    is named) in the `mujoco-menagerie` package's cache, downloaded on first use (or from the Menagerie checkout
+    MENAGERIE_ROOT names); one-line errors when the package or the network is absent, or a name unknown."""
     name, _, entry = source[len(MENAGERIE_PREFIX):].partition("/")
+    where = {"file": file or None, "key": key}
     try:
         import mujoco_menagerie as mm
     except ImportError:
         raise ConfigError(f"'{source}' needs the mujoco-menagerie package (pip install mujoco-menagerie) and, on "
-                          "first use, the network to download the model", file=file or None, key=key) from None
+                          "first use, the network to download the model", **where) from None
     if name not in mm.names():
-        raise UnknownNameError("Menagerie model", name, mm.names(), file=file or None, key=key)
+        raise UnknownNameError("Menagerie robot", name, mm.names(), **where)
+    robot = mm.get(name)
+    if entry and entry not in robot.entry_names:
+        raise UnknownNameError(f"entry of Menagerie robot '{name}'", entry, robot.entry_names, **where)
     try:
-        robot = mm.get(name)
-        entry = entry or robot.default_model
-        spec = robot.spec(entry)  # downloads the model on first use
-    except Exception as exc:  # no network, a failed download, an unknown entry: one line
-        raise ConfigError(f"'{source}' could not be loaded (it is downloaded on first use; is the network "
-                          f"reachable?): {type(exc).__name__}: {exc}", file=file or None, key=key) from None
-    path = Path(spec.modelfiledir) / f"{entry}.xml"
-    if not path.is_file():
-        raise ConfigError(f"'{source}': the model file '{path}' is not in the Menagerie cache", file=file or None,
-                          key=key)
-    return path
+        return Path(robot.xml(entry or robot.default_model))  # downloads the model on first use
+    except Exception as exc:  # no network, a failed download or checksum, a missing checkout: one line
+        raise ConfigError(f"'{source}' could not be fetched (Menagerie models are downloaded on first use: is the "
+                          f"network reachable? MENAGERIE_ROOT may name a local checkout): {type(exc).__name__}: "
+                          f"{exc}", **where) from None
 
 
 def build_pinocchio_model(files: ModelFiles, file: str = "") -> pin.Model:
