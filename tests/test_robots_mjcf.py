@@ -4,7 +4,8 @@ profile from the MJCF's geoms with which the robot stands; bad input is one line
 
 The MJCF is made here, offline, from the G1 URDF of example-robot-data: compiled by MuJoCo (collision geometry
 kept, fixed links kept as bodies), a free joint and a reflected rotor inertia added, one joint moved off its body's
-origin, a floor, actuators, a sensor and a keyframe added (which wbcbench replaces by its own), saved with
+origin, the effort limits moved from the joints to actuators, a floor, a sensor and a keyframe added (wbcbench
+replaces the actuators, sensors, keys and world geoms by its own), saved with
 MjSpec.to_xml (meshes by absolute path): a model the code reads only as MJCF."""
 
 import json
@@ -46,9 +47,17 @@ def write_g1_mjcf(out: Path) -> Path:
     spec.joint(OFFSET_JOINT).pos = list(OFFSET)
     # what an MJCF robot file carries and wbcbench replaces: a floor, actuators (named as the joints), a sensor, a key
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
-    for j in spec.joints:
-        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
-            spec.add_actuator(name=j.name, target=j.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    # the effort limits on the actuators, as Menagerie models give them: a force range, or a motor's control range
+    # times its gear (every other joint)
+    for k, j in enumerate(spec.joints[1:]):
+        tau = float(j.actfrcrange[1])
+        j.actfrcrange = [0.0, 0.0]
+        j.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        a = spec.add_actuator(name=j.name, target=j.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        if k % 2:
+            a.forcelimited, a.forcerange = mujoco.mjtLimited.mjLIMITED_TRUE, [-tau, tau]
+        else:
+            a.ctrllimited, a.ctrlrange, a.gear = mujoco.mjtLimited.mjLIMITED_TRUE, [-tau / 4, tau / 4], [4, 0, 0, 0, 0, 0]
     spec.add_sensor(name="gyro", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
                     objname="left_knee_joint")
     spec.compile()
@@ -83,6 +92,8 @@ def test_pinocchio_reads_the_mjcf(g1_mjcf, robot):
     hinges = [mj.joint(j).name for j in range(mj.njnt) if mj.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     assert robot.joint_names == hinges  # the file's (depth-first) order
     assert np.all(robot.model.armature[6:] == 0.01) and "armature" not in data["limits"]  # read from the file
+    assert np.array_equal(robot.effort_limit, load_robot("g1").effort_limit)  # from the file's actuators
+    assert "actuatorfrcrange" not in g1_mjcf.read_text()
     assert robot.mass == pytest.approx(float(mj.body_mass.sum()), abs=1e-12)
     assert data["feet"]["left"]["parent_frame"] == "left_ankle_roll_link"
     with pytest.raises(Exception, match="MJCF"):

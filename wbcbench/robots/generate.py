@@ -259,7 +259,7 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
         kp[jname[j]] = float(max(5.0, round(load / 0.01, -1 if load / 0.01 > 100 else 0)))
 
     # ---- limits the model lacks
-    eff_missing = [jname[j] for j in range(2, model.njoints) if model.effortLimit[model.idx_vs[j]] <= 0]
+    eff_missing = [jname[j] for j in range(2, model.njoints) if not 0 < model.effortLimit[model.idx_vs[j]] < np.inf]
     vel_missing = [jname[j] for j in range(2, model.njoints)
                    if not 0 < model.velocityLimit[model.idx_vs[j]] < np.inf]  # (an MJCF gives none: inf)
     masses = [model.inertias[j].mass for j in range(1, model.njoints)]

@@ -127,7 +127,37 @@ def build_pinocchio_model(files: ModelFiles, file: str = "") -> pin.Model:
         raise ConfigError(f"MJCF model '{files.path}' has no free joint on its root body; add "
                           "<freejoint/> to the robot's root body (the floating base)", file=file or str(files.path),
                           key="loader")
+    _mjcf_actuator_effort_limits(model, files.path)
     return model
+
+
+def _mjcf_actuator_effort_limits(model: pin.Model, path: Path) -> None:
+    """Effort limits [N m] of the joints whose MJCF gives no `actuatorfrcrange` (pinocchio: inf) from the file's
+    actuators on them: the actuator's force range, else a motor's control range times its gear and gain."""
+    missing = [j for j in range(2, model.njoints) if not np.isfinite(model.effortLimit[model.idx_vs[j]])]
+    if not missing:
+        return
+    import mujoco  # (the MJCF's actuators, their defaults applied, as MuJoCo reads them)
+
+    spec = mujoco.MjSpec.from_file(str(path))
+    limit = {}
+    for a in spec.actuators:
+        if a.trntype != mujoco.mjtTrn.mjTRN_JOINT:
+            continue
+        lo, hi = a.forcerange
+        if a.forcelimited != mujoco.mjtLimited.mjLIMITED_FALSE and hi > lo:
+            tau = max(abs(lo), abs(hi))
+        elif (a.ctrllimited != mujoco.mjtLimited.mjLIMITED_FALSE and a.ctrlrange[1] > a.ctrlrange[0]
+              and a.biastype == mujoco.mjtBias.mjBIAS_NONE):
+            tau = max(abs(a.ctrlrange[0]), abs(a.ctrlrange[1])) * abs(a.gear[0] * a.gainprm[0])
+        else:
+            continue
+        limit[a.target] = max(limit.get(a.target, 0.0), float(tau))
+    eff = model.effortLimit.copy()
+    for j in missing:
+        if model.names[j] in limit:
+            eff[model.idx_vs[j]] = limit[model.names[j]]
+    model.effortLimit = eff
 
 
 def build_geometry(model: pin.Model, files: ModelFiles, kind: pin.GeometryType) -> pin.GeometryModel:
@@ -265,7 +295,7 @@ class Robot:
             raise ConfigError(f"joints without a velocity limit in the model: {', '.join(slow[:6])}"
                               f"{', ...' if len(slow) > 6 else ''}; give them one (joint-name prefix -> rad/s)",
                               file=self.profile.file, key="limits.velocity_overrides")
-        bad = [model.names[j] for j in range(2, model.njoints) if model.effortLimit[model.idx_vs[j]] <= 0]
+        bad = [model.names[j] for j in range(2, model.njoints) if not 0 < model.effortLimit[model.idx_vs[j]] < np.inf]
         if bad:
             raise ConfigError(f"joints without an effort limit in the model: {', '.join(bad[:6])}"
                               f"{', ...' if len(bad) > 6 else ''}; give them one (joint-name prefix -> N m)",
