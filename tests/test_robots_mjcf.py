@@ -57,7 +57,8 @@ def write_g1_mjcf(out: Path) -> Path:
         if k % 2:
             a.forcelimited, a.forcerange = mujoco.mjtLimited.mjLIMITED_TRUE, [-tau, tau]
         else:
-            a.ctrllimited, a.ctrlrange, a.gear = mujoco.mjtLimited.mjLIMITED_TRUE, [-tau / 4, tau / 4], [4, 0, 0, 0, 0, 0]
+            a.ctrllimited, a.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, [-tau / 4, tau / 4]
+            a.gear = [4, 0, 0, 0, 0, 0]
     spec.add_sensor(name="gyro", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
                     objname="left_knee_joint")
     spec.compile()

@@ -290,7 +290,8 @@ class Robot:
                 if best is not None:
                     lim[model.idx_vs[jid]:model.idx_vs[jid] + model.nvs[jid]] = table[best]
             setattr(model, attr, lim)
-        slow = [model.names[j] for j in range(2, model.njoints) if not np.isfinite(model.velocityLimit[model.idx_vs[j]])]
+        slow = [model.names[j] for j in range(2, model.njoints)
+                if not np.isfinite(model.velocityLimit[model.idx_vs[j]])]
         if slow:  # (an MJCF states no velocity limits)
             raise ConfigError(f"joints without a velocity limit in the model: {', '.join(slow[:6])}"
                               f"{', ...' if len(slow) > 6 else ''}; give them one (joint-name prefix -> rad/s)",

@@ -315,7 +315,7 @@ def _realism_joints(spec: mujoco.MjSpec, robot: Robot, realism) -> None:
         for name in realism.hip.joints:
             j = joints[name]
             body = j.parent
-            if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:  # (an MJCF body turned by euler, axisangle...)
+            if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:  # (an MJCF body turned by euler...)
                 raise ConfigError(f"hip flexibility needs the body of '{name}' oriented by a quaternion in the model",
                                   file=realism.file, key="hip")
             R = pin.Quaternion(*np.asarray(body.quat, dtype=float)).toRotationMatrix()  # (w, x, y, z)
