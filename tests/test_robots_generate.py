@@ -100,20 +100,3 @@ def test_an_upper_body_has_no_feet(tmp_path, capsys):
     assert main(["robot", "init", "alex_nub_hands", "--out", str(tmp_path / "x.yaml")]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "alex_nub_hands.urdf" in err and "'feet'" in err
-
-
-def test_an_mjcf_model_is_one_line_exit_2(tmp_path, capsys):
-    """An MJCF (here one without a free joint) given to `robot init` or as a profile's loader: one line naming the
-    file and the key, exit 2 (profiles load URDFs; the free base is pinocchio's, added to the URDF's root)."""
-    mjcf = tmp_path / "arm.xml"
-    mjcf.write_text('<mujoco><worldbody><body name="b"><joint name="j" type="hinge"/><geom size="0.1"/></body>'
-                    '</worldbody></mujoco>')
-    assert main(["robot", "init", str(mjcf), "--out", str(tmp_path / "x.yaml")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "arm.xml" in err and "'SOURCE'" in err and "URDF" in err
-    profile = tmp_path / "mj.yaml"
-    profile.write_text((Path(__file__).parents[1] / "wbcbench/robots/profiles/gr2t2.yaml").read_text()
-                       .replace("loader: fourier:gr2t2", "loader: arm.xml"))
-    assert main(["run", "stand", "-c", "tsid-torque", "--robot", str(profile), "-d", "0.1"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "mj.yaml" in err and "'loader'" in err and "arm.xml" in err and "is MJCF" in err

@@ -13,7 +13,7 @@ What it finds, from the pinocchio model and its collision geometry at the joints
 * gains from the masses: position kp = m g l / 0.01 rad (the load's weight times its lever, stiff enough for a
   1 cm-rad sag; legs carry the whole robot at 0.1 m), torque-PD kp = 1/15 of it; kd ratios as the shipped
   profiles';
-* fall thresholds from the base height, stepping limits from the leg length, limits the URDF lacks;
+* fall thresholds from the base height, stepping limits from the leg length, limits the model lacks;
 * the self-collision repulsors and the self-collision check from the collision geometry (collision.py).
 
 The result is a commented YAML profile; `missing` lists what could not be found (and the key to fill).
@@ -29,7 +29,8 @@ import pinocchio as pin
 
 from ..errors import ConfigError
 from .collision import self_collision_keys, self_collision_yaml
-from .robot import MJCF_SUFFIXES, _model_files, mjcf_error
+from .robot import (MENAGERIE_PREFIX, MJCF_SUFFIXES, _model_files, build_geometry, build_pinocchio_model,
+                    menagerie_model)
 
 G = 9.81
 
@@ -41,15 +42,17 @@ class Generated:
 
 
 def _loader_for(source: str) -> str:
-    """The profile's `loader` for a SOURCE: a URDF path (absolute), `fourier:<name>`, or an example-robot-data
-    name; a bare fourier model name is tried after example-robot-data's."""
-    if source.lower().endswith(MJCF_SUFFIXES):
-        raise mjcf_error(Path(source).expanduser(), "", "SOURCE")
-    if source.endswith(".urdf"):
+    """The profile's `loader` for a SOURCE: a URDF or MJCF path (absolute), `fourier:<name>`,
+    `menagerie:<robot>[/<entry>]`, or an example-robot-data name; a bare fourier model name is tried after
+    example-robot-data's."""
+    if source.endswith(".urdf") or source.lower().endswith(MJCF_SUFFIXES):
         p = Path(source).expanduser()
         if not p.is_file():
             raise ConfigError(f"model file '{p}' does not exist", file=str(p), key="SOURCE")
         return str(p.resolve())
+    if source.startswith(MENAGERIE_PREFIX):
+        menagerie_model(source, "", "SOURCE")  # (the package, the name and the download: errors as SOURCE's)
+        return source
     if source.startswith("fourier:"):
         return source
     from example_robot_data.robots_loader import ROBOTS
@@ -63,8 +66,8 @@ def _loader_for(source: str) -> str:
             return f"fourier:{source}"
     except ImportError:
         pass
-    raise ConfigError(f"'{source}' is neither a URDF file, an example-robot-data model nor a fourier model",
-                      key="SOURCE")
+    raise ConfigError(f"'{source}' is neither a URDF or MJCF file (.urdf, .xml, .mjcf), an example-robot-data model, "
+                      "a fourier model nor menagerie:<robot>", key="SOURCE")
 
 
 def _geom_points(geom: pin.GeometryObject) -> np.ndarray:
@@ -79,14 +82,14 @@ def _geom_points(geom: pin.GeometryObject) -> np.ndarray:
 def generate_profile(source: str, name: str | None = None, knee: float = 0.6) -> Generated:
     loader = _loader_for(source)
     files = _model_files(loader, "")
-    model = pin.buildModelFromUrdf(str(files.urdf), pin.JointModelFreeFlyer())
+    src = str(files.path)
+    model = build_pinocchio_model(files)
     if model.nq < 8 or any(model.nqs[j] != 1 for j in range(2, model.njoints)):
-        raise ConfigError("only robots with 1-DoF joints below a free base are supported", file=str(files.urdf))
+        raise ConfigError("only robots with 1-DoF joints below a free base are supported", file=src)
     try:
-        geom = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.COLLISION,
-                                     package_dirs=[str(files.package_root)])
-    except ValueError as exc:  # a mesh the package does not ship
-        raise ConfigError(f"cannot read the collision geometry: {exc}", file=str(files.urdf), key="collision")
+        geom = build_geometry(model, files, pin.GeometryType.COLLISION)
+    except (ValueError, RuntimeError) as exc:  # a mesh the package does not ship
+        raise ConfigError(f"cannot read the collision geometry: {exc}", file=src, key="collision")
     data = model.createData()
     q = pin.neutral(model)
     q[7:] = np.clip(0.0, model.lowerPositionLimit[7:], model.upperPositionLimit[7:])
@@ -98,10 +101,9 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     # ---- feet: the lowest geometry each side (collision geometry, else the visual meshes)
     feet, low = _find_feet(model, data, geom)
     try:  # the visual meshes: for models whose collision geometry misses the legs
-        visual = pin.buildGeomFromUrdf(model, str(files.urdf), pin.GeometryType.VISUAL,
-                                       package_dirs=[str(files.package_root)])
+        visual = build_geometry(model, files, pin.GeometryType.VISUAL)
         vfeet, vlow = _find_feet(model, data, visual)
-    except ValueError:
+    except (ValueError, RuntimeError):
         vfeet, vlow = {}, {}
 
     def lowest(ft, lw):
@@ -117,7 +119,7 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
             feet = {}
     if len(feet) != 2:
         raise ConfigError("no feet found: no geometry reaching lowest on each side of the robot; write the "
-                          "profile's feet and sole by hand", file=str(files.urdf), key="feet")
+                          "profile's feet and sole by hand", file=src, key="feet")
     foot_body, sole_in_joint, sole_in_body = {}, {}, {}
     sizes = []
     for side, j in feet.items():
@@ -180,7 +182,7 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
             if best is None or d < best[0]:
                 best = (d, k)
         if best is None:
-            raise ConfigError("no knee found (no pitch joint in the leg)", file=str(files.urdf),
+            raise ConfigError("no knee found (no pitch joint in the leg)", file=src,
                               key="reference_posture")
         knees[side] = best[1]
 
@@ -256,11 +258,12 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
             load = min(sub * G * max(lever, 0.05), mass * G * 0.1)  # no stiffer than the legs
         kp[jname[j]] = float(max(5.0, round(load / 0.01, -1 if load / 0.01 > 100 else 0)))
 
-    # ---- limits the URDF lacks
-    eff_missing = [jname[j] for j in range(2, model.njoints) if model.effortLimit[model.idx_vs[j]] <= 0]
-    vel_missing = [jname[j] for j in range(2, model.njoints) if model.velocityLimit[model.idx_vs[j]] <= 0]
+    # ---- limits the model lacks
+    eff_missing = [jname[j] for j in range(2, model.njoints) if not 0 < model.effortLimit[model.idx_vs[j]] < np.inf]
+    vel_missing = [jname[j] for j in range(2, model.njoints)
+                   if not 0 < model.velocityLimit[model.idx_vs[j]] < np.inf]  # (an MJCF gives none: inf)
     masses = [model.inertias[j].mass for j in range(1, model.njoints)]
-    massless = min(masses) <= 0
+    massless = min(masses) <= 0 and not files.is_mjcf  # (an MJCF's bounds: its own <inertial>s)
 
     # ---- write
     L = []
@@ -301,7 +304,8 @@ def generate_profile(source: str, name: str | None = None, knee: float = 0.6) ->
     for s in ("left", "right"):
         w(f"  {s}: {hands.get(s, base)}")
     w("limits:")
-    w("  armature: 0.01                    # [kg m^2] reflected rotor inertia (the model gives none)")
+    if not np.any(model.armature[6:] > 0):
+        w("  armature: 0.01                    # [kg m^2] reflected rotor inertia (the model gives none)")
     if massless:
         w("  min_body_mass: 1.0e-3             # [kg] the model has massless links")
         w("  min_body_inertia: 1.0e-7          # [kg m^2]")

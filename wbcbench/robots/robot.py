@@ -1,7 +1,7 @@
-"""The Robot: a pinocchio model built from example-robot-data, plus its profile.
+"""The Robot: a pinocchio model built from a URDF or an MJCF model, plus its profile.
 
 One `Robot` is shared by planners, controllers, estimators and metrics; the simulator builds its MuJoCo
-model from the same URDF (`Robot.urdf_path`) so the two never disagree about masses or frames.
+model from the same file (`Robot.files.path`) so the two never disagree about masses or frames.
 """
 
 from __future__ import annotations
@@ -19,32 +19,49 @@ from .profile import RobotProfile, Side, load_profile
 
 @dataclass(frozen=True)
 class ModelFiles:
-    urdf: Path
+    """The files a profile's `loader` names: the model (`path`, in `format` "urdf" or "mjcf"), an SRDF, the directory
+    `package://` resolves to, and whether the SRDF carries rotor parameters."""
+
+    path: Path
     srdf: Path | None
     package_root: Path  # directory that `package://example-robot-data/` resolves to (its parent)
     has_rotor_parameters: bool
+    format: str = "urdf"
+
+    @property
+    def urdf(self) -> Path:
+        """The URDF (for code that reads URDF only; an MJCF model raises the one-line error that says so)."""
+        if self.format != "urdf":
+            raise ConfigError("this needs a URDF model; the robot's is MJCF", file=str(self.path), key="loader")
+        return self.path
+
+    @property
+    def is_mjcf(self) -> bool:
+        return self.format == "mjcf"
 
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
-"""Model files in MuJoCo's format, which profiles do not load (yet): named in a one-line error."""
+"""Model files in MuJoCo's format (MJCF): read by pinocchio (`buildModelFromMJCF`) and MuJoCo (`MjSpec.from_file`)."""
+MENAGERIE_PREFIX = "menagerie:"
+"""A `loader` / SOURCE `menagerie:<robot>[/<entry>]`: a MuJoCo Menagerie model through the `mujoco-menagerie` package's
+download cache (the robot's default model unless an entry is named)."""
 
 
-def mjcf_error(path: Path, file: str, key: str) -> ConfigError:
-    """The error for an MJCF model given where a URDF is read (a profile's `loader`, `robot init`'s SOURCE)."""
-    what = "does not exist" if not path.is_file() else "is MJCF"
-    return ConfigError(f"model file '{path}' {what}: profiles load URDF models only (a URDF path, an "
-                       "example-robot-data or a fourier-robot-descriptions model); the free base is added to the "
-                       "URDF's root link", file=file or str(path), key=key)
+def _model_path(name: str, profile_file: str) -> Path:
+    path = Path(name).expanduser()
+    if not path.is_absolute() and profile_file:
+        path = Path(profile_file).parent / path
+    return path
 
 
 def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
     """The model files a profile's `loader` names: an example-robot-data loader name, `fourier:<model>` (a URDF of
-    the `fourier-robot-descriptions` package) or a URDF path (relative paths from the profile's directory)."""
+    the `fourier-robot-descriptions` package), `menagerie:<robot>[/<entry>]`, a URDF path or an MJCF path (.xml,
+    .mjcf; relative paths from the profile's directory)."""
     if loader_name.lower().endswith(MJCF_SUFFIXES):
-        path = Path(loader_name).expanduser()
-        if not path.is_absolute() and profile_file:
-            path = Path(profile_file).parent / path
-        raise mjcf_error(path, profile_file, "loader")
+        return _mjcf_files(_model_path(loader_name, profile_file), profile_file or "", "loader")
+    if loader_name.startswith(MENAGERIE_PREFIX):
+        return _mjcf_files(menagerie_model(loader_name, profile_file, "loader"), profile_file or "", "loader")
     if loader_name.startswith("fourier:") or loader_name.endswith(".urdf"):
         return _urdf_files(loader_name, profile_file)
     from example_robot_data.robots_loader import ROBOTS
@@ -60,9 +77,94 @@ def _model_files(loader_name: str, profile_file: str) -> ModelFiles:
     root = Path(getModelPath(str(rel)))
     srdf = root / cls.path / cls.srdf_subpath / cls.srdf_filename if cls.srdf_filename else None
     # URDF meshes are "package://example-robot-data/robots/...": the package root is two levels above robots/
-    return ModelFiles(urdf=(root / rel).resolve(), srdf=srdf.resolve() if srdf else None,
+    return ModelFiles(path=(root / rel).resolve(), srdf=srdf.resolve() if srdf else None,
                       package_root=root.resolve().parent.parent,
                       has_rotor_parameters=bool(getattr(cls, "has_rotor_parameters", False)))
+
+
+def _mjcf_files(path: Path, file: str, key: str) -> ModelFiles:
+    if not path.is_file():
+        raise ConfigError(f"model file '{path}' does not exist", file=file or str(path), key=key)
+    return ModelFiles(path=path.resolve(), srdf=None, package_root=path.resolve().parent,
+                      has_rotor_parameters=False, format="mjcf")
+
+
+def menagerie_model(source: str, file: str, key: str) -> Path:
+    """The MJCF file of `menagerie:<robot>[/<entry>]` (the robot's default model, without a scene, unless an entry
+    is named) in the `mujoco-menagerie` package's cache, downloaded on first use (or from the Menagerie checkout
+    MENAGERIE_ROOT names); one-line errors when the package or the network is absent, or a name unknown."""
+    name, _, entry = source[len(MENAGERIE_PREFIX):].partition("/")
+    where = {"file": file or None, "key": key}
+    try:
+        import mujoco_menagerie as mm
+    except ImportError:
+        raise ConfigError(f"'{source}' needs the mujoco-menagerie package (pip install mujoco-menagerie) and, on "
+                          "first use, the network to download the model", **where) from None
+    if name not in mm.names():
+        raise UnknownNameError("Menagerie robot", name, mm.names(), **where)
+    robot = mm.get(name)
+    if entry and entry not in robot.entry_names:
+        raise UnknownNameError(f"entry of Menagerie robot '{name}'", entry, robot.entry_names, **where)
+    try:
+        return Path(robot.xml(entry or robot.default_model))  # downloads the model on first use
+    except Exception as exc:  # no network, a failed download or checksum, a missing checkout: one line
+        raise ConfigError(f"'{source}' could not be fetched (Menagerie models are downloaded on first use: is the "
+                          f"network reachable? MENAGERIE_ROOT may name a local checkout): {type(exc).__name__}: "
+                          f"{exc}", **where) from None
+
+
+def build_pinocchio_model(files: ModelFiles, file: str = "") -> pin.Model:
+    """The pinocchio model of the files, with a free-flyer root: the URDF's root link gets one; an MJCF must have
+    a free joint on its root body (pinocchio reads it as the free flyer). `file`: the profile, for errors."""
+    if not files.is_mjcf:
+        return pin.buildModelFromUrdf(str(files.path), pin.JointModelFreeFlyer())
+    try:
+        model = pin.buildModelFromMJCF(str(files.path))
+    except (ValueError, RuntimeError) as exc:
+        raise ConfigError(f"pinocchio cannot read the MJCF model '{files.path}': {exc}", file=file or str(files.path),
+                          key="loader") from None
+    if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
+        raise ConfigError(f"MJCF model '{files.path}' has no free joint on its root body; add "
+                          "<freejoint/> to the robot's root body (the floating base)", file=file or str(files.path),
+                          key="loader")
+    _mjcf_actuator_effort_limits(model, files.path)
+    return model
+
+
+def _mjcf_actuator_effort_limits(model: pin.Model, path: Path) -> None:
+    """Effort limits [N m] of the joints whose MJCF gives no `actuatorfrcrange` (pinocchio: inf) from the file's
+    actuators on them: the actuator's force range, else a motor's control range times its gear and gain."""
+    missing = [j for j in range(2, model.njoints) if not np.isfinite(model.effortLimit[model.idx_vs[j]])]
+    if not missing:
+        return
+    import mujoco  # (the MJCF's actuators, their defaults applied, as MuJoCo reads them)
+
+    spec = mujoco.MjSpec.from_file(str(path))
+    limit = {}
+    for a in spec.actuators:
+        if a.trntype != mujoco.mjtTrn.mjTRN_JOINT:
+            continue
+        lo, hi = a.forcerange
+        if a.forcelimited != mujoco.mjtLimited.mjLIMITED_FALSE and hi > lo:
+            tau = max(abs(lo), abs(hi))
+        elif (a.ctrllimited != mujoco.mjtLimited.mjLIMITED_FALSE and a.ctrlrange[1] > a.ctrlrange[0]
+              and a.biastype == mujoco.mjtBias.mjBIAS_NONE):
+            tau = max(abs(a.ctrlrange[0]), abs(a.ctrlrange[1])) * abs(a.gear[0] * a.gainprm[0])
+        else:
+            continue
+        limit[a.target] = max(limit.get(a.target, 0.0), float(tau))
+    eff = model.effortLimit.copy()
+    for j in missing:
+        if model.names[j] in limit:
+            eff[model.idx_vs[j]] = limit[model.names[j]]
+    model.effortLimit = eff
+
+
+def build_geometry(model: pin.Model, files: ModelFiles, kind: pin.GeometryType) -> pin.GeometryModel:
+    """The model's collision or visual geometry (URDF <collision>/<visual>; MJCF geoms)."""
+    if files.is_mjcf:
+        return pin.buildGeomFromMJCF(model, str(files.path), kind)
+    return pin.buildGeomFromUrdf(model, str(files.path), kind, package_dirs=[str(files.package_root)])
 
 
 def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
@@ -78,14 +180,14 @@ def _urdf_files(loader_name: str, profile_file: str) -> ModelFiles:
             raise UnknownNameError("fourier model", name, sorted(p.stem for p in PACKAGE_PATH.glob("*.urdf")),
                                    file=profile_file, key="loader")
         # their meshes are "../meshes/<model>/...", relative to the URDF's folder (GR2, Qinglong: only found there)
-        return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=PACKAGE_PATH.resolve(),
+        return ModelFiles(path=urdf.resolve(), srdf=None, package_root=PACKAGE_PATH.resolve(),
                           has_rotor_parameters=False)
     urdf = Path(loader_name).expanduser()
     if not urdf.is_absolute() and profile_file:
         urdf = Path(profile_file).parent / urdf
     if not urdf.is_file():
         raise ConfigError(f"model file '{urdf}' does not exist", file=profile_file, key="loader")
-    return ModelFiles(urdf=urdf.resolve(), srdf=None, package_root=urdf.resolve().parent,
+    return ModelFiles(path=urdf.resolve(), srdf=None, package_root=urdf.resolve().parent,
                       has_rotor_parameters=False)
 
 
@@ -121,7 +223,7 @@ class Robot:
     def __init__(self, profile: RobotProfile):
         self.profile = profile
         self.files = _model_files(profile.loader, profile.file)
-        model = pin.buildModelFromUrdf(str(self.files.urdf), pin.JointModelFreeFlyer())
+        model = build_pinocchio_model(self.files, profile.file)
         if self.files.srdf is not None and self.files.has_rotor_parameters:
             pin.loadRotorParameters(model, str(self.files.srdf), False)
             model.armature = np.multiply(model.rotorInertia, np.square(model.rotorGearRatio))
@@ -131,6 +233,9 @@ class Robot:
             model.armature = arm
         self._apply_limits(model)
         if profile.min_body_mass > 0 or profile.min_body_inertia > 0:
+            if self.files.is_mjcf:
+                raise ConfigError("min_body_mass / min_body_inertia apply to URDF models; give the MJCF's bodies "
+                                  "their <inertial>", file=profile.file, key="limits.min_body_mass")
             self._bound_inertias(model)
         self.model = model
         self._add_sole_frames()
@@ -185,9 +290,15 @@ class Robot:
                 if best is not None:
                     lim[model.idx_vs[jid]:model.idx_vs[jid] + model.nvs[jid]] = table[best]
             setattr(model, attr, lim)
-        bad = [model.names[j] for j in range(2, model.njoints) if model.effortLimit[model.idx_vs[j]] <= 0]
+        slow = [model.names[j] for j in range(2, model.njoints)
+                if not np.isfinite(model.velocityLimit[model.idx_vs[j]])]
+        if slow:  # (an MJCF states no velocity limits)
+            raise ConfigError(f"joints without a velocity limit in the model: {', '.join(slow[:6])}"
+                              f"{', ...' if len(slow) > 6 else ''}; give them one (joint-name prefix -> rad/s)",
+                              file=self.profile.file, key="limits.velocity_overrides")
+        bad = [model.names[j] for j in range(2, model.njoints) if not 0 < model.effortLimit[model.idx_vs[j]] < np.inf]
         if bad:
-            raise ConfigError(f"joints without an effort limit in the URDF: {', '.join(bad[:6])}"
+            raise ConfigError(f"joints without an effort limit in the model: {', '.join(bad[:6])}"
                               f"{', ...' if len(bad) > 6 else ''}; give them one (joint-name prefix -> N m)",
                               file=self.profile.file, key="limits.effort_overrides")
 

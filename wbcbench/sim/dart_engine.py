@@ -184,6 +184,10 @@ class DartSimulator:
                  options: SimOptions | None = None, pushes: tuple[Push, ...] = (), model_error=None):
         if dart is None:
             raise ConfigError("the 'dart' engine needs dartpy: pip install 'wbcbench[dart]'", key="--engine")
+        if robot.files.is_mjcf:
+            raise ConfigError(f"the 'dart' engine reads URDF models only and robot '{robot.name}' is MJCF "
+                              f"({robot.files.path.name}); run it with --engine mujoco", file=robot.profile.file or None,
+                              key="--engine")
         if model_error is not None:
             raise ConfigError("model error (mass, friction and payload changes) is applied to MuJoCo models only; "
                               "run it with --engine mujoco", key="model_error")

@@ -1,4 +1,4 @@
-"""The MuJoCo model of a Robot, built with MjSpec from the same URDF pinocchio reads.
+"""The MuJoCo model of a Robot, built with MjSpec from the same URDF or MJCF file pinocchio reads.
 
 Collision geometry is limited to one box per sole matching the profile's rectangle (bottom face on the sole
 plane) plus the terrain; every other body is collision-free. Sensors: a force and a torque sensor at each
@@ -93,6 +93,58 @@ def _urdf_for_mujoco(robot: Robot, keep_collision: frozenset[str] = frozenset())
     compiler = ('<mujoco><compiler discardvisual="true" fusestatic="true" strippath="false" '
                 'balanceinertia="false" autolimits="true"/></mujoco>')
     return re.sub(r"(<robot\b[^>]*>)", r"\1" + compiler, txt, count=1)
+
+
+def _mjcf_for_mujoco(robot: Robot) -> mujoco.MjSpec:
+    """The MjSpec of an MJCF robot, made like the URDF's: its free joint named "root"; its own actuators, sensors,
+    keyframes, contact pairs and the world's geoms (a floor, scenery) removed (wbcbench adds its own). Its geoms
+    are made collision-free after the self-collision check has picked its own (`_mjcf_collision_free`)."""
+    file = str(robot.files.path)
+    spec = mujoco.MjSpec.from_file(file)
+    free = [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
+    if len(free) != 1:
+        raise ConfigError(f"MJCF model '{file}' needs exactly one free joint (the floating base), found {len(free)}",
+                          file=robot.profile.file or file, key="loader")
+    if spec.equalities or spec.tendons:
+        raise ConfigError(f"MJCF model '{file}' has equality constraints or tendons, which the pinocchio model "
+                          "cannot follow; remove them", file=robot.profile.file or file, key="loader")
+    free[0].name = "root"
+    for group in (spec.actuators, spec.sensors, spec.keys, spec.pairs, spec.worldbody.geoms):
+        for el in list(group):
+            spec.delete(el)
+    return spec
+
+
+def _mjcf_collision_free(spec: mujoco.MjSpec) -> None:
+    """Every geom of the MJCF but the self-collision check's collision-free (contype = conaffinity = 0): they keep
+    their mass and are drawn, as the URDF's visuals; contacts are the soles' and the check's only."""
+    for g in spec.geoms:
+        if not g.name.startswith("selfcol:"):
+            g.contype = g.conaffinity = 0
+
+
+def _mjcf_self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
+    """The MJCF's colliding geoms (contype or conaffinity set in the file) of the `collision_check` bodies in the
+    self-collision bits (module docstring)."""
+    owner, contype, conaffinity = {}, {}, {}
+    for side, c in check.items():
+        for link in c.effector:
+            owner[link] = side
+            contype[link] = contype.get(link, 0) | SELF_COLLISION_BITS[side]
+        for link in c.bodies:
+            owner.setdefault(link, None)
+            conaffinity[link] = conaffinity.get(link, 0) | SELF_COLLISION_BITS[side]
+    for link, side in owner.items():
+        body = spec.body(link)
+        geoms = [g for g in body.geoms if g.contype or g.conaffinity] if body is not None else []
+        for k, g in enumerate(geoms):
+            g.name = self_collision_geom_name(link, k)
+            g.contype = contype.get(link, 0)
+            g.conaffinity = conaffinity.get(link, 0)
+            g.group = 3
+            g.margin = 0.0
+            g.gap = 0.0
+            g.friction = [0.5, 0.005, 0.0001]
 
 
 def _quat_wxyz(R: np.ndarray) -> np.ndarray:
@@ -263,6 +315,9 @@ def _realism_joints(spec: mujoco.MjSpec, robot: Robot, realism) -> None:
         for name in realism.hip.joints:
             j = joints[name]
             body = j.parent
+            if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:  # (an MJCF body turned by euler...)
+                raise ConfigError(f"hip flexibility needs the body of '{name}' oriented by a quaternion in the model",
+                                  file=realism.file, key="hip")
             R = pin.Quaternion(*np.asarray(body.quat, dtype=float)).toRotationMatrix()  # (w, x, y, z)
             h = body.parent.add_joint(name=f"{name}:hip_flex", type=hinge,
                                       pos=list(np.asarray(body.pos, dtype=float) + R @ np.asarray(j.pos, dtype=float)),
@@ -280,11 +335,16 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         raise ConfigError("self-collision checking needs a `collision_check` section for both sides",
                           file=robot.profile.file, key="collision_check")
     keep = frozenset(link for c in check.values() for link in (*c.effector, *c.bodies))
-    urdf = _urdf_for_mujoco(robot, keep)
-    spec = mujoco.MjSpec.from_string(urdf)
+    mjcf = robot.files.is_mjcf
+    if mjcf:
+        spec = _mjcf_for_mujoco(robot)
+        base = spec.joint("root").parent
+    else:
+        urdf = _urdf_for_mujoco(robot, keep)
+        spec = mujoco.MjSpec.from_string(urdf)
+        base = spec.worldbody.first_body()
+        base.add_freejoint(name="root")
     pmodel = robot.model
-    base = spec.worldbody.first_body()
-    base.add_freejoint(name="root")
     spec.option.timestep = options.timestep
     spec.option.integrator = INTEGRATORS[options.integrator]
     spec.option.noslip_iterations = options.noslip_iterations
@@ -303,7 +363,13 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
 
     def body_and_placement(frame_name: str) -> tuple[mujoco.MjsBody, pin.SE3]:
         f = pmodel.frames[pmodel.getFrameId(frame_name)]
-        return body_of_joint[pmodel.names[f.parentJoint]], f.placement
+        body = body_of_joint[pmodel.names[f.parentJoint]]
+        if not mjcf:
+            return body, f.placement
+        # MJCF: a joint may sit away from its body's origin (<joint pos>); pinocchio's body frame says where the
+        # body is in the joint frame, and the placement is taken from there
+        b = pmodel.frames[pmodel.getFrameId(body.name, pin.FrameType.BODY)]
+        return body, b.placement.actInv(f.placement)
 
     # joints: armature from pinocchio (rotor inertia x gear ratio^2), absent in the URDF
     for j in spec.joints:
@@ -315,9 +381,15 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
         _realism_joints(spec, robot, options.realism)
 
     if check:
-        _self_collision_geoms(spec, check, urdf)
+        if mjcf:
+            _mjcf_self_collision_geoms(spec, check)
+        else:
+            _self_collision_geoms(spec, check, urdf)
+    if mjcf:
+        _mjcf_collision_free(spec)
     if options.visuals:
-        _visual_geoms(spec, robot, body_of_joint)
+        if not mjcf:  # (an MJCF's own geoms are its visuals, kept)
+            _visual_geoms(spec, robot, body_of_joint)
         _visual_scene(spec)
 
     # sole boxes and F/T sites
@@ -376,7 +448,20 @@ def build_mujoco_model(robot: Robot, terrain: Terrain, mode: ActuationMode,
             a.gainprm[0] = 1.0
             a.ctrllimited = True
             a.ctrlrange = [-effort[i], effort[i]]
-    return spec.compile()
+    model = spec.compile()
+    if mjcf:
+        _check_masses(robot, model)
+    return model
+
+
+def _check_masses(robot: Robot, model: mujoco.MjModel) -> None:
+    """An MJCF body without <inertial> gets its mass from its geoms in MuJoCo and none in pinocchio: refused, as
+    the two models would disagree."""
+    mj_mass = float(np.sum(model.body_mass))
+    if abs(mj_mass - robot.mass) > 1e-9 * max(1.0, robot.mass):
+        raise ConfigError(f"MJCF model '{robot.files.path}': MuJoCo's mass {mj_mass:.6f} kg differs from pinocchio's "
+                          f"{robot.mass:.6f} kg (bodies whose inertia MuJoCo infers from geoms); give every body an "
+                          "<inertial>", file=robot.profile.file or str(robot.files.path), key="loader")
 
 
 def build_self_collision_model(robot: Robot) -> mujoco.MjModel:

@@ -92,7 +92,7 @@ def _visual_model(robot, terrain, mesh_cell: float):
     multisampling, a brighter headlight, a lighter ground drawn as one square, meshes simplified (`mesh_cell`).
 
     Building it (reading the meshes, compiling) takes seconds, drawing a frame milliseconds: the model is kept as
-    MJB, in this process and on disk (`cache_dir`), under a key made of everything it is built from (URDF and
+    MJB, in this process and on disk (`cache_dir`), under a key made of everything it is built from (model file and
     profile text, the model-building code, the terrain, the cell, MuJoCo's version).
     """
     import copy
@@ -105,7 +105,7 @@ def _visual_model(robot, terrain, mesh_cell: float):
     from ..types import ActuationMode
 
     h = hashlib.sha256()
-    for part in (robot.files.urdf.read_bytes(), Path(robot.profile.file).read_bytes() if robot.profile.file else b"",
+    for part in (robot.files.path.read_bytes(), Path(robot.profile.file).read_bytes() if robot.profile.file else b"",
                  Path(sim_model.__file__).read_bytes(), repr(terrain).encode(),
                  f"{mesh_cell}|{mujoco.__version__}|{_MODEL_FORMAT}".encode()):
         h.update(hashlib.sha256(part).digest())
