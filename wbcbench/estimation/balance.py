@@ -22,6 +22,8 @@ from ..types import Measurement
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
+
 
 class BalanceEstimator:
     """Measured ZMP and support-foot-anchored CoM of a robot, one `update` per control tick.
@@ -131,14 +133,25 @@ class BalanceEstimator:
         """`update` by `_balance_step`: its outputs are views of one new array per tick (the last tick's arrays,
         which callers may keep, are not overwritten)."""
         out = np.empty(11)
-        left, right = Side.LEFT, Side.RIGHT
+        force, torque = meas.ft_force, meas.ft_torque
         anchor = q_model is not None
-        support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, meas.ft_force[left],
-                                meas.ft_torque[left], meas.ft_force[right], meas.ft_torque[right], *self._step_args,
-                                self._state, out)
-        self.normal_force = {left: float(out[0]), right: float(out[1])}
-        self.support = right if support else left
+        support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, force[_LEFT], torque[_LEFT],
+                                force[_RIGHT], torque[_RIGHT], *self._step_args, self._state, out)
+        self._normal_force = out  # the dict `normal_force` made from it when asked for
+        self.support = _RIGHT if support else _LEFT
         self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
+
+    @property
+    def normal_force(self) -> dict:
+        """The feet's normal forces [N] at the last update, by side."""
+        nf = self._normal_force
+        if type(nf) is not dict:
+            nf = self._normal_force = {_LEFT: float(nf[0]), _RIGHT: float(nf[1])}
+        return nf
+
+    @normal_force.setter
+    def normal_force(self, value: dict) -> None:
+        self._normal_force = value
 
 
 @njit
