@@ -17,9 +17,10 @@ import pinocchio as pin
 from ..jit import njit
 from ..robots import Robot
 from ..side import Side
-from ..tasks.placements import CenterOfMass, frame_placements, joint_placements, subtree_sums
+from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
 from ..types import Measurement
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
+from ._memo import memo_joint_placements, placement_memo
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
@@ -61,7 +62,8 @@ class BalanceEstimator:
             frames = [self.sensor_ids[Side.LEFT], self.sensor_ids[Side.RIGHT], self.sole_ids[Side.LEFT],
                       self.sole_ids[Side.RIGHT]]
             feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, *fk.frame_arrays(frames),
+            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
+                               *placement_memo(robot.model, fk).args, *fk.frame_arrays(frames),
                                com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
                                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD.copy(),
                                float(min_normal_force), float(self.alpha), float(dt), np.zeros((6, 3, 3)),
@@ -155,17 +157,19 @@ class BalanceEstimator:
 
 
 @njit
-def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, R, t,
-                  frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity,
-                  min_normal_force, alpha, dt, Rf, tf, state, out):
+def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, memo_q,
+                  memo_R, memo_t, memo_next, frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass,
+                  foot_com, gravity, min_normal_force, alpha, dt, Rf, tf, state, out):
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
     sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchored`, when
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
-    the support foot (0 left, 1 right: the larger normal force, left on a tie)."""
-    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R, t)
+    the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
+    the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations)."""
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
     subtree_sums(R, t, parents, mass, lever, msub, csub)
     # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
@@ -202,8 +206,8 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
     cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
     if anchor:
         # each loaded foot moved to where the model has it, weighted by its normal force
-        joint_placements(q_model, kinds, parents, idx_q, R0, t0, R, t)
-        frame_placements(R, t, frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
+        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+        frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
         w = np.zeros(2)
         for k in range(2):
             if out[k] > min_normal_force:

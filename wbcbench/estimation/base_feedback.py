@@ -36,7 +36,8 @@ import pinocchio as pin
 from ..robots import Robot
 from ..jit import njit
 from ..side import Side
-from ..tasks.placements import ForwardKinematics, frame_placements, joint_placements
+from ..tasks.placements import ForwardKinematics, frame_placements
+from ._memo import memo_joint_placements, placement_memo
 from ..types import Measurement, PointReference, PoseReference, References
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
@@ -61,25 +62,26 @@ class BaseFeedbackConfig:
 
 
 @njit
-def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames,
-                t_frames, R, t, drift, alpha):
+def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
+                R_frames, t_frames, R, t, drift, alpha):
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
-    model's and the measured configuration (`placements.joint_placements`, `frame_placements`; rows model left,
-    right, measured left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
-    joint_placements(q_model, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[:2], t[:2])
-    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[2:], t[2:])
+    model's and the measured configuration (`placements.joint_placements` through the model's memo
+    (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
+    (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
+    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[:2], t[:2])
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[2:], t[2:])
     _drift_from_soles(R, t, drift, alpha)
 
 
 @njit(exact=True)
-def _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames,
-                          t_frames, R, t, drift, alpha, R_drift, p_drift):
+def _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift):
     """`_drift_step`, then D = (``R_drift`` (3, 3), ``p_drift`` (3,)) of the new drift (`BaseFeedback._transform`'s
     numbers: the same cosine and sine)."""
-    _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames, t_frames,
-                R, t, drift, alpha)
+    _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
+                R_frames, t_frames, R, t, drift, alpha)
     _transform_of(drift, R_drift, p_drift)
 
 
@@ -183,7 +185,8 @@ class BaseFeedback:
         self._fk = fk = ForwardKinematics(robot.model)
         self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
         if fk.supported:
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t,
+            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
+                               *placement_memo(robot.model, fk).args,
                                *fk.frame_arrays([self.sole_ids[s] for s in Side]), *self._soles)
         self.alpha = 1.0 - np.exp(-dt / config.time_constant)
         self.blend = config.liftoff_blend

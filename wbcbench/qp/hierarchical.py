@@ -513,7 +513,7 @@ class HierarchicalSolver:
                 met_tol = self.met_tol
                 task_sq, totals = sums, level_sq.tolist()
                 return HierarchicalResult(x, self._closed_form_reports(levels, plan, task_sq, totals), True,
-                                          violation, final_path, tuple((np.sqrt(level_sq) <= met_tol).tolist()))
+                                          violation, final_path, tuple([math.sqrt(t) <= met_tol for t in totals]))
         if sums is None:
             # reports: residuals of every task at x, rank and freedom of every level
             e = A @ x
