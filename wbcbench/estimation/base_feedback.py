@@ -86,6 +86,19 @@ def _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q
 
 
 @njit(exact=True)
+def _double_support_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                         frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift, com_position,
+                         com_velocity, com_acceleration, com_out):
+    """`_drift_step_transform`, then the CoM reference mapped through the new D into ``com_out`` (9,)
+    (`_map_point`; skipped for an empty ``com_out``): a double-support tick of `BaseFeedback.correct` up to the
+    feet's references, in one call."""
+    _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift)
+    if com_out.shape[0] == 9:
+        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out)
+
+
+@njit(exact=True)
 def _transform_of(drift, R, p):
     """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0)."""
     c, s = np.cos(drift[2]), np.sin(drift[2])
@@ -151,6 +164,7 @@ def _map_pose(R, p, position, rotation, velocity, acceleration, out):
 
 
 _NO_ROTATION = np.zeros((0, 3))
+_NO_POINT = np.zeros(0)
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 
@@ -239,22 +253,29 @@ class BaseFeedback:
         """`refs` mapped into the integrated model's world (module docstring), after one `update` with the feet
         the references put in contact."""
         contacts = refs.contacts
+        com = refs.com
+        # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
+        # constructors; each reference mapped in one compiled call
         if _LEFT in contacts and _RIGHT in contacts and self._fk.supported:
-            # `update` and `_transform` in one compiled call
+            # `update`, `_transform` and the CoM's mapping in one compiled call
             drift, R, p = self.drift.copy(), np.empty((3, 3)), np.empty(3)
-            _drift_step_transform(q_model, meas.q, *self._step_args, drift, self.alpha, R, p)
+            if com is None:
+                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, _NO_POINT,
+                                     _NO_POINT, _NO_POINT, _NO_POINT)
+            else:
+                out = np.empty(9)
+                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, com.position,
+                                     com.velocity, com.acceleration, out)
+                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
             self.drift = drift
             self._cached = (drift, R, p)
         else:
             self.update(meas, q_model, contacts)
             R, p = self._transform()
-        # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
-        # constructors; each reference mapped in one compiled call
-        com = refs.com
-        if com is not None:
-            out = np.empty(9)
-            _map_point(R, p, com.position, com.velocity, com.acceleration, out)
-            com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
+            if com is not None:
+                out = np.empty(9)
+                _map_point(R, p, com.position, com.velocity, com.acceleration, out)
+                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
         targets = refs.targets
         if "waist" in targets:
             targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}

@@ -164,7 +164,7 @@ def _reflect_vec(V, a, t, x, j) -> None:
 
 
 @njit
-def selection_lsq(P, b_P, A, c, rank_tol):
+def selection_lsq(P, b_P, A, c, rank_tol, x):
     """``x = argmin ||A x - c||  s.t.  P x = b_P`` when every row of ``A`` has exactly one non-zero, in distinct
     columns (a weighted posture or regularisation level: ``A = S E_J``, S diagonal, E_J selecting the variables
     J); the variables K outside J are fixed by ``P`` alone.
@@ -179,13 +179,14 @@ def selection_lsq(P, b_P, A, c, rank_tol):
     on random problems), with the reflections applied by row index instead of through row views: 12.6 -> 10.5 us
     on the TALOS IK.
 
-    Returns ``(status, x)``: 1 solved; 0 the structure does not apply (then the general path runs); -1 a rank
-    test failed: ``|diag R_K|`` or the projection's triangular diagonal not above ``rank_tol`` times the Frobenius
-    norm of ``P`` (resp. of ``G S^-1``), i.e. ``P`` has no full row rank or the problem has no unique solution.
+    Writes x into ``x`` (n,) (a new array each call costs more to hand back than to pass in) and returns the
+    status: 1 solved; 0 the structure does not apply (then the general path runs); -1 a rank test failed:
+    ``|diag R_K|`` or the projection's triangular diagonal not above ``rank_tol`` times the Frobenius norm of ``P``
+    (resp. of ``G S^-1``), i.e. ``P`` has no full row rank or the problem has no unique solution.
     """
     r, n = P.shape
     m = A.shape[0]
-    x = np.zeros(n)
+    x[:] = 0.0
     col_of = np.full(m, -1)
     scale = np.zeros(m)
     taken = np.zeros(n, dtype=np.bool_)
@@ -194,16 +195,16 @@ def selection_lsq(P, b_P, A, c, rank_tol):
             a = A[i, j]
             if a != 0.0:
                 if col_of[i] >= 0 or taken[j]:
-                    return 0, x
+                    return 0
                 col_of[i] = j
                 scale[i] = a
                 taken[j] = True
         if col_of[i] < 0:
-            return 0, x
+            return 0
     k = n - m
     p = r - k
     if k > r or p > m:
-        return 0, x
+        return 0
     free = np.empty(k, dtype=np.int64)
     a = 0
     for j in range(n):
@@ -225,7 +226,7 @@ def selection_lsq(P, b_P, A, c, rank_tol):
     _reflect_rows(RK, tau_k, d_k)
     for a in range(k):
         if not abs(d_k[a]) > tol_P:
-            return -1, x
+            return -1
     # G S^-1 (p, m) and h
     col = np.empty(r)
     GS = np.empty((p, m))
@@ -255,7 +256,7 @@ def selection_lsq(P, b_P, A, c, rank_tol):
     _reflect_rows(GS, tau_g, d_g)
     for t in range(p):
         if not abs(d_g[t]) > tol_G:
-            return -1, x
+            return -1
     w = np.zeros(m)
     for t in range(p):  # R_G' w = rhs, R_G[b, t] = GS[t, b] for b < t
         s = rhs[t]
@@ -283,4 +284,4 @@ def selection_lsq(P, b_P, A, c, rank_tol):
         y[a] = s / d_k[a]
     for a in range(k):
         x[free[a]] = y[a]
-    return 1, x
+    return 1

@@ -469,7 +469,8 @@ class HierarchicalSolver:
         status = 0
         if n_prefix < len(levels) and d:
             # a posture-like level (one non-zero per row): the compiled projection, else the general LAPACK path
-            status, x = selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL)
+            x = np.empty(n)
+            status = selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL, x)
             final_path = LevelPath.LOCKED
         if status == 1:
             pass
