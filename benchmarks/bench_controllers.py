@@ -103,7 +103,8 @@ def _line(name: str, r: dict) -> str:
         line += (f"   [pinocchio {r['pinocchio_median_us']:.0f}, build {r['build_median_us']:.0f}, "
                  f"solver {r['solve_median_us']:.0f} us]")
     if "core_median_us" in r:
-        line += f"   [corrections {r['corrections_median_us']:.0f}, core (step without them) {r['core_median_us']:.0f} us]"
+        line += (f"   [corrections {r['corrections_median_us']:.0f}, core (step without them) "
+                 f"{r['core_median_us']:.0f} us]")
     return line
 
 

@@ -19,8 +19,8 @@ from ..robots import Robot
 from ..side import Side
 from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
 from ..types import Measurement
-from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from ._memo import memo_joint_placements, placement_memo
+from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT

@@ -37,8 +37,8 @@ from ..robots import Robot
 from ..jit import njit
 from ..side import Side
 from ..tasks.placements import ForwardKinematics, frame_placements
-from ._memo import memo_joint_placements, placement_memo
 from ..types import Measurement, PointReference, PoseReference, References
+from ._memo import memo_joint_placements, placement_memo
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
 
