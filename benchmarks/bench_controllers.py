@@ -2,7 +2,9 @@
 paper's task set (task update + QP build + solve + command), and where the time goes (pinocchio, building the
 QP, the solver). The controller is fed real measurements from the simulator in closed loop; only its
 `step()` is timed. The references hold the CoM where it starts with the ZMP under it (what `stand` gives), so
-the position schemes run with their stabilizer.
+the position schemes run with their stabilizer. For a controller with plan corrections (base feedback, stabilizer,
+...: `controller.corrections.apply`), their time is measured too, and "core" is the step without them (the
+formulation and solve alone, per tick: step minus corrections).
 
     .venv/bin/python benchmarks/bench_controllers.py [--ticks 3000] [--json FILE] [--controllers a,b]
     .venv/bin/python benchmarks/bench_controllers.py --against ../other-checkout [--rounds 3]
@@ -49,8 +51,11 @@ def bench(robot, name: str, ticks: int) -> dict:
     refs = standing_references(robot, meas.q)
     ctrl.reset(meas, refs)
     total = np.empty(ticks)
+    corrections = np.zeros(ticks)
     split = {}
+    timed = _time_corrections(ctrl, corrections)
     for k in range(ticks):
+        timed[0] = k
         t0 = time.perf_counter()
         cmd = ctrl.step(meas, refs)
         total[k] = (time.perf_counter() - t0) * 1e6
@@ -66,7 +71,30 @@ def bench(robot, name: str, ticks: int) -> dict:
         out[f"{key}_median_us"] = float(np.median(vals[ticks // 10:]))
     if split:
         out["build_median_us"] = out["median_us"] - sum(out[f"{k}_median_us"] for k in split)
+    if timed[1]:
+        out["corrections_median_us"] = float(np.median(corrections[ticks // 10:]))
+        out["core_median_us"] = float(np.median((total - corrections)[ticks // 10:]))
     return out
+
+
+def _time_corrections(ctrl, times: np.ndarray) -> list:
+    """Wrap the controller's `corrections.apply` (if it has plan corrections) so that its time at tick k goes to
+    `times[k]`; returns [the current tick (set by the caller), whether wrapped]."""
+    state = [0, False]
+    corr = getattr(ctrl, "corrections", None)
+    if corr is None or not getattr(corr, "stages", ()):
+        return state
+    apply = corr.apply
+
+    def timed_apply(*args, **kwargs):
+        t0 = time.perf_counter()
+        out = apply(*args, **kwargs)
+        times[state[0]] = (time.perf_counter() - t0) * 1e6
+        return out
+
+    corr.apply = timed_apply
+    state[1] = True
+    return state
 
 
 def _line(name: str, r: dict) -> str:
@@ -74,6 +102,9 @@ def _line(name: str, r: dict) -> str:
     if "solve_median_us" in r:
         line += (f"   [pinocchio {r['pinocchio_median_us']:.0f}, build {r['build_median_us']:.0f}, "
                  f"solver {r['solve_median_us']:.0f} us]")
+    if "core_median_us" in r:
+        line += (f"   [corrections {r['corrections_median_us']:.0f}, core (step without them) "
+                 f"{r['core_median_us']:.0f} us]")
     return line
 
 
@@ -87,6 +118,11 @@ def against(args, names: list[str]) -> None:
         p99 = {k: float(np.median([x[name]["p99_us"] for x in v])) for k, v in rounds.items()}
         print(f"  {name:14s} new {med['new']:7.1f} (p99 {p99['new']:7.1f})   other {med['other']:7.1f} "
               f"(p99 {p99['other']:7.1f})   new/other {med['new'] / med['other']:.3f}")
+        for key, label in (("core_median_us", "core"), ("corrections_median_us", "corrections")):
+            if all(key in x[name] for v in rounds.values() for x in v):
+                m = {k: float(np.median([x[name][key] for x in v])) for k, v in rounds.items()}
+                print(f"  {'':4s}{label:10s} new {m['new']:7.1f}                other {m['other']:7.1f}"
+                      f"                new/other {m['new'] / m['other']:.3f}")
 
 
 def main() -> None:

@@ -104,3 +104,26 @@ def test_the_compiled_drift_step_is_pinocchios_to_rounding(talos):
         b = slow.update(_meas(q_real), q_model, frozenset(Side))
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
     assert np.abs(fast.drift).max() > 1e-3  # the states moved it
+
+
+def test_double_support_tick_in_one_call_gives_the_numbers_of_update_then_mapping(talos):
+    """`correct` in double support (the drift update, its transform and the CoM's mapping in one compiled call)
+    against `update`, `transform` and the mapping of a single reference, bit for bit."""
+    from wbcbench.estimation.base_feedback import _map_point
+
+    q_model = talos.q0.copy()
+    q_real = _shifted(q_model, 0.01, 0.02, np.radians(2.0))
+    fused, steps = (BaseFeedback(talos, 1e-3, BaseFeedbackConfig(time_constant=0.05)) for _ in range(2))
+    refs = References(t=0.0, contacts=frozenset(Side), com=PointReference([0.1, 0.02, 0.87], [0.1, -0.2, 0.0],
+                                                                          [0.5, 0.3, -0.1]),
+                      zmp=np.array([0.1, 0.0, 0.0]))
+    for k in range(20):
+        q_meas = _shifted(q_real, 1e-4 * k, 0.0, 0.0)
+        out = fused.correct(_meas(q_meas), refs, q_model)
+        steps.update(_meas(q_meas), q_model, refs.contacts)
+        R, p = steps.transform()
+        expected = np.empty(9)
+        _map_point(R, p, refs.com.position, refs.com.velocity, refs.com.acceleration, expected)
+        assert np.array_equal(fused.drift, steps.drift)
+        assert np.array_equal(np.r_[out.com.position, out.com.velocity, out.com.acceleration], expected)
+        assert all(np.array_equal(a, b) for a, b in zip(fused.transform(), (R, p)))

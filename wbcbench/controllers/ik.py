@@ -123,13 +123,15 @@ class IKController(Controller):
             return Command(q=self.q_int[7:].copy(), v=np.zeros(self.robot.na))
         # the lowest level is a regularisation (posture) that lower-priority conflicts always leave unmet:
         # report the highest-priority level above it that could not be met (-1: none)
-        unmet = [k for k, met in enumerate(res.met[:-1]) if not met]
-        self.unmet_levels = unmet[0] if unmet else -1
-        if unmet:
+        met = res.met[:-1]
+        if False in met:
+            self.unmet_levels = met.index(False)
             self.n_unmet += 1
-        self.v = res.x
-        self.q_int = pin.integrate(self.model, self.q_int, self.v * self.dt)
-        return Command(q=self.q_int[7:].copy(), v=self.v[6:].copy())
+        else:
+            self.unmet_levels = -1
+        self.v = v = res.x
+        self.q_int = q = pin.integrate(self.model, self.q_int, v * self.dt)
+        return Command(None, q[7:].copy(), v[6:].copy())
 
     def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
         """What the stabilizer may know of the model: the integrated configuration and the planned contacts."""

@@ -54,6 +54,7 @@ class KinematicHierarchy:
         self.free_tasks = dict(free_tasks)
         self.names = tuple(self.contacts)
         self.in_contact = {n: True for n in self.names}
+        self._key: tuple[bool, ...] = tuple(True for _ in self.names)  # in_contact's values in `names` order
         self.q_lo, self.q_hi = position_limits
         self.v_max = velocity_limit
         self.dt = dt
@@ -79,15 +80,21 @@ class KinematicHierarchy:
             self.contacts[n].set_reference_to_current(m, d)
             self.free_tasks[n].set_reference_to_current(m, d)
             self.in_contact[n] = n in active
+        self._key = tuple(self.in_contact[n] for n in self.names)
 
     def set_contacts(self, wanted: Collection) -> None:
         """A contact made this tick takes its frame's current pose as its reference (the model's touch-down)."""
-        m, d = self.model, self.data
+        in_contact = self.in_contact
+        changed = False
         for n in self.names:
             want = n in wanted
-            if want and not self.in_contact[n]:
-                self.contacts[n].set_reference_to_current(m, d)
-            self.in_contact[n] = want
+            if want != in_contact[n]:
+                if want:
+                    self.contacts[n].set_reference_to_current(self.model, self.data)
+                in_contact[n] = want
+                changed = True
+        if changed:
+            self._key = tuple(in_contact[n] for n in self.names)
 
     def bounds(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocity bounds at configuration q: joint position limits reached in one step and velocity limits."""
@@ -103,7 +110,7 @@ class KinematicHierarchy:
         The rows of every task come from one :class:`~wbcbench.tasks.TaskStack` (per contact state), evaluated
         in place; the levels are built once per stack layout with light containers whose arrays are views of the
         stack's rows: the solver gets the same levels object every tick, with this tick's rows."""
-        key = tuple(self.in_contact[n] for n in self.names)
+        key = self._key
         plan = self._plans.get(key)
         if plan is None:
             feet = [self.contacts[n] if c else self.free_tasks[n] for n, c in zip(self.names, key, strict=True)]

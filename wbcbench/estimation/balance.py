@@ -17,10 +17,13 @@ import pinocchio as pin
 from ..jit import njit
 from ..robots import Robot
 from ..side import Side
-from ..tasks.placements import CenterOfMass, frame_placements, joint_placements, subtree_sums
+from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
 from ..types import Measurement
+from ._memo import memo_joint_placements, placement_memo
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
+
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 
 class BalanceEstimator:
@@ -59,7 +62,8 @@ class BalanceEstimator:
             frames = [self.sensor_ids[Side.LEFT], self.sensor_ids[Side.RIGHT], self.sole_ids[Side.LEFT],
                       self.sole_ids[Side.RIGHT]]
             feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, *fk.frame_arrays(frames),
+            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
+                               *placement_memo(robot.model, fk).args, *fk.frame_arrays(frames),
                                com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
                                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD.copy(),
                                float(min_normal_force), float(self.alpha), float(dt), np.zeros((6, 3, 3)),
@@ -131,28 +135,41 @@ class BalanceEstimator:
         """`update` by `_balance_step`: its outputs are views of one new array per tick (the last tick's arrays,
         which callers may keep, are not overwritten)."""
         out = np.empty(11)
-        left, right = Side.LEFT, Side.RIGHT
+        force, torque = meas.ft_force, meas.ft_torque
         anchor = q_model is not None
-        support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, meas.ft_force[left],
-                                meas.ft_torque[left], meas.ft_force[right], meas.ft_torque[right], *self._step_args,
-                                self._state, out)
-        self.normal_force = {left: float(out[0]), right: float(out[1])}
-        self.support = right if support else left
+        support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, force[_LEFT], torque[_LEFT],
+                                force[_RIGHT], torque[_RIGHT], *self._step_args, self._state, out)
+        self._normal_force = out  # the dict `normal_force` made from it when asked for
+        self.support = _RIGHT if support else _LEFT
         self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
+
+    @property
+    def normal_force(self) -> dict:
+        """The feet's normal forces [N] at the last update, by side."""
+        nf = self._normal_force
+        if type(nf) is not dict:
+            nf = self._normal_force = {_LEFT: float(nf[0]), _RIGHT: float(nf[1])}
+        return nf
+
+    @normal_force.setter
+    def normal_force(self, value: dict) -> None:
+        self._normal_force = value
 
 
 @njit
-def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, R, t,
-                  frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity,
-                  min_normal_force, alpha, dt, Rf, tf, state, out):
+def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, memo_q,
+                  memo_R, memo_t, memo_next, frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass,
+                  foot_com, gravity, min_normal_force, alpha, dt, Rf, tf, state, out):
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
     sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchored`, when
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
-    the support foot (0 left, 1 right: the larger normal force, left on a tie)."""
-    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R, t)
+    the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
+    the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations)."""
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
     subtree_sums(R, t, parents, mass, lever, msub, csub)
     # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
@@ -189,8 +206,8 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
     cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
     if anchor:
         # each loaded foot moved to where the model has it, weighted by its normal force
-        joint_placements(q_model, kinds, parents, idx_q, R0, t0, R, t)
-        frame_placements(R, t, frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
+        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+        frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
         w = np.zeros(2)
         for k in range(2):
             if out[k] > min_normal_force:

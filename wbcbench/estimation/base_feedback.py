@@ -36,8 +36,9 @@ import pinocchio as pin
 from ..robots import Robot
 from ..jit import njit
 from ..side import Side
-from ..tasks.placements import ForwardKinematics, frame_placements, joint_placements
+from ..tasks.placements import ForwardKinematics, frame_placements
 from ..types import Measurement, PointReference, PoseReference, References
+from ._memo import memo_joint_placements, placement_memo
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
 
@@ -61,16 +62,50 @@ class BaseFeedbackConfig:
 
 
 @njit
-def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints, frame_parents, R_frames,
-                t_frames, R, t, drift, alpha):
+def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
+                R_frames, t_frames, R, t, drift, alpha):
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
-    model's and the measured configuration (`placements.joint_placements`, `frame_placements`; rows model left,
-    right, measured left, right into ``R`` (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
-    joint_placements(q_model, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[:2], t[:2])
-    joint_placements(q_meas, kinds, parents, idx_q, R0, t0, R_joints, t_joints)
-    frame_placements(R_joints, t_joints, frame_parents, R_frames, t_frames, R[2:], t[2:])
+    model's and the measured configuration (`placements.joint_placements` through the model's memo
+    (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
+    (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
+    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[:2], t[:2])
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[2:], t[2:])
     _drift_from_soles(R, t, drift, alpha)
+
+
+@njit(exact=True)
+def _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift):
+    """`_drift_step`, then D = (``R_drift`` (3, 3), ``p_drift`` (3,)) of the new drift (`BaseFeedback._transform`'s
+    numbers: the same cosine and sine)."""
+    _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
+                R_frames, t_frames, R, t, drift, alpha)
+    _transform_of(drift, R_drift, p_drift)
+
+
+@njit(exact=True)
+def _double_support_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                         frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift, com_position,
+                         com_velocity, com_acceleration, com_out):
+    """`_drift_step_transform`, then the CoM reference mapped through the new D into ``com_out`` (9,)
+    (`_map_point`; skipped for an empty ``com_out``): a double-support tick of `BaseFeedback.correct` up to the
+    feet's references, in one call."""
+    _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
+                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift)
+    if com_out.shape[0] == 9:
+        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out)
+
+
+@njit(exact=True)
+def _transform_of(drift, R, p):
+    """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0)."""
+    c, s = np.cos(drift[2]), np.sin(drift[2])
+    R[0, 0], R[0, 1], R[0, 2] = c, -s, 0.0
+    R[1, 0], R[1, 1], R[1, 2] = s, c, 0.0
+    R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, 1.0
+    p[0], p[1], p[2] = drift[0], drift[1], 0.0
 
 
 @njit
@@ -129,6 +164,19 @@ def _map_pose(R, p, position, rotation, velocity, acceleration, out):
 
 
 _NO_ROTATION = np.zeros((0, 3))
+_NO_POINT = np.zeros(0)
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
+
+
+def _mapped_pose(R: np.ndarray, p: np.ndarray, ref: PoseReference) -> PoseReference:
+    """A frame's reference through D = (R, p), in one compiled call (`_map_pose`): views of one new array."""
+    out = np.empty(24)
+    rot = ref.rotation
+    if rot is None:
+        _map_pose(R, p, ref.position, _NO_ROTATION, ref.velocity, ref.acceleration, out)
+        return PoseReference.unchecked(out[:3], None, out[12:18], out[18:24])
+    _map_pose(R, p, ref.position, rot, ref.velocity, ref.acceleration, out)
+    return PoseReference.unchecked(out[:3], out[3:12].reshape(3, 3), out[12:18], out[18:24])
 
 
 class BaseFeedback:
@@ -151,7 +199,8 @@ class BaseFeedback:
         self._fk = fk = ForwardKinematics(robot.model)
         self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
         if fk.supported:
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t,
+            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
+                               *placement_memo(robot.model, fk).args,
                                *fk.frame_arrays([self.sole_ids[s] for s in Side]), *self._soles)
         self.alpha = 1.0 - np.exp(-dt / config.time_constant)
         self.blend = config.liftoff_blend
@@ -203,33 +252,42 @@ class BaseFeedback:
     def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
         """`refs` mapped into the integrated model's world (module docstring), after one `update` with the feet
         the references put in contact."""
-        self.update(meas, q_model, refs.contacts)
-        R, p = self._transform()
-
+        contacts = refs.contacts
+        com = refs.com
         # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
         # constructors; each reference mapped in one compiled call
-        def pose(ref: PoseReference) -> PoseReference:
-            out = np.empty(24)
-            rot = ref.rotation
-            _map_pose(R, p, ref.position, _NO_ROTATION if rot is None else rot, ref.velocity, ref.acceleration, out)
-            return PoseReference.unchecked(out[:3], None if rot is None else out[3:12].reshape(3, 3), out[12:18],
-                                           out[18:24])
-
-        com = refs.com
-        if com is not None:
-            out = np.empty(9)
-            _map_point(R, p, com.position, com.velocity, com.acceleration, out)
-            com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
+        if _LEFT in contacts and _RIGHT in contacts and self._fk.supported:
+            # `update`, `_transform` and the CoM's mapping in one compiled call
+            drift, R, p = self.drift.copy(), np.empty((3, 3)), np.empty(3)
+            if com is None:
+                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, _NO_POINT,
+                                     _NO_POINT, _NO_POINT, _NO_POINT)
+            else:
+                out = np.empty(9)
+                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, com.position,
+                                     com.velocity, com.acceleration, out)
+                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
+            self.drift = drift
+            self._cached = (drift, R, p)
+        else:
+            self.update(meas, q_model, contacts)
+            R, p = self._transform()
+            if com is not None:
+                out = np.empty(9)
+                _map_point(R, p, com.position, com.velocity, com.acceleration, out)
+                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
         targets = refs.targets
         if "waist" in targets:
-            targets = {**targets, "waist": pose(targets["waist"])}
+            targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}
         feet = {}
         for s, f in refs.feet.items():
-            mapped = pose(f)
-            feet[s] = mapped if s in refs.contacts else self._from_liftoff(s, mapped, refs.t, q_model)
-        for s in list(self._liftoff):
-            if s in refs.contacts or s not in refs.feet:
-                del self._liftoff[s]
+            mapped = _mapped_pose(R, p, f)
+            feet[s] = mapped if s in contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        liftoff = self._liftoff
+        if liftoff:
+            for s in list(liftoff):
+                if s in contacts or s not in refs.feet:
+                    del liftoff[s]
         return refs.corrected(com, targets, refs.wrench_targets, refs.contact_poses, feet=feet)
 
     def _from_liftoff(self, side: Side, ref: PoseReference, t: float, q_model: np.ndarray) -> PoseReference:

@@ -56,7 +56,7 @@ from scipy.optimize import nnls
 
 from wbcbench.errors import QPError
 from wbcbench.qp import kernels
-from wbcbench.qp._nullspace import least_squares_step, project
+from wbcbench.qp._nullspace import least_squares_step, project, selection_lsq
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level, Task
 from wbcbench.qp.problem import QPProblem
 from wbcbench.qp.registry import make_solver, solver_names
@@ -469,7 +469,8 @@ class HierarchicalSolver:
         status = 0
         if n_prefix < len(levels) and d:
             # a posture-like level (one non-zero per row): the compiled projection, else the general LAPACK path
-            status, x = kernels.selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL)
+            x = np.empty(n)
+            status = selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL, x)
             final_path = LevelPath.LOCKED
         if status == 1:
             pass
@@ -513,7 +514,7 @@ class HierarchicalSolver:
                 met_tol = self.met_tol
                 task_sq, totals = sums, level_sq.tolist()
                 return HierarchicalResult(x, self._closed_form_reports(levels, plan, task_sq, totals), True,
-                                          violation, final_path, tuple((np.sqrt(level_sq) <= met_tol).tolist()))
+                                          violation, final_path, tuple([math.sqrt(t) <= met_tol for t in totals]))
         if sums is None:
             # reports: residuals of every task at x, rank and freedom of every level
             e = A @ x

@@ -228,22 +228,22 @@ class DcmStabilizer:
 
     def reset(self) -> None:
         """Zero the DCM error integral and the CoM offset, and restart the ZMP filter."""
-        self._integral = np.zeros(2)
-        self._offset_p = np.zeros(2)
-        self._offset_v = np.zeros(2)
-        self._filtered = None  # the ZMP filter's output (2,), None until its first sample
+        # the state, updated in place tick after tick: the integral (2), the CoM offset's position (2) and velocity
+        # (2), the ZMP filter's last output (2; `_fresh`: none yet)
+        self._state = np.zeros(8)
+        self._fresh = True
         if self._filter is not None:
             self._filter.reset()
 
     @property
     def dcm_error_integral(self) -> np.ndarray:
         """Current integral of (xi_ref - xi) [m s], (2,)."""
-        return self._integral.copy()
+        return self._state[0:2].copy()
 
     @property
     def com_offset(self) -> np.ndarray:
         """Current corrected-minus-planned CoM position [m], (2,)."""
-        return self._offset_p.copy()
+        return self._state[2:4].copy()
 
     def step(self, *, p_com_ref: np.ndarray, v_com_ref: np.ndarray, a_com_ref: np.ndarray, p_zmp_ref: np.ndarray,
              p_com: np.ndarray, v_com: np.ndarray, p_zmp: np.ndarray) -> DcmStabilizerOutput:
@@ -271,19 +271,27 @@ class DcmStabilizer:
     def _step_compiled(self, c_ref, v_ref, a_ref, z_ref, c, v, z) -> DcmStabilizerOutput:
         """`step` by `_dcm_step` (the same operations in the same order: the same numbers), for float64 vectors
         of the right sizes; its outputs are views of one new array."""
-        out = np.empty(20)
-        filtered = self._filtered
-        fresh = filtered is None
-        if fresh:
-            filtered = np.zeros(2)
-        state = np.concatenate((self._integral, self._offset_p, self._offset_v, filtered))
-        if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, fresh, state, out):
-            return self._step_numpy(c_ref, v_ref, a_ref, z_ref, c, v, z)  # raises, naming the bad input
-        self._integral, self._offset_p, self._offset_v = state[0:2], state[2:4], state[4:6]
-        if self._filter is not None:
-            self._filtered = state[6:8]
+        out = self.step_array(c_ref, v_ref, a_ref, z_ref, c, v, z)
         return DcmStabilizerOutput(out[0:3], out[3:6], out[6:9], out[9:11], out[11:13], out[13:15], out[15:17],
-                                   self._integral.copy(), out[17:19] != 0.0)
+                                   self._state[0:2].copy(), out[17:19] != 0.0)
+
+    def step_array(self, c_ref, v_ref, a_ref, z_ref, c, v, z, log: np.ndarray | None = None) -> np.ndarray:
+        """`step` for float64 1-D arrays of the sizes `step` takes (not checked here), its outputs in one new
+        array (20,): CoM position, velocity, acceleration (3 each), z*, filtered measured ZMP, measured DCM,
+        planned DCM (2 each), integral saturated (2, 0 / 1). `log` (6,), if given: measured ZMP, z*, measured
+        DCM written there. A non-finite input raises as `step` does."""
+        out = np.empty(20)
+        state = self._state
+        if log is None:
+            done = _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, self._fresh, state, out)
+        else:
+            done = _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, c, v, z, self._constants, self._fresh, state, out,
+                                    log)
+        if not done:
+            self._step_numpy(c_ref, v_ref, a_ref, z_ref, c, v, z)  # raises, naming the bad input
+        if self._filter is not None:
+            self._fresh = False
+        return out
 
     def _step_numpy(self, p_com_ref, v_com_ref, a_com_ref, p_zmp_ref, p_com, v_com, p_zmp) -> DcmStabilizerOutput:
         """`step` for any array-likes (validated)."""
@@ -299,42 +307,46 @@ class DcmStabilizer:
             names = ("p_com_ref", "v_com_ref", "a_com_ref", "p_zmp_ref", "p_com", "v_com", "p_zmp")
             bad = [n for n, x in zip(names, (c_ref, v_ref, a_ref, z_ref, c, v, z)) if not np.all(np.isfinite(x))]
             raise ValueError(f"DcmStabilizer.step: non-finite input(s): {', '.join(bad)}")
+        state = self._state
         if self._filter is not None:
-            self._filter._y = None if self._filtered is None else self._filtered.copy()  # as the compiled path left it
+            self._filter._y = None if self._fresh else state[6:8].copy()  # as the compiled path left it
             z = self._filter(z)
-            self._filtered = z.copy()
+            state[6:8] = z
+            self._fresh = False
+        integral, offset_p, offset_v = state[0:2].copy(), state[2:4].copy(), state[4:6].copy()
         omega, dt = self.omega, self.dt
         xi_ref = dcm_from_com(c_ref[:2], v_ref[:2], omega)
         xi = dcm_from_com(c, v, omega)
-        z_star = dcm_pi_zmp(z_ref, xi_ref, xi, z, self._integral, omega, g.kp_dcm, g.ki_dcm, g.kz_dcm)
+        z_star = dcm_pi_zmp(z_ref, xi_ref, xi, z, integral, omega, g.kp_dcm, g.ki_dcm, g.kz_dcm)
         a_star = com_admittance(a_ref[:2], z, z_star, g.kp_adm)
         # Integrate c_ddot* relative to the plan: offset'' = c_ddot* - c_ddot_ref.
         da = a_star - a_ref[:2]
-        self._offset_p = self._offset_p + (self._offset_v + (0.5 * dt) * da) * dt
-        self._offset_v = self._offset_v + da * dt
+        offset_p = offset_p + (offset_v + (0.5 * dt) * da) * dt
+        offset_v = offset_v + da * dt
         if g.com_offset_limit is not None:
             lim = g.com_offset_limit
-            clipped = np.abs(self._offset_p) > lim
+            clipped = np.abs(offset_p) > lim
             if clipped.any():
-                self._offset_p = np.clip(self._offset_p, -lim, lim)
-                self._offset_v = np.where(clipped & (self._offset_v * self._offset_p > 0.0), 0.0, self._offset_v)
+                offset_p = np.clip(offset_p, -lim, lim)
+                offset_v = np.where(clipped & (offset_v * offset_p > 0.0), 0.0, offset_v)
         # Integral update after use (optional leak, anti-windup clamp).
         error = xi_ref - xi
         if g.integral_leak:
-            error = error - g.integral_leak * self._integral
-        self._integral = self._integral + error * dt
+            error = error - g.integral_leak * integral
+        integral = integral + error * dt
         saturated = np.zeros(2, bool)
         if g.integral_limit is not None:
-            saturated = np.abs(self._integral) >= g.integral_limit
+            saturated = np.abs(integral) >= g.integral_limit
             if saturated.any():
-                self._integral = np.clip(self._integral, -g.integral_limit, g.integral_limit)
+                integral = np.clip(integral, -g.integral_limit, g.integral_limit)
+        state[0:2], state[2:4], state[4:6] = integral, offset_p, offset_v
         p_out = c_ref.copy()
         v_out = v_ref.copy()
         a_out = a_ref.copy()
-        p_out[:2] += self._offset_p
-        v_out[:2] += self._offset_v
+        p_out[:2] += offset_p
+        v_out[:2] += offset_v
         a_out[:2] = a_star
-        return DcmStabilizerOutput(p_out, v_out, a_out, z_star, z, xi, xi_ref, self._integral.copy(), saturated)
+        return DcmStabilizerOutput(p_out, v_out, a_out, z_star, z, xi, xi_ref, integral.copy(), saturated)
 
 
 @njit(exact=True)
@@ -406,4 +418,16 @@ def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     for i in range(2):
         out[i] += state[2 + i]
         out[3 + i] += state[4 + i]
+    return True
+
+
+@njit(exact=True)
+def _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out, log):
+    """`_dcm_step`, then ``log`` (6,) = the filtered measured ZMP, z*, the measured DCM (x, y each) when it
+    succeeded."""
+    if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
+        return False
+    log[0], log[1] = out[11], out[12]
+    log[2], log[3] = out[9], out[10]
+    log[4], log[5] = out[13], out[14]
     return True

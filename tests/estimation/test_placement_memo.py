@@ -1,0 +1,44 @@
+"""The joint placements memo shared by the estimators (`wbcbench.estimation._memo`): the placements of the
+configuration asked for, bit for bit those of the forward kinematics, whatever was asked before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from wbcbench.estimation._memo import memo_joint_placements, placement_memo
+from wbcbench.tasks.placements import ForwardKinematics, joint_placements
+
+
+def test_memo_gives_the_placements_of_the_configuration_asked_for(talos):
+    model = talos.model
+    fk = ForwardKinematics(model)
+    memo = placement_memo(model, fk)
+    assert placement_memo(model, ForwardKinematics(model)) is memo  # one per model and kinematic constants
+    consts = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0)
+    qs = [pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq)) for _ in range(3)]
+    qs.append(qs[0].copy())
+    qs[3][10] = np.nextafter(qs[3][10], np.inf)  # one unit in the last place from configuration 0
+    R, t = np.zeros_like(fk.R), np.zeros_like(fk.t)
+    computed = 0
+    for k in [0, 1, 0, 1, 2, 1, 2, 0, 3, 0, 3, 3]:
+        q = qs[k]
+        before = memo.q.copy()
+        slot = memo_joint_placements(q, *consts, *memo.args)
+        computed += not any(np.array_equal(row, q) and (np.signbit(row) == np.signbit(q)).all() for row in before)
+        joint_placements(q, *consts, R, t)
+        assert np.array_equal(memo.R[slot], R) and np.array_equal(memo.t[slot], t)
+    assert computed == 5  # 0, 1, 2, 0 again (after 1 and 2), 3: one of the last two configurations is not recomputed
+
+
+def test_a_configuration_changed_in_place_is_computed_again(talos):
+    model = talos.model
+    fk = ForwardKinematics(model)
+    memo = placement_memo(model, fk)
+    consts = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0)
+    q = pin.neutral(model)
+    slot = memo_joint_placements(q, *consts, *memo.args)
+    t_before = memo.t[slot].copy()
+    q[0] += 0.5  # the base moved: same array, other content
+    slot = memo_joint_placements(q, *consts, *memo.args)
+    np.testing.assert_allclose(memo.t[slot][1:] - t_before[1:], [[0.5, 0.0, 0.0]] * (model.njoints - 1), atol=1e-12)

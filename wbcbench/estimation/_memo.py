@@ -1,0 +1,74 @@
+"""The joint placements of the last two configurations of a model, shared by its estimators' compiled kernels.
+
+A position-controlled controller's tick asks for the placements of the same two configurations several times: the
+base feedback (the soles of the integrated model and of the measured robot) and the balance estimator (the measured
+robot's CoM and F/T sensors, the model's soles) each ran the forward kinematics of both. `memo_joint_placements`
+keeps the last two configurations it was given (bit for bit) with their placements, so that each is computed once a
+tick; the placements are the same numbers either way (the same kernel on the same input).
+
+One memo per pinocchio model in a process (`placement_memo`), shared by every estimator built on it; not
+thread-safe.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+import pinocchio as pin
+
+from ..jit import njit
+from ..tasks.placements import ForwardKinematics, joint_placements
+
+__all__ = ["PlacementMemo", "memo_joint_placements", "placement_memo"]
+
+
+class PlacementMemo:
+    """Two slots of (configuration, joint placements) and the slot to overwrite next; `args` are the arrays
+    `memo_joint_placements` takes after the model's constants."""
+
+    def __init__(self, fk: ForwardKinematics, nq: int):
+        n = fk.R.shape[0]
+        self.q = np.full((2, nq), np.nan)  # NaN: equal to no configuration
+        self.R = np.zeros((2, n, 3, 3))
+        self.t = np.zeros((2, n, 3))
+        self.next = np.zeros(1, dtype=np.intp)
+        self.args = (self.q, self.R, self.t, self.next)
+
+
+_MEMOS: dict[tuple[int, bytes], PlacementMemo] = {}
+
+
+def placement_memo(model: pin.Model, fk: ForwardKinematics) -> PlacementMemo:
+    """The memo of `model` and its compiled forward kinematics `fk`, made at the first call (one per model and
+    kinematic constants: a model changed between two `ForwardKinematics` gets another)."""
+    key = (id(model), b"".join(a.tobytes() for a in (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0)))
+    memo = _MEMOS.get(key)
+    if memo is None:
+        memo = _MEMOS[key] = PlacementMemo(fk, model.nq)
+        weakref.finalize(model, _MEMOS.pop, key, None)
+    return memo
+
+
+@njit(exact=True)
+def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next):
+    """The slot (0 or 1) of ``memo_R``, ``memo_t`` holding the joint placements of ``q``: a slot whose
+    configuration is ``q`` bit for bit (the sign of zero included), else the older slot, computed
+    (`placements.joint_placements`)."""
+    n = q.shape[0]
+    for slot in range(2):
+        same = True
+        for i in range(n):
+            a, b = q[i], memo_q[slot, i]
+            if not (a == b and np.signbit(a) == np.signbit(b)):
+                same = False
+                break
+        if same:
+            return slot
+    slot = memo_next[0]
+    memo_next[0] = 1 - slot
+    memo_q[slot, 0] = np.nan  # not valid while the placements are written
+    joint_placements(q, kinds, parents, idx_q, R0, t0, memo_R[slot], memo_t[slot])
+    for i in range(n):
+        memo_q[slot, i] = q[i]
+    return slot
