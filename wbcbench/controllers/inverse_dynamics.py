@@ -17,6 +17,7 @@ The QP (tasks, contacts with their force ramps, regularisation, limits) is `Inve
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from time import perf_counter
 
@@ -177,12 +178,17 @@ class InverseDynamicsController(Controller):
         contact placements (at the last `update`); at reset also the contact and frame-task references."""
         F = self.formulation
         active = F.active
-        poses = {s: F.contact_placement(s) for s in active}
+        poses = _ContactPlacements(F, active)
         if not at_reset:
-            return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses)
+            held = self._feedback_active
+            if held[0] != active:  # the contact set changes a few times a walk: its frozenset made then
+                held = self._feedback_active = (active, frozenset(active))
+            return ModelFeedback(self._model_q(), held[1], F.wrenches, poses)
         contact_refs = {s: cs.contact.reference for s, cs in F.contacts.items() if cs.contact.reference is not None}
         task_refs = {t.name: t.reference for t in self.tasks if isinstance(t, FrameTask)}
         return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses, contact_refs, task_refs)
+
+    _feedback_active: tuple = ((), frozenset())
 
     def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
         return self.feedback()
@@ -320,6 +326,35 @@ class InverseDynamicsController(Controller):
 
     def status(self) -> dict:
         return self.corrections.status({"qp_relaxed_ticks": self.n_relaxed, "qp_fallback_ticks": self.n_fallback})
+
+
+class _ContactPlacements(Mapping):
+    """The world placements of the active contacts' frames at the formulation's last `update` (`ModelFeedback`'s
+    `contact_poses`), computed when first read: a stabilizer that reads only the model's configuration (the DCM
+    stabilizers) costs no frame update. Read it in the tick it is given (the next `update` moves the frames)."""
+
+    __slots__ = ("_formulation", "_names", "_poses")
+
+    def __init__(self, formulation, names) -> None:
+        self._formulation, self._names, self._poses = formulation, names, None
+
+    def _all(self) -> dict:
+        if self._poses is None:
+            F = self._formulation
+            self._poses = {s: F.contact_placement(s) for s in self._names}
+        return self._poses
+
+    def __getitem__(self, key):
+        return self._all()[key]
+
+    def __iter__(self):
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __repr__(self) -> str:
+        return repr(self._all())
 
 
 class TSIDTorque(InverseDynamicsController):
