@@ -1,5 +1,6 @@
-"""The hierarchical solver's closed-form projection (`wbcbench.qp._nullspace.selection_lsq`): the numbers of
-`wbcbench.qp.kernels.selection_lsq`, bit for bit (a controller's logs must not change), and its refusals."""
+"""The hierarchical solver's closed-form projection (`wbcbench.qp.kernels.selection_lsq_into`, the kernel checked
+against LAPACK's dgglse in test_qp_jit.py): the constraints met on random problems of its structure and on the
+TALOS IK's shape, the same numbers through `selection_lsq`, and its refusals."""
 
 from __future__ import annotations
 
@@ -7,12 +8,11 @@ import numpy as np
 import pytest
 
 from wbcbench.qp import kernels
-from wbcbench.qp._nullspace import selection_lsq as _selection_lsq
 
 
 def selection_lsq(P, b, A, c, rank_tol):
     x = np.full(P.shape[1], np.nan)
-    return _selection_lsq(P, b, A, c, rank_tol, x), x
+    return kernels.selection_lsq_into(P, b, A, c, rank_tol, x), x
 
 
 def _problem(rng, n, m, r, scale):
@@ -23,7 +23,7 @@ def _problem(rng, n, m, r, scale):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_same_numbers_as_the_reference_kernel(seed):
+def test_random_problems_of_the_structure(seed):
     rng = np.random.default_rng(seed)
     solved = 0
     for _ in range(300):

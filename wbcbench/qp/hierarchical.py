@@ -56,7 +56,7 @@ from scipy.optimize import nnls
 
 from wbcbench.errors import QPError
 from wbcbench.qp import kernels
-from wbcbench.qp._nullspace import least_squares_step, project, selection_lsq
+from wbcbench.qp._nullspace import least_squares_step, project
 from wbcbench.qp.levels import EqualityTask, InequalityTask, Level, Task
 from wbcbench.qp.problem import QPProblem
 from wbcbench.qp.registry import make_solver, solver_names
@@ -470,7 +470,7 @@ class HierarchicalSolver:
         if n_prefix < len(levels) and d:
             # a posture-like level (one non-zero per row): the compiled projection, else the general LAPACK path
             x = np.empty(n)
-            status = selection_lsq(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL, x)
+            status = kernels.selection_lsq_into(P, b_P, A_k, c_k, _CLOSED_FORM_RANK_TOL, x)
             final_path = LevelPath.LOCKED
         if status == 1:
             pass
