@@ -123,10 +123,12 @@ def _mjcf_collision_free(spec: mujoco.MjSpec) -> None:
             g.contype = g.conaffinity = 0
 
 
-def _mjcf_self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
-    """The MJCF's colliding geoms (contype or conaffinity set in the file) of the `collision_check` bodies in the
-    self-collision bits (module docstring)."""
-    owner, contype, conaffinity = {}, {}, {}
+def _self_collision_bits(check: dict) -> tuple[dict, dict, dict]:
+    """Of the `collision_check` bodies: their side (None for a body of both sides' checks, e.g. the torso), the
+    contype bits of each side's effector links and the conaffinity bits of the bodies they are checked against."""
+    owner: dict[str, Side | None] = {}
+    contype: dict[str, int] = {}
+    conaffinity: dict[str, int] = {}
     for side, c in check.items():
         for link in c.effector:
             owner[link] = side
@@ -134,6 +136,13 @@ def _mjcf_self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
         for link in c.bodies:
             owner.setdefault(link, None)
             conaffinity[link] = conaffinity.get(link, 0) | SELF_COLLISION_BITS[side]
+    return owner, contype, conaffinity
+
+
+def _mjcf_self_collision_geoms(spec: mujoco.MjSpec, check: dict) -> None:
+    """The MJCF's colliding geoms (contype or conaffinity set in the file) of the `collision_check` bodies in the
+    self-collision bits (module docstring)."""
+    owner, contype, conaffinity = _self_collision_bits(check)
     for link, side in owner.items():
         body = spec.body(link)
         geoms = [g for g in body.geoms if g.contype or g.conaffinity] if body is not None else []
@@ -207,16 +216,7 @@ def _self_collision_geoms(spec: mujoco.MjSpec, check: dict, urdf: str) -> None:
     """Name the kept URDF collision geoms (each with its own URDF mesh) and put them in the self-collision bits
     (module docstring)."""
     files = _collision_mesh_files(urdf)
-    owner: dict[str, Side | None] = {}
-    contype: dict[str, int] = {}
-    conaffinity: dict[str, int] = {}
-    for side, c in check.items():
-        for link in c.effector:
-            owner[link] = side
-            contype[link] = contype.get(link, 0) | SELF_COLLISION_BITS[side]
-        for link in c.bodies:
-            owner.setdefault(link, None)
-            conaffinity[link] = conaffinity.get(link, 0) | SELF_COLLISION_BITS[side]
+    owner, contype, conaffinity = _self_collision_bits(check)
     for link in owner:
         body = spec.body(link)
         geoms = list(body.geoms) if body is not None else []
