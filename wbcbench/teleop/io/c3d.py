@@ -51,9 +51,10 @@ __all__ = ["C3D_REQUIRED", "MARKER_ALIASES", "marker_set", "read_c3d", "write_c3
 #: markers a C3D file must label (the pelvis also needs LPSI+RPSI or SACR)
 C3D_REQUIRED = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "CLAV", "STRN", "LASI", "RASI",
                 "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA", "LKNE", "LANK", "LTOE", "RKNE", "RANK", "RTOE")
-#: Plug-in Gait label -> the labels other marker sets give the same landmark (first found is used), with the set's
-#: name: the CMU / HDM05 Vicon set's waist belt markers for the ASIS and PSIS
+#: Plug-in Gait label -> the labels other marker sets give the same landmark (the first present is used): the
+#: CMU / HDM05 Vicon set's waist belt markers for the ASIS and PSIS
 MARKER_ALIASES = {"LASI": ("LFWT",), "RASI": ("RFWT",), "LPSI": ("LBWT",), "RPSI": ("RBWT",)}
+#: an alias label -> the marker set that uses it (for :func:`marker_set`)
 _ALIAS_SETS = {"LFWT": "Vicon waist (CMU, HDM05)", "RFWT": "Vicon waist (CMU, HDM05)"}
 _UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254}
 _R_ELBOW, _R_KNEE, _R_ANKLE, _SHOULDER_DROP, _HEAD_DROP = 0.042, 0.057, 0.042, 0.05, 0.10
