@@ -15,7 +15,7 @@ pytest.importorskip("ezc3d")
 from wbcbench.errors import ConfigError  # noqa: E402
 from wbcbench.teleop import read_bvh  # noqa: E402
 from wbcbench.teleop._rotations import to_matrix  # noqa: E402
-from wbcbench.teleop.io.c3d import read_c3d, write_c3d  # noqa: E402
+from wbcbench.teleop.io.c3d import marker_set, read_c3d, write_c3d  # noqa: E402
 from wbcbench.teleop.loader import load_recording  # noqa: E402
 from wbcbench.teleop.registry import recording_path  # noqa: E402
 
@@ -100,6 +100,27 @@ def test_markers_give_back_the_joint_centres(tmp_path):
     np.testing.assert_allclose(rel0, rel1, atol=2e-3)
     c = load_recording(path).conventions
     assert c["up"] == "+z" and c["unit_method"] == "file" and c["mapping"] == "names", c["line"]
+
+
+def test_the_cmu_hdm05_waist_marker_set_is_read_through_its_aliases(tmp_path):
+    """The Vicon set of the CMU and HDM05 databases labels its pelvis markers on the waist belt (LFWT, RFWT, LBWT,
+    RBWT) and adds others (RBAC, LUPA, LSHN, LMT5 ...): the same landmarks give the same segments, and the detection
+    names the set; a file with neither ASIS nor waist markers still says which Plug-in Gait markers it lacks."""
+    markers, _, rate = plug_in_gait_markers(seconds=1.0)
+    waist = {"LASI": "LFWT", "RASI": "RFWT", "LPSI": "LBWT", "RPSI": "RBWT"}
+    vicon = {f"Actor:{waist.get(k, k)}": v for k, v in markers.items()}
+    vicon.update({"Actor:RBAC": markers["C7"], "Actor:LSHN": markers["LKNE"], "Actor:*0": markers["STRN"]})
+    pig = read_c3d(write_c3d(tmp_path / "pig.c3d", markers, rate))
+    rec = read_c3d(write_c3d(tmp_path / "vicon.c3d", vicon, rate))
+    np.testing.assert_allclose(np.asarray(rec.positions), np.asarray(pig.positions), atol=1e-6)
+    assert marker_set({k.split(":")[-1].upper() for k in vicon}) == "Vicon waist (CMU, HDM05)"
+    assert marker_set(markers) == "Plug-in Gait" and marker_set({"C7", "T10"}) == "unknown"
+    c = load_recording(tmp_path / "vicon.c3d").conventions
+    assert c["naming"] == "Vicon waist (CMU, HDM05) markers" and c["up"] == "+z", c["line"]
+    assert load_recording(tmp_path / "pig.c3d").conventions["naming"] == "Plug-in Gait markers"
+    no_pelvis = {k: v for k, v in markers.items() if k not in waist}
+    with pytest.raises(ConfigError, match="LASI"):
+        read_c3d(write_c3d(tmp_path / "no_pelvis.c3d", no_pelvis, rate))
 
 
 def test_a_c3d_clip_drives_talos_end_to_end(tmp_path):

@@ -24,7 +24,7 @@ _ROT = ("Zrotation", "Yrotation", "Xrotation")
 def parse_asf(path: str) -> tuple[dict, dict, list]:
     """(root {order, axis}, bones {name: {direction, length, axis, dof}}, hierarchy [(parent, child)] in file order)."""
     section, bones, edges, root, bone = None, {}, [], {"axis": np.zeros(3)}, None
-    for raw in open(path):
+    for raw in open(path, encoding="latin-1"):  # comments may hold non-UTF-8 text (HDM05 paths)
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
@@ -59,7 +59,7 @@ def parse_asf(path: str) -> tuple[dict, dict, list]:
 def parse_amc(path: str) -> list[dict]:
     """Frames: {bone: [values in dof order]}."""
     frames: list[dict] = []
-    for raw in open(path):
+    for raw in open(path, encoding="latin-1"):  # comments may hold non-UTF-8 text (HDM05 paths)
         line = raw.strip()
         if not line or line.startswith(("#", ":")):
             continue

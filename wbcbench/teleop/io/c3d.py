@@ -27,6 +27,12 @@ Segment origins, in the marker data's frame (positions converted to metres from 
   thumb-side to the little-finger-side wrist marker made orthogonal; other segments: z along the segment,
   y the body's left made orthogonal.
 
+Other full-body sets with the same head, thorax, arm and leg labels are read through :data:`MARKER_ALIASES`: the
+Vicon set of the CMU and HDM05 databases has its pelvis markers on a waist belt (front and back waist, ``LFWT``
+``RFWT`` ``LBWT`` ``RBWT``) where Plug-in Gait has the ASIS and PSIS; they stand in for them (the belt sits a few
+centimetres above and outside the iliac spines, so the hip joint centres come out that much higher and wider).
+:func:`marker_set` names the set a file's labels follow.
+
 A marker's gap (no data, or a negative residual) is NaN: the segments built from it are invalid in that frame.
 """
 
@@ -40,11 +46,16 @@ from ...errors import ConfigError
 from .. import _rotations as rot
 from .recording import MocapRecording
 
-__all__ = ["C3D_REQUIRED", "read_c3d", "write_c3d"]
+__all__ = ["C3D_REQUIRED", "MARKER_ALIASES", "marker_set", "read_c3d", "write_c3d"]
 
 #: markers a C3D file must label (the pelvis also needs LPSI+RPSI or SACR)
 C3D_REQUIRED = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "CLAV", "STRN", "LASI", "RASI",
                 "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA", "LKNE", "LANK", "LTOE", "RKNE", "RANK", "RTOE")
+#: Plug-in Gait label -> the labels other marker sets give the same landmark (the first present is used): the
+#: CMU / HDM05 Vicon set's waist belt markers for the ASIS and PSIS
+MARKER_ALIASES = {"LASI": ("LFWT",), "RASI": ("RFWT",), "LPSI": ("LBWT",), "RPSI": ("RBWT",)}
+#: an alias label -> the marker set that uses it (for :func:`marker_set`)
+_ALIAS_SETS = {"LFWT": "Vicon waist (CMU, HDM05)", "RFWT": "Vicon waist (CMU, HDM05)"}
 _UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254}
 _R_ELBOW, _R_KNEE, _R_ANKLE, _SHOULDER_DROP, _HEAD_DROP = 0.042, 0.057, 0.042, 0.05, 0.10
 _PARENTS = {"Pelvis": None, "T8": "Pelvis", "Neck": "T8", "Head": "Neck",
@@ -96,9 +107,34 @@ def _medial(lateral: np.ndarray, proximal: np.ndarray, towards: np.ndarray, radi
     return lateral + radius * _unit(_perp(towards - lateral, axis))
 
 
+def marker_set(labels) -> str:
+    """The marker set upper-case `labels` (subject prefixes dropped) follow: "Plug-in Gait" when its ASIS markers
+    are there, else the set whose alias labels stand in for them (:data:`MARKER_ALIASES`), else "unknown"."""
+    labels = set(labels)
+    if {"LASI", "RASI"} <= labels:
+        return "Plug-in Gait"
+    for alias, name in _ALIAS_SETS.items():
+        if alias in labels:
+            return name
+    return "unknown"
+
+
+def with_aliases(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """`m` with each missing Plug-in Gait label filled from its first present alias (:data:`MARKER_ALIASES`)."""
+    out = dict(m)
+    for label, aliases in MARKER_ALIASES.items():
+        if label not in out:
+            found = next((a for a in aliases if a in out), None)
+            if found is not None:
+                out[label] = out[found]
+    return out
+
+
 def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dict, dict]:
     """(segment -> (N, 3) origin, segment -> (N, 3, 3) orientation) from Plug-in Gait markers (module docstring);
-    `m`: marker label (upper case) -> (N, 3) positions [m]."""
+    `m`: marker label (upper case) -> (N, 3) positions [m]; labels of other marker sets are read through
+    :data:`MARKER_ALIASES`."""
+    m = with_aliases(m)
     missing = [k for k in C3D_REQUIRED if k not in m]
     if not ("SACR" in m or ("LPSI" in m and "RPSI" in m)):
         missing.append("LPSI+RPSI or SACR")
@@ -189,6 +225,7 @@ def read_c3d(path: str | Path) -> MocapRecording:
         if key and key not in markers:
             markers[key] = xyz[:, k]
     pos, rots = segments_from_markers(markers, file)
+    found_set = marker_set(markers)
     names = tuple(_PARENTS)
     positions = np.stack([pos[s] for s in names], axis=1)
     R = np.stack([rots[s] for s in names], axis=1)
@@ -201,7 +238,8 @@ def read_c3d(path: str | Path) -> MocapRecording:
     return MocapRecording(source=file, frame_rate=rate, times=np.arange(n) / rate, segments=names,
                           positions=positions, orientations=quats,
                           parents=tuple(-1 if p is None else names.index(p) for p in _PARENTS.values()),
-                          up_axis="xyz"[int(np.argmax(np.abs(np.nanmean(pos["Neck"] - pos["Pelvis"], axis=0))))])
+                          up_axis="xyz"[int(np.argmax(np.abs(np.nanmean(pos["Neck"] - pos["Pelvis"], axis=0))))],
+                          conventions={"marker_set": found_set})
 
 
 def write_c3d(path: str | Path, markers: dict[str, np.ndarray], rate: float, units: str = "mm") -> Path:
