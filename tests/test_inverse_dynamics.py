@@ -244,6 +244,7 @@ def _bad_taskset(tmp_path, talos, old, new):
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: [[1, 0], [0, 1]]\n", ["contacts.wrench_metric", "6 x 6"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsdi}\n", ["contacts.wrench_metric.form", "tsid"]),
     ("  kp: 30.0\n", "  kp: 30.0\n  wrench_metric: {form: tsid}\n", ["regularization.wrench", "one or the other"]),
+    ("solver: daqp", "solver: daqp\nservo_feedforward: legs", ["servo_feedforward", "'legs'", "all_but_ankles"]),
 ])
 def test_bad_task_files_name_file_and_key(talos, tmp_path, old, new, needles):
     p = _bad_taskset(tmp_path, talos, old, new)
@@ -269,6 +270,32 @@ def test_position_mode_feeds_back_the_integrated_state(talos):
     ctrl2.step(meas, refs)
     assert np.allclose(ctrl.q_int, ctrl2.q_int, atol=1e-12)
     assert np.allclose(cmd.q, q1[7:])
+
+
+@pytest.mark.parametrize("mode", [ActuationMode.POSITION, ActuationMode.SPD])
+def test_servo_feedforward_hands_the_qp_torques_to_the_servos(talos, mode):
+    """`servo_feedforward: all_but_ankles`: position mode offsets each set point by the QP torque over the servo's kp
+    (the ankles, the two joints nearest each sole, keep theirs); SPD mode sends the same torques as its feed-forward;
+    `none` leaves the command as it was."""
+    spec = replace(load_taskset(taskset_path(talos, "tsid-position"), talos), stabilizer=None)
+    refs = References(t=0.0)
+    sim, plain, meas = _controller(talos, TSIDPosition, mode, taskset=replace(spec, servo_feedforward="none"))
+    cmd0 = plain.step(meas, refs)
+    _, ctrl, _ = _controller(talos, TSIDPosition, mode, taskset=replace(spec, servo_feedforward="all_but_ankles"))
+    cmd = ctrl.step(meas, refs)
+    kp, _ = talos.profile.position_gains.resolve(talos.joint_names, talos.profile.file)
+    ankles = [talos.joint_names.index(f"leg_{s}_{i}_joint") for s in ("left", "right") for i in (5, 6)]
+    fed = np.ones(talos.na, bool)
+    fed[ankles] = False
+    assert np.array_equal(ctrl.q_int, plain.q_int) and np.array_equal(ctrl.tau, plain.tau)
+    assert np.abs(ctrl.tau[~fed]).min() > 0.1  # the ankles carry load: leaving them out is visible
+    assert cmd0.tau is None and np.array_equal(cmd0.q, plain.q_int[7:])
+    if mode is ActuationMode.POSITION:
+        assert cmd.tau is None
+        assert np.allclose(cmd.q - ctrl.q_int[7:], np.where(fed, ctrl.tau / kp, 0.0), rtol=0, atol=1e-15)
+    else:
+        assert np.array_equal(cmd.q, ctrl.q_int[7:])
+        assert np.array_equal(cmd.tau, np.where(fed, ctrl.tau, 0.0))
 
 
 def test_named_frame_targets_drive_their_task(talos):

@@ -45,6 +45,8 @@ __all__ = ["ContactSpec", "ReachCapSpec", "TaskSetSpec", "TaskSpec", "TsidWrench
            "resolve_frame", "taskset_path", "taskset_variant_path"]
 
 TASKSET_DIR = Path(__file__).parent / "tasksets"
+#: `servo_feedforward:` none, every actuated joint, or every one but the two nearest each sole (the ankles)
+SERVO_FEEDFORWARD = ("none", "all", "all_but_ankles")
 
 
 @dataclass(frozen=True)
@@ -135,7 +137,9 @@ class TaskSetSpec:
     `swing_pitch_with_leg` (YAML `swing_foot.pitch_with_leg`): the controller adds the pitch the plan offers
     (`References.swing_pitch`) to its swing feet's references (`TaskReferences`); `reach_cap`: None or tsid-teleop's
     out-of-reach caps (`ReachCapSpec`); `corrections`: the stages of a `corrections:` list in order (then the six
-    sections above are None), None when the task set gives its corrections as sections (`correction_specs`)."""
+    sections above are None), None when the task set gives its corrections as sections (`correction_specs`);
+    `servo_feedforward` (tsid-position): the joints whose QP torque is fed forward to their position servos, one
+    of `SERVO_FEEDFORWARD` (`InverseDynamicsController`)."""
 
     tasks: tuple[TaskSpec, ...]
     contacts: ContactSpec
@@ -158,6 +162,7 @@ class TaskSetSpec:
     swing_pitch_with_leg: bool = False
     reach_cap: ReachCapSpec | None = None
     corrections: tuple[CorrectionSpec, ...] | None = None
+    servo_feedforward: str = "none"
     file: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -385,6 +390,7 @@ def load_taskset(path: str | Path, robot: Robot, max_level: int = 1) -> TaskSetS
                        base_feedback=base_feedback, touchdown_search=touchdown, swing_tilt=swing_tilt,
                        lift_off_wait=lift_off_wait, plan_lead=plan_lead, step_adjustment=step_adjustment,
                        swing_pitch_with_leg=pitch_with_leg, reach_cap=reach_cap, corrections=corrections,
+                       servo_feedforward=root.str("servo_feedforward", "none", choices=list(SERVO_FEEDFORWARD)),
                        file=file)
     reg.finish()
     root.finish()
