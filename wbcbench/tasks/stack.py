@@ -224,8 +224,9 @@ class TaskStack:
         if self._epoch != Task._config_epoch or self._pending_constant:
             self._refresh(model, data)
         self._fill(model, data, True)
-        _acceleration_law(self._A, data.v_in, self._kp, self._minus_kd, self._e, self._v_ref, self._a_ref,
-                          self._drift, not self._v_ref_zero, not self._a_ref_zero, self._jv, self._b)
+        np.matmul(self._A, data.v_in, out=self._jv)
+        _acceleration_law(self._jv, self._kp, self._minus_kd, self._e, self._v_ref, self._a_ref, self._drift,
+                          not self._v_ref_zero, not self._a_ref_zero, self._b)
         return Rows(self._A_out, self._b_out)
 
     def velocity_rows(self, model: pin.Model, data: pin.Data) -> Rows:
@@ -272,16 +273,13 @@ class TaskStack:
         return self.sqrt_weights.shape[0]
 
 
-@njit
-def _acceleration_law(A, v, kp, minus_kd, e, v_ref, a_ref, drift, with_v_ref, with_a_ref, jv, b):
-    """``b = a_ref + Kd (v_ref - A v) + Kp e - drift`` row by row (``jv = A v``), in the order of the numpy
-    expression it replaces; the terms of zero references skipped (the same numbers: 0 - Jv = -Jv, 0 + x = x)."""
-    m, n = A.shape
-    for r in range(m):
-        s = 0.0
-        for c in range(n):
-            s += A[r, c] * v[c]
-        jv[r] = s
+@njit(exact=True)
+def _acceleration_law(jv, kp, minus_kd, e, v_ref, a_ref, drift, with_v_ref, with_a_ref, b):
+    """``b = a_ref + Kd (v_ref - jv) + Kp e - drift`` row by row (``jv = J v``, numpy's product), the numpy
+    expression it replaces operation by operation (no reassociation, no fused multiply-add: the same numbers); the
+    terms of zero references skipped (the same numbers: 0 - Jv = -Jv, 0 + x = x)."""
+    for r in range(b.shape[0]):
+        s = jv[r]
         if with_v_ref:
             x = (v_ref[r] - s) * -minus_kd[r]
         else:
