@@ -80,7 +80,8 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     of the upper body's references as with feet_fixed, the operator's steps are detected and scaled, and the robot
     takes them through the walking stack (footstep limits of the profile's `stepping`, ZMP preview control, swing
     feet: wbcbench/teleop/session/stepping.py); the hands' and head's references are carried by the robot's
-    walking frame (the planned feet midpoint and heading), the trunk's orientation task `waist` turns with it.
+    walking frame (the planned CoM's horizontal position and the feet's mean heading), the trunk's orientation
+    task `waist` turns with it.
     Use a task set that walks (`wbcbench teleop --locomotion stepping` takes tasksets/<robot>/teleop-stepping.yaml).
   stepping: {single_support, double_support, final_double_support, preview_horizon, initial_shift [s], apex [m],
     latency [s]} for `locomotion: stepping` (`SteppingConfig`).
@@ -340,11 +341,13 @@ class TeleopScenario(Scenario):
                               key="locomotion") from None
         w = self.walk
         self._walk_table = _WalkTable(w)
-        # the walking frame per tick: the planned feet's midpoint and mean heading, their rates
+        # the walking frame per tick: the planned CoM's horizontal position (the pelvis goes with it; the feet's
+        # midpoint would jump forward with each swing) and the feet's mean heading, their rates
         fl, fr = w.feet[Side.LEFT], w.feet[Side.RIGHT]
-        self._frame_p = 0.5 * (fl.p_world_sole + fr.p_world_sole)
-        self._frame_v = 0.5 * (fl.v_world_sole + fr.v_world_sole)
-        self._frame_a = 0.5 * (fl.a_world_sole + fr.a_world_sole)
+        horizontal = np.array([1.0, 1.0, 0.0])
+        self._frame_p = w.p_world_com * horizontal
+        self._frame_v = w.v_world_com * horizontal
+        self._frame_a = w.a_world_com * horizontal
         yaw = 0.5 * (np.unwrap([yaw_of(R) for R in fl.R_world_sole]) + np.unwrap([yaw_of(R) for R in fr.R_world_sole]))
         self._frame_yaw = yaw - yaw[0]
         self._frame_rate = np.gradient(self._frame_yaw, w.dt) if len(yaw) > 1 else np.zeros(len(yaw))

@@ -11,8 +11,8 @@ stack; the upper body keeps being retargeted, carried by the robot's walk.
 3. **Limits**: each target is clamped in the stance sole's frame by the robot profile's `stepping` limits:
    forward `max_forward`, backward `max_backward`, sideways between the soles' width plus `min_clearance` and the
    initial separation plus `max_lateral`, turn `max_turn`; a footprint still overlapping the stance one is moved
-   outwards. Steps alternate: when the operator steps twice with one foot, the robot's other foot steps in place
-   in between (counted in `extra_steps`).
+   outwards. Steps alternate: when the operator steps twice with one foot, the robot's other foot steps in between,
+   towards its own latest target (counted in `extra_steps`).
 4. **Plan**: a `FootstepPlan` with the planner's uniform timing (`single_support`, `double_support`), not the
    operator's: a human steps every 0.4-0.6 s, TALOS' walks here take 0.9-1 s per step, so the robot's steps queue
    behind the operator's. Robot step i lifts off at ``T_init + i P`` with ``T_init`` the least time that keeps
@@ -44,7 +44,7 @@ class SteppingConfig:
 
     `latency` None: ``settle + max(0, preview_horizon - single_support)`` (causal with the preview)."""
 
-    single_support: float = 0.8
+    single_support: float = 0.9
     double_support: float = 0.2
     final_double_support: float = 1.2
     preview_horizon: float = 1.2
@@ -79,9 +79,9 @@ class StepPlan:
             target (x, y, yaw) the operator's scaled placement, planned (x, y, yaw) the clamped one, clamp_m the
             horizontal distance between them [m].
         extra_steps: robot steps in place inserted for the alternation.
-        latency: the least delay of a robot lift-off after its operator step's touch-down [s].
+        latency: the least delay of a robot lift-off after its operator step's touch-down [s] (None: no step).
         look_ahead: the longest time a step's placement is used by the preview before it is known (touch-down +
-            settle) [s]; <= 0: the plan is causal.
+            settle) [s]; <= 0: the plan is causal (None: no step).
     """
 
     plan: object
@@ -130,17 +130,8 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
     placements = []
     extra = 0
     last_side = None
-    for st in steps:
-        side = Side(st.side)
-        t_td = (st.touch_down - time_offset) / speed
-        if last_side is side:  # the other foot steps in place: the plan alternates
-            other = side.other
-            robot_steps.append(feet[other])
-            triggers.append(t_td)
-            extra += 1
-        d = k * (R @ (np.asarray(st.p_suit, dtype=float) - np.asarray(feet_suit0[st.side], dtype=float)))
-        target_xy = p0[side][:2] + d[:2]
-        target_yaw = yaw0[side] + float(st.yaw)
+    def place(side: Side, target_xy: np.ndarray, target_yaw: float):
+        """`side`'s footstep towards the target, clamped in the stance sole's frame (module docstring)."""
         stance = feet[side.other]
         s_yaw = yaw_of(stance.R_world_sole)
         rel = _rot2(s_yaw).T @ (target_xy - stance.p_world_sole[:2])
@@ -155,14 +146,31 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
             if depth <= 1e-9 or side.sign * dy >= max_width:
                 break
             dy += side.sign * 0.01   # still overlapping (turned feet): outwards
+        return foot
+
+    targets = {s: (p0[s][:2].copy(), yaw0[s]) for s in Side}   # each foot's latest operator placement
+    for st in steps:
+        side = Side(st.side)
+        t_td = (st.touch_down - time_offset) / speed
+        if last_side is side:  # the other foot steps (towards its own target): the plan alternates
+            other = side.other
+            feet[other] = place(other, *targets[other])
+            robot_steps.append(feet[other])
+            triggers.append(t_td)
+            extra += 1
+        d = k * (R @ (np.asarray(st.p_suit, dtype=float) - np.asarray(feet_suit0[st.side], dtype=float)))
+        target_xy = p0[side][:2] + d[:2]
+        target_yaw = yaw0[side] + float(st.yaw)
+        targets[side] = (target_xy, target_yaw)
+        foot = feet[side] = place(side, target_xy, target_yaw)
         robot_steps.append(foot)
         triggers.append(t_td)
-        feet[side] = foot
         last_side = side
+        xy = foot.p_world_sole[:2]
         placements.append({"side": st.side, "operator_touch_down_s": float(t_td),
                            "robot_step": len(robot_steps) - 1,
                            "target": [float(target_xy[0]), float(target_xy[1]), float(target_yaw)],
-                           "planned": [float(xy[0]), float(xy[1]), float(s_yaw + dyaw)],
+                           "planned": [float(xy[0]), float(xy[1]), float(yaw_of(foot.R_world_sole))],
                            "clamp_m": float(np.linalg.norm(xy - target_xy))})
     cfg = config
     latency = cfg.effective_latency
@@ -177,6 +185,7 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
     # when each placement is first needed by the preview (touch-down - horizon) vs known (operator touch-down +
     # settle)
     look = max((t_td + cfg.settle - (plan.touch_down_time(i) - cfg.preview_horizon)
-                for i, t_td in enumerate(triggers)), default=-np.inf)
-    lat = min((plan.lift_off_time(i) - t_td for i, t_td in enumerate(triggers)), default=np.nan)
-    return StepPlan(plan, tuple(placements), extra, float(lat), float(look))
+                for i, t_td in enumerate(triggers)), default=None)
+    lat = min((plan.lift_off_time(i) - t_td for i, t_td in enumerate(triggers)), default=None)
+    return StepPlan(plan, tuple(placements), extra, None if lat is None else float(lat),
+                    None if look is None else float(look))
