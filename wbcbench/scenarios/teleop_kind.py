@@ -84,7 +84,8 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     task `waist` turns with it.
     Use a task set that walks (`wbcbench teleop --locomotion stepping` takes tasksets/<robot>/teleop-stepping.yaml).
   stepping: {single_support, double_support, final_double_support, preview_horizon, initial_shift [s], apex [m],
-    latency [s]} for `locomotion: stepping` (`SteppingConfig`).
+    latency [s], step_adjustment (bool, default false: the walk's DCM-based step adjustment, with the profile's
+    limits and the task set's `step_adjustment:` settings)} for `locomotion: stepping` (`SteppingConfig`).
 
 Metrics (summary.json `metrics`), from the log's ground-truth configuration against the reference the
 controller was given at each tick: `hand_position_error_m` and `hand_rotation_error` (||I - R_ref R^T||_F,
@@ -200,6 +201,10 @@ class TeleopScenario(Scenario):
                                                           "initial_shift", "apex") if st.has(k)}
             if st.has("latency"):
                 kw["latency"] = st.float("latency", min=0.0)
+            if st.bool("step_adjustment", False):
+                from ..planning.step_adjustment import StepAdjustmentConfig
+
+                self.step_adjustment = StepAdjustmentConfig.from_stepping(self.robot.profile.stepping)
             st.finish()
             self.stepping_config = SteppingConfig(**kw)
         elif st.data:
@@ -294,6 +299,23 @@ class TeleopScenario(Scenario):
             self._plan_steps(q0, com0)
 
     walk = None
+    #: `stepping: {step_adjustment: true}`: the walk's DCM-based step adjustment (`StepAdjustmentConfig`), and its
+    #: adjuster once set up
+    step_adjustment = adjuster = None
+
+    def adopt_step_adjustment(self, settings: dict, source: str = "") -> None:
+        """The controller's task-set `step_adjustment:` settings, as a walk takes them (`WalkScenario`)."""
+        from dataclasses import replace
+
+        from ..errors import PlanningError
+
+        if self.step_adjustment is None or not settings:
+            return
+        try:
+            self.step_adjustment = replace(self.step_adjustment, **settings)
+        except PlanningError as exc:
+            raise ConfigError(f"step adjustment: {exc}", file=source or self.spec.file,
+                              key="step_adjustment") from None
 
     def _plan_steps(self, q0: np.ndarray, com0: np.ndarray) -> None:
         """`locomotion: stepping`: the operator's steps -> the robot's walk (wbcbench/teleop/session/stepping.py),
@@ -339,7 +361,26 @@ class TeleopScenario(Scenario):
         except PlanningError as exc:
             raise ConfigError(f"locomotion 'stepping': {exc}", file=self.spec.file or None,
                               key="locomotion") from None
-        w = self.walk
+        self._R_base0 = pin.Quaternion(q0[6], *q0[3:6]).toRotationMatrix()
+        self._rotation_from_yaw = rotation_from_yaw
+        self._use_walk(self.walk)
+        src.carry(self._carry)
+        self.adjuster = None
+        if self.step_adjustment is not None:
+            from ..estimation.feet import FeetSensing
+            from ..planning.step_adjustment import StepAdjuster
+
+            sep = float(np.linalg.norm(feet0[Side.LEFT].p_world_sole[:2] - feet0[Side.RIGHT].p_world_sole[:2]))
+            self.adjuster = StepAdjuster(self.walk, self.step_adjustment, pg, sep)
+            self._data = self.robot.model.createData()
+            self._feet = FeetSensing(self.robot)
+
+    def _use_walk(self, w) -> None:
+        """The references' table and the walking frame of walk `w` (the plan, or a step adjustment's re-plan)."""
+        from ..planning.geometry import yaw_of
+        from .kinds import _WalkTable
+
+        self.walk = w
         self._walk_table = _WalkTable(w)
         # the walking frame per tick: the planned CoM's horizontal position (the pelvis goes with it; the feet's
         # midpoint would jump forward with each swing) and the feet's mean heading, their rates
@@ -351,9 +392,6 @@ class TeleopScenario(Scenario):
         yaw = 0.5 * (np.unwrap([yaw_of(R) for R in fl.R_world_sole]) + np.unwrap([yaw_of(R) for R in fr.R_world_sole]))
         self._frame_yaw = yaw - yaw[0]
         self._frame_rate = np.gradient(self._frame_yaw, w.dt) if len(yaw) > 1 else np.zeros(len(yaw))
-        self._R_base0 = pin.Quaternion(q0[6], *q0[3:6]).toRotationMatrix()
-        self._rotation_from_yaw = rotation_from_yaw
-        src.carry(self._carry)
 
     def _walk_tick(self, t: float) -> int:
         return min(int(round(t / self.walk.dt)), self.walk.n_ticks - 1)
@@ -378,6 +416,13 @@ class TeleopScenario(Scenario):
         """The tick's measurement, before `references`: the command filter's body spheres follow the measured
         posture."""
         self.reference_source.follow(t, meas.q)
+        if self.adjuster is not None:  # the walk's own step adjustment (the same attributes: walk, adjuster, ...)
+            from .kinds import WalkScenario
+
+            walk = self.walk
+            WalkScenario.observe(self, t, meas)
+            if self.walk is not walk:
+                self._use_walk(self.walk)
 
     def references(self, t: float) -> References:
         """Both feet down, the CoM held, the operator's hands and head as the named frame tasks' references
@@ -526,6 +571,7 @@ class TeleopScenario(Scenario):
                                          for i in range(plan.n_steps)),
                 "extra_steps": sp.extra_steps, "steps_reached": len(reached),
                 "latency_s": sp.latency, "look_ahead_s": sp.look_ahead,
+                "step_adjustments": None if self.adjuster is None else self.adjuster.count,
                 "placement_error_m": stats(np.array([r["placement_error_m"] for r in reached])),
                 "tracking_error_m": stats(np.array([r["tracking_error_m"] for r in reached])),
                 "clamp_m": stats(np.array([r["clamp_m"] for r in rows])),
