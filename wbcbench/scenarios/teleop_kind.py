@@ -210,10 +210,13 @@ class TeleopScenario(Scenario):
         elif st.data:
             raise params.error("stepping", "only with locomotion: stepping")
         self.relay = None
-        self.source = self._open_source()
-        if self.locomotion == "stepping" and self.live:
+        from ..teleop import UdpPoseReceiver
+
+        if self.locomotion == "stepping" and (self.mocap.startswith("udp://")
+                                              or isinstance(self._given_source, UdpPoseReceiver)):
             raise ConfigError("locomotion 'stepping' works on recordings, not on a live stream",
                               file=self.spec.file or None, key="locomotion")
+        self.source = self._open_source()
 
     @classmethod
     def from_source(cls, robot: Robot, mocap, *, name: str = "teleop", duration: float = 0.0,
