@@ -74,6 +74,18 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     tick's age and horizon are in the `teleop_stream` log channel with the receiver's counters.
   targets: {effector: [task names]} (default left_hand -> [left_hand], right_hand -> [right_hand],
     head -> [head, head_pitch, head_yaw]).
+  locomotion: an operator who walks (wbcbench/teleop/human/locomotion.py): "auto" (default: the operator's
+    translation and yaw taken out when the pelvis travels more than 0.25 m or turns more than 20 deg, the robot
+    stands), "feet_fixed" (always taken out), "off" (never), or "stepping" (recordings only): the walk is taken out
+    of the upper body's references as with feet_fixed, the operator's steps are detected and scaled, and the robot
+    takes them through the walking stack (footstep limits of the profile's `stepping`, ZMP preview control, swing
+    feet: wbcbench/teleop/session/stepping.py); the hands' and head's references are carried by the robot's
+    walking frame (the planned CoM's horizontal position and the feet's mean heading), the trunk's orientation
+    task `waist` turns with it.
+    Use a task set that walks (`wbcbench teleop --locomotion stepping` takes tasksets/<robot>/teleop-stepping.yaml).
+  stepping: {single_support, double_support, final_double_support, preview_horizon, initial_shift [s], apex [m],
+    latency [s], step_adjustment (bool, default false: the walk's DCM-based step adjustment, with the profile's
+    limits and the task set's `step_adjustment:` settings)} for `locomotion: stepping` (`SteppingConfig`).
 
 Metrics (summary.json `metrics`), from the log's ground-truth configuration against the reference the
 controller was given at each tick: `hand_position_error_m` and `hand_rotation_error` (||I - R_ref R^T||_F,
@@ -99,7 +111,7 @@ import pinocchio as pin
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
 from ..robots import Robot, Side
-from ..types import PointReference, References
+from ..types import PointReference, PoseReference, References
 from ..teleop.source import (ANCHORS, DEFAULT_ANCHOR, DEFAULT_TARGETS, HANDS, REST_BLEND, TeleopReferenceSource,
                              TeleopSourceConfig, rotation_error, stats)
 from .base import Scenario, ScenarioSpec
@@ -176,7 +188,34 @@ class TeleopScenario(Scenario):
             self.targets = targets
         else:
             self.targets = dict(DEFAULT_TARGETS)
+        from ..teleop.human.locomotion import LOCOMOTION_MODES
+
+        self.locomotion = params.str("locomotion", "auto", choices=list(LOCOMOTION_MODES))
+        st = params.section("stepping", None)
+        self.stepping_config = None
+        if self.locomotion == "stepping":
+            from ..teleop.session.stepping import SteppingConfig
+
+            kw = {k: st.float(k, positive=True) for k in ("single_support", "double_support",
+                                                          "final_double_support", "preview_horizon",
+                                                          "initial_shift", "apex") if st.has(k)}
+            if st.has("latency"):
+                kw["latency"] = st.float("latency", min=0.0)
+            if st.bool("step_adjustment", False):
+                from ..planning.step_adjustment import StepAdjustmentConfig
+
+                self.step_adjustment = StepAdjustmentConfig.from_stepping(self.robot.profile.stepping)
+            st.finish()
+            self.stepping_config = SteppingConfig(**kw)
+        elif st.data:
+            raise params.error("stepping", "only with locomotion: stepping")
         self.relay = None
+        from ..teleop import UdpPoseReceiver
+
+        if self.locomotion == "stepping" and (self.mocap.startswith("udp://")
+                                              or isinstance(self._given_source, UdpPoseReceiver)):
+            raise ConfigError("locomotion 'stepping' works on recordings, not on a live stream",
+                              file=self.spec.file or None, key="locomotion")
         self.source = self._open_source()
 
     @classmethod
@@ -248,7 +287,9 @@ class TeleopScenario(Scenario):
                               file=self.spec.file or None, key="duration")
         rec = self.source
         t0 = float(rec.times[0]) if self.start is None else self.start
-        return max(float(rec.times[-1]) - t0, 0.0) / self.speed
+        length = max(float(rec.times[-1]) - t0, 0.0) / self.speed
+        walk = getattr(self, "walk", None)
+        return length if walk is None else max(length, walk.duration)
 
     # ------------------------------------------------------------------ run
     def setup(self, q0: np.ndarray, com0: np.ndarray) -> None:
@@ -256,16 +297,148 @@ class TeleopScenario(Scenario):
         self._com_ref = PointReference(np.array(com0, dtype=float))
         self.reference_source = TeleopReferenceSource(self.robot, self.source, self.live, self._source_config())
         self.reference_source.setup(q0)
+        self.walk = None
+        if self.locomotion == "stepping":
+            self._plan_steps(q0, com0)
+
+    walk = None
+    #: `stepping: {step_adjustment: true}`: the walk's DCM-based step adjustment (`StepAdjustmentConfig`), and its
+    #: adjuster once set up
+    step_adjustment = adjuster = None
+
+    def adopt_step_adjustment(self, settings: dict, source: str = "") -> None:
+        """The controller's task-set `step_adjustment:` settings, as a walk takes them (`WalkScenario`)."""
+        from dataclasses import replace
+
+        from ..errors import PlanningError
+
+        if self.step_adjustment is None or not settings:
+            return
+        try:
+            self.step_adjustment = replace(self.step_adjustment, **settings)
+        except PlanningError as exc:
+            raise ConfigError(f"step adjustment: {exc}", file=source or self.spec.file,
+                              key="step_adjustment") from None
+
+    def _plan_steps(self, q0: np.ndarray, com0: np.ndarray) -> None:
+        """`locomotion: stepping`: the operator's steps -> the robot's walk (wbcbench/teleop/session/stepping.py),
+        and the effector targets carried by its walking frame."""
+        from ..errors import PlanningError
+        from ..planning import Footstep, PatternGeneratorConfig, SoleRectangle, generate_walk
+        from ..planning.geometry import rotation_from_yaw, yaw_of
+        from ..teleop.human.locomotion import detect_steps
+        from ..teleop.session.stepping import plan_operator_steps
+        from .kinds import _WalkTable
+
+        src = self.reference_source
+        if src.walk_source is None:
+            raise ConfigError("locomotion 'stepping': the recording's segments were not found",
+                              file=self.spec.file or None, key="locomotion")
+        rec, names, up = src.walk_source
+        cal = src.retargeter.calibration or src.retargeter.calibrate()
+        steps = detect_steps(rec, names, up)
+        frame0 = rec.frame_at(cal.time)
+        feet_suit0 = {"left": np.asarray(frame0.positions[names["LeftFoot"]], dtype=float),
+                      "right": np.asarray(frame0.positions[names["RightFoot"]], dtype=float)}
+        data = self.robot.model.createData()
+        pin.framesForwardKinematics(self.robot.model, data, q0)
+        feet0 = {}
+        for s in Side:
+            M = data.oMf[self.robot.sole_frame_id(s)]
+            feet0[s] = Footstep.from_xyz_yaw(s, M.translation[0], M.translation[1], M.translation[2],
+                                             yaw_of(M.rotation))
+        sole = self.robot.profile.sole
+        cfg = self.stepping_config
+        t0 = float(rec.times[0]) if self.start is None else self.start
+        try:
+            self.step_plan = plan_operator_steps(
+                steps, T_world_suit=cal.T_world_suit, proportion=cal.proportion, feet_suit0=feet_suit0,
+                feet0=feet0, limits=self.robot.profile.stepping, sole=SoleRectangle(sole.length, sole.width,
+                                                                                     *sole.center),
+                config=cfg, time_offset=t0, speed=self.speed)
+            mid = 0.5 * (feet0[Side.LEFT].p_world_sole + feet0[Side.RIGHT].p_world_sole)
+            pg = PatternGeneratorConfig(com_height=float(com0[2] - mid[2]), dt=self.spec.control_dt,
+                                        swing_apex_height=cfg.apex, preview_horizon=cfg.preview_horizon,
+                                        initial_shift=cfg.initial_shift, final_shift=min(0.8, cfg.final_double_support))
+            self.walk = generate_walk(self.step_plan.plan, pg, p_world_com_init=com0)
+        except PlanningError as exc:
+            raise ConfigError(f"locomotion 'stepping': {exc}", file=self.spec.file or None,
+                              key="locomotion") from None
+        self._R_base0 = pin.Quaternion(q0[6], *q0[3:6]).toRotationMatrix()
+        self._rotation_from_yaw = rotation_from_yaw
+        self._use_walk(self.walk)
+        src.carry(self._carry)
+        self.adjuster = None
+        if self.step_adjustment is not None:
+            from ..estimation.feet import FeetSensing
+            from ..planning.step_adjustment import StepAdjuster
+
+            sep = float(np.linalg.norm(feet0[Side.LEFT].p_world_sole[:2] - feet0[Side.RIGHT].p_world_sole[:2]))
+            self.adjuster = StepAdjuster(self.walk, self.step_adjustment, pg, sep)
+            self._data = self.robot.model.createData()
+            self._feet = FeetSensing(self.robot)
+
+    def _use_walk(self, w) -> None:
+        """The references' table and the walking frame of walk `w` (the plan, or a step adjustment's re-plan)."""
+        from ..planning.geometry import yaw_of
+        from .kinds import _WalkTable
+
+        self.walk = w
+        self._walk_table = _WalkTable(w)
+        # the walking frame per tick: the planned CoM's horizontal position (the pelvis goes with it; the feet's
+        # midpoint would jump forward with each swing) and the feet's mean heading, their rates
+        fl, fr = w.feet[Side.LEFT], w.feet[Side.RIGHT]
+        horizontal = np.array([1.0, 1.0, 0.0])
+        self._frame_p = w.p_world_com * horizontal
+        self._frame_v = w.v_world_com * horizontal
+        self._frame_a = w.a_world_com * horizontal
+        yaw = 0.5 * (np.unwrap([yaw_of(R) for R in fl.R_world_sole]) + np.unwrap([yaw_of(R) for R in fr.R_world_sole]))
+        self._frame_yaw = yaw - yaw[0]
+        self._frame_rate = np.gradient(self._frame_yaw, w.dt) if len(yaw) > 1 else np.zeros(len(yaw))
+
+    def _walk_tick(self, t: float) -> int:
+        return min(int(round(t / self.walk.dt)), self.walk.n_ticks - 1)
+
+    def _carry(self, t: float, targets: dict) -> dict:
+        """Effector targets (standing frame) -> moved with the walking frame at t: p' = m(t) + R(t) (p - m(0)),
+        R' = R(t) R, velocities and accelerations turned, the frame's own added (its rotation's centripetal and
+        Euler terms left out: the robot turns slowly)."""
+        k = self._walk_tick(t)
+        m0, m = self._frame_p[0], self._frame_p[k]
+        Rz = self._rotation_from_yaw(float(self._frame_yaw[k]))
+        w = np.array([0.0, 0.0, float(self._frame_rate[k])])
+        out = {}
+        for e, (M, vel, acc) in targets.items():
+            r = Rz @ (M.translation - m0)
+            v = np.concatenate([Rz @ vel[:3] + self._frame_v[k] + np.cross(w, r), Rz @ vel[3:] + w])
+            a = np.concatenate([Rz @ acc[:3] + self._frame_a[k], Rz @ acc[3:]])
+            out[e] = (pin.SE3(Rz @ M.rotation, m + r), v, a)
+        return out
 
     def observe(self, t: float, meas) -> None:
         """The tick's measurement, before `references`: the command filter's body spheres follow the measured
         posture."""
         self.reference_source.follow(t, meas.q)
+        if self.adjuster is not None:  # the walk's own step adjustment (the same attributes: walk, adjuster, ...)
+            from .kinds import WalkScenario
+
+            walk = self.walk
+            WalkScenario.observe(self, t, meas)
+            if self.walk is not walk:
+                self._use_walk(self.walk)
 
     def references(self, t: float) -> References:
         """Both feet down, the CoM held, the operator's hands and head as the named frame tasks' references
         (`TeleopReferenceSource`, wbcbench/teleop/source.py)."""
-        return References.planned(t, _BOTH_FEET, self._com_ref, None, {}, self.reference_source.targets(t))
+        if self.walk is None:
+            return References.planned(t, _BOTH_FEET, self._com_ref, None, {}, self.reference_source.targets(t))
+        k = self._walk_tick(t)
+        ref = self._walk_table._make(t, k)
+        targets = dict(self.reference_source.targets(t))
+        targets["waist"] = PoseReference(np.zeros(3), self._rotation_from_yaw(float(self._frame_yaw[k]))
+                                         @ self._R_base0)
+        return References.planned(t, ref.contacts, ref.com, ref.zmp, ref.feet, targets, ref.lift_off,
+                                  ref.swing_pitch)
 
     @property
     def target_names(self) -> tuple[str, ...]:
@@ -280,7 +453,8 @@ class TeleopScenario(Scenario):
                                   engage_time=self.engage_time, anchor=self.anchor, rest_blend=self.rest_blend,
                                   targets=dict(self.targets), dt=dt, duration=duration, safety=self.safety,
                                   segment_map=self._segment_map(), network=self.network, predict=self.predict,
-                                  predict_horizon=self.predict_horizon, predict_latency=self.predict_latency)
+                                  predict_horizon=self.predict_horizon, predict_latency=self.predict_latency,
+                                  locomotion=self.locomotion)
 
     def _segment_map(self) -> dict | None:
         """The `segment_map` file's mapping (checked against the recording's segments), or None."""
@@ -359,10 +533,52 @@ class TeleopScenario(Scenario):
             horizons = log.get("teleop_stream.horizon_ms")
             teleop["prediction"] = {"method": self.predict, "max_horizon_s": self.predict_horizon,
                                     "horizon_ms": stats(np.asarray(horizons)) if horizons is not None else None}
+        if self.walk is not None:
+            teleop["stepping"] = self._stepping_metrics(log)
         teleop["filter"] = self.reference_source.command_filter.summary()
         teleop["skeleton"] = self.reference_source.skeleton_summary()
         out["teleop"] = teleop
         return out
+
+
+    #: after a robot touch-down, when its sole's measured placement is read [s] (inside the double support)
+    TOUCH_DOWN_SETTLE = 0.1
+
+    def _stepping_metrics(self, log: dict) -> dict:
+        """`locomotion: stepping`: the robot's steps against the operator's. Per operator step, the robot's sole
+        (x, y) measured `TOUCH_DOWN_SETTLE` after the planned touch-down of the robot step that answers it (from
+        the log's configuration), its distance to the operator's scaled placement (`placement_error_m`) and to
+        the planned (clamped) one (`tracking_error_m`); steps whose touch-down the run did not reach are left
+        out (`steps_reached`)."""
+        from ..recorder import channel
+
+        sp, plan, dt = self.step_plan, self.step_plan.plan, self.walk.dt
+        q = channel(log, "q")
+        model, data = self.robot.model, self.robot.model.createData()
+        rows = []
+        for pl in sp.placements:
+            i = pl["robot_step"]
+            k = int(round((plan.touch_down_time(i) + self.TOUCH_DOWN_SETTLE) / dt))
+            row = {**pl, "robot_touch_down_s": float(plan.touch_down_time(i))}
+            if k < len(q):
+                pin.framesForwardKinematics(model, data, q[k])
+                p = data.oMf[self.robot.sole_frame_id(Side(pl["side"]))].translation
+                row["measured"] = [float(p[0]), float(p[1])]
+                row["placement_error_m"] = float(np.linalg.norm(p[:2] - np.array(pl["target"][:2])))
+                row["tracking_error_m"] = float(np.linalg.norm(p[:2] - np.array(pl["planned"][:2])))
+            rows.append(row)
+        reached = [r for r in rows if "measured" in r]
+        t_end = float(log["t"][-1]) if len(log["t"]) else 0.0
+        return {"operator_steps": len(sp.placements), "robot_steps": plan.n_steps,
+                "robot_steps_taken": sum(plan.touch_down_time(i) + self.TOUCH_DOWN_SETTLE <= t_end
+                                         for i in range(plan.n_steps)),
+                "extra_steps": sp.extra_steps, "steps_reached": len(reached),
+                "latency_s": sp.latency, "look_ahead_s": sp.look_ahead,
+                "step_adjustments": None if self.adjuster is None else self.adjuster.count,
+                "placement_error_m": stats(np.array([r["placement_error_m"] for r in reached])),
+                "tracking_error_m": stats(np.array([r["tracking_error_m"] for r in reached])),
+                "clamp_m": stats(np.array([r["clamp_m"] for r in rows])),
+                "steps": rows}
 
 
 def _parse_safety(sec, anchor: str):

@@ -29,6 +29,8 @@ from ...errors import ConfigError, UnknownNameError, WbcError
 
 COMMAND = "teleop"
 DEFAULT_CONTROLLER = "tsid-teleop"
+#: the task set `--locomotion stepping` runs the teleoperation controller with (tasksets/<robot>/<name>.yaml)
+STEPPING_TASKSET = "teleop-stepping"
 
 
 def add_subcommand(sub: argparse._SubParsersAction) -> None:
@@ -62,6 +64,11 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                    help="rest (default): the operator at rest overlaid on the robot at rest, reaching hands overlaid "
                         "absolutely; absolute: the paper's plain overlay (TALOS' hips take the resting hands); "
                         "offset: every position shifted by the calibration offset (relative teleoperation)")
+    p.add_argument("--locomotion", default="auto",
+                   help="an operator who walks: auto (default: the walk taken out of the references when the "
+                        "operator moves, the robot stands), feet_fixed (always), off (never), or stepping "
+                        "(recordings: the robot steps where the operator steps, through the walking stack; the "
+                        "controller then uses its teleop-stepping task set, position mode by default)")
     p.add_argument("--out", "-o", default=None, help="run directory (default: runs/teleop-<source>-...)")
     p.add_argument("--length-unit", default="auto",
                    help="a BVH file's length unit: auto (detected from the skeleton, default), m, cm, mm, in, ft "
@@ -155,10 +162,19 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
     if isinstance(mocap, str) and mocap.startswith("udp://") and duration is None:
         raise ConfigError("a live stream needs --duration", key="--duration")
     _check_controller(controller)
+    from ..human.locomotion import LOCOMOTION_MODES
+
+    locomotion = params.get("locomotion", "auto")
+    if locomotion not in LOCOMOTION_MODES:
+        raise ConfigError(f"unknown locomotion '{locomotion}'; allowed: {', '.join(LOCOMOTION_MODES)}",
+                          key="--locomotion")
+    stepping = locomotion == "stepping"
     robot = load_robot(robot) if not isinstance(robot, Robot) else robot
     cls = available_controllers()[controller]
     try:
-        mode_ = ActuationMode(mode) if mode is not None else cls.default_mode
+        # stepping: the walking task set's mode (position) unless one is asked for
+        default_mode = ActuationMode.POSITION if stepping else cls.default_mode
+        mode_ = ActuationMode(mode) if mode is not None else default_mode
     except ValueError:
         raise ConfigError(f"unknown mode '{mode}'; allowed: {', '.join(m.value for m in cls.modes)}",
                           key="--mode") from None
@@ -171,7 +187,13 @@ def run_session(mocap, *, robot="talos", controller: str = DEFAULT_CONTROLLER, m
                               "joints)", key="--mode")
     scen = TeleopScenario.from_source(robot, mocap, duration=duration or 0.0, speed=speed, on_loss=on_loss,
                                       name=f"teleop-{_label(mocap)}", **params)
-    ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer, reach_cap=reach_cap)
+    kw = {}
+    if stepping:  # the lower body walks: the robot's walking task set with the hands and head
+        from ...controllers.taskset import load_taskset, taskset_path
+
+        kw["taskset"] = load_taskset(taskset_path(robot, STEPPING_TASKSET), robot)
+    ctrl = cls(robot, mode_, scen.spec.control_dt, repulsors=repulsors, stabilizer=stabilizer, reach_cap=reach_cap,
+               **kw)
     probes = [SelfCollisionProbe()] if self_collision != "off" else []
     if view is not None:
         probes.append(view)
@@ -234,6 +256,8 @@ def run_command(args: argparse.Namespace) -> int:
                   reach_cap=not args.no_reach_cap, duration=args.duration,
                   out=args.out, self_collision=args.self_collision, on_loss=args.on_loss, anchor=args.anchor,
                   overwrite=args.overwrite, realtime=args.realtime)
+    if args.locomotion != "auto":  # the default is the scenario's own (and keeps the params as they were)
+        kwargs["locomotion"] = args.locomotion
     if args.no_filter:
         kwargs["safety"] = {"enabled": False}
     kwargs.update(length_unit=args.length_unit, up_axis=args.up_axis)

@@ -162,6 +162,7 @@ class TeleopReferenceSource:
         from ..human.retargeting import Retargeter
 
         self.operator_motion = None
+        self.walk_source = None
         if not self.live and isinstance(self.source, MocapRecording):
             self.source, self.operator_motion = self._fixed_feet(self.source)
         self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion,
@@ -229,7 +230,18 @@ class TeleopReferenceSource:
             except ConfigError:
                 return recording, None  # the retargeting says what is missing
         up = (recording.conventions or {}).get("up") or f"+{recording.up_axis}"
+        self.walk_source = (recording, names, up)  # what `locomotion: stepping` reads the operator's steps from
         return fix_feet(recording, names, up, self.config.locomotion)
+
+    #: None, or (t, targets) -> targets: the effector targets moved with the robot's own walk (`carry`)
+    carrier = None
+
+    def carry(self, carrier) -> None:
+        """Move every tick's effector targets (pose, velocity, acceleration, after the engagement blend and before
+        the command filter) with `carrier(t, targets)`: the robot's walking frame under `locomotion: stepping`.
+        The common tick's stacked rows are not used then."""
+        self.carrier = carrier
+        self._rows = None
 
     def skeleton_summary(self) -> dict:
         """How the source's skeleton was read: the length unit, the up axis and the segment mapping."""
@@ -518,6 +530,8 @@ class TeleopReferenceSource:
         self._valid_prev = valid
         if t < self.engage_time:
             targets = self._engage(t, targets)
+        if self.carrier is not None:  # the robot walks (`locomotion: stepping`): the targets go with it
+            targets = self.carrier(t, targets)
         targets = self.command_filter(t, targets)  # last: nothing unfiltered reaches the controller
         if self.link is not None:
             # the undelayed reference: what the robot would be asked without the link (the recording's spline)
