@@ -214,10 +214,10 @@ def test_tsid_teleop_commands_are_the_same_with_pinocchios_rows(talos):
     assert worst < 1e-9, worst
 
 
-@pytest.mark.parametrize("name", ["tsid-torque", "tsid-position"])
-def test_inverse_dynamics_commands_are_the_same_with_pinocchios_rows(talos, name):
-    """The paper's inverse-dynamics controllers evaluate their frame, contact and CoM rows compiled: walking the
-    first second of a plan (CoM moving over a foot, a contact schedule), their commands equal those of the same
+@pytest.mark.parametrize("name", ["tsid-torque", "tsid-position", "ik"])
+def test_paper_controllers_commands_are_the_same_with_pinocchios_rows(talos, name):
+    """The paper's controllers evaluate their frame, contact and CoM rows compiled: walking into the first single
+    support of a plan (CoM moving over a foot, a contact schedule), their commands equal those of the same
     controller on pinocchio's rows, to rounding."""
     from wbcbench.controllers.base import make_controller
     from wbcbench.scenarios import load_scenario

@@ -41,6 +41,10 @@ class KinematicHierarchy:
         dt: the control period [s].
     """
 
+    #: frame, contact and CoM rows evaluated in one compiled call (`TaskStack(compiled_frames=...)`): pinocchio's
+    #: rows to rounding (tests/tasks/test_compiled_rows.py compares the commands)
+    compiled_frames = True
+
     def __init__(self, model: pin.Model, levels: Sequence[Sequence[Task]], contacts: Mapping, free_tasks: Mapping,
                  *, position_limits: tuple[np.ndarray, np.ndarray], velocity_limit: np.ndarray, dt: float):
         self.model = model
@@ -114,7 +118,8 @@ class KinematicHierarchy:
         plan = self._plans.get(key)
         if plan is None:
             feet = [self.contacts[n] if c else self.free_tasks[n] for n, c in zip(self.names, key, strict=True)]
-            plan = self._plans[key] = [TaskStack(feet + self.tasks, self.nv), None, None, len(feet)]
+            plan = self._plans[key] = [TaskStack(feet + self.tasks, self.nv, compiled_frames=self.compiled_frames),
+                                       None, None, len(feet)]
         stack = plan[0]
         A, b = stack.velocity_rows(self.model, self.data)
         slices = stack.slices
