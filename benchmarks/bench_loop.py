@@ -9,7 +9,8 @@ in microseconds per tick, and the real-time factor of the whole loop.
 `--realism PRESET` (without --against) times three runs, alternating round by round in this process: the switch
 off, the preset with ideal sensors (`actuators`: the actuator model alone, i.e. the hidden joints, friction, torque
 loop and hip flexibility, with their probe's channels) and the preset as it is (`preset`: with its sensor profile,
-e.g. talos-like); it prints each part's ratio to the switch off. Choose a scenario in which the robot does the
+e.g. talos-like); it prints each part's ratio to the switch off (of the medians over rounds), and the median
+and range of each round's own tick ratio. Choose a scenario in which the robot does the
 same thing in all three, e.g. stand (standing still: the same ticks, and the controller's QP meets the same
 situations; a walk on the realistic robot moves differently, falls, and its controller's time is then not the
 model's cost). The physics part is split further into `mj_step` itself (CPU time, with MuJoCo's mean Newton
@@ -184,6 +185,9 @@ def realism_ratio(args) -> None:
             f"{part} {on[f'cpu_{part}_us'] / off[f'cpu_{part}_us']:.2f}"
             for part in ("controller", "physics", "mj_step", "rest", "tick")) +
             f"; tick {on['tick_us'] / off['tick_us']:.2f} (wall)")
+        # each round's own ratio (its runs ran back to back, under the same load), then their median and range
+        per = [x["cpu_tick_us"] / o["cpu_tick_us"] for x, o in zip(rounds[side], rounds["off"])]
+        print(f"  {side}/off per round (CPU tick): median {np.median(per):.2f}, range {min(per):.2f}-{max(per):.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps({"median": med, "rounds": rounds}))
 

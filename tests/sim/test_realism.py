@@ -331,6 +331,13 @@ def test_preset_extends_replaces_sections_and_null_removes_one(robot, tmp_path):
     g = tmp_path / "child.yaml"   # a path relative to the file
     g.write_text("extends: nohip.yaml\nsensors: talos-like\n")
     assert load_realism(str(g), robot).hip is None and load_realism(str(g), robot).sensors == "talos-like"
+    h = tmp_path / "constraint.yaml"   # the other friction model replaces the base's stiction_damping
+    h.write_text("extends: talos-real\nstiction_impedance: 0.99\n")
+    old = load_realism(str(h), robot)
+    assert old.stiction_impedance == 0.99 and base.stiction_impedance is None and base.stiction_damping == 1e5
+    h.write_text("stiction_impedance: 0.99\nstiction_damping: 1000.0\n")
+    with pytest.raises(ConfigError, match="constraint.yaml: key 'stiction_impedance': give either"):
+        load_realism(str(h), robot)
 
 
 @pytest.mark.parametrize("body, needles", [
@@ -365,3 +372,26 @@ def test_realism_probe_kernel_equals_numpy(robot):
             expected = d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ probe._offset
             np.testing.assert_allclose(vals[1 + k], expected, rtol=0, atol=1e-15)
     assert np.abs(vals[0]).max() > 0
+
+
+def test_friction_kernel_phases_and_bounded_explicit_force():
+    """The stick-slip kernel: the damper's explicit force (damping x velocity) never exceeds the break-away torque
+    at any velocity; a joint breaks away only when its speed grows beyond coulomb / stick, slides against the
+    constant friction and returns to the damper when its velocity changes sign."""
+    from wbcbench.sim.friction_kernel import joint_friction_step
+
+    dof = np.array([1], dtype=np.int64)
+    fc, own, stick = np.array([2.0]), np.array([0.5]), 1e5
+    state, vprev, base = np.zeros(1, np.int64), np.zeros(1), np.array([0.25])
+    damping, applied = np.zeros(3), np.zeros(3)
+
+    def step(v):
+        joint_friction_step(np.array([0.0, v, 0.0]), dof, fc, own, stick, state, vprev, base, damping, applied)
+        return int(state[0])
+
+    for v in (1e-6, -3e-5, 0.3, -2.0, -1e-9):  # (never sliding: the speed does not grow in one direction)
+        assert step(v) == 0 and (damping[1] - own[0]) * abs(v) <= fc[0] * (1 + 1e-12) and applied[1] == 0.25
+    assert damping[1] == own[0] + stick
+    assert step(1e-4) == 0  # (the sign changed since the last step)
+    assert step(2e-4) == 1 and damping[1] == own[0] and applied[1] == 0.25 - 2.0  # breaks away
+    assert step(0.1) == 1 and step(-1e-3) == 0 and abs((damping[1] - own[0]) * 1e-3 - 2.0) < 1e-12

@@ -1,12 +1,19 @@
 """The realism preset's Coulomb friction with stiction, one compiled call per physics step (see :mod:`wbcbench.jit`).
 
-A stick-slip switch per joint (Karnopp's model) whose stick phase is a heavy viscous damper that MuJoCo integrates
-implicitly: sticking, the joint's damping is raised by ``stick`` [N m s/rad] (MuJoCo's ``dof_damping``, implicit in
-velocity under the implicitfast integrator, so any value is stable), which holds it within ``tau / stick`` rad/s
-of rest under a net torque ``tau``; the damper's force is the friction force. When that force would exceed the
-break-away torque ``coulomb`` the joint slides: the friction becomes the constant ``-coulomb sign(v)`` (through
-MuJoCo's ``qfrc_applied``) and the damping the joint's own (viscous) again, until the velocity changes sign, when
-it sticks again. The switch is decided once per physics step from the velocity the step ended with.
+A per-joint switch between two phases (after Karnopp's stick-slip model), decided before each physics step from
+the joint's velocity ``v`` (and the last step's):
+
+- damper (sticking, stopping): the friction is a saturated damper, ``-min(stick |v|, coulomb) sign(v)``, put into
+  MuJoCo's joint damping as its secant, ``min(stick, coulomb / |v|)`` (MuJoCo's implicitfast integrator treats
+  damping implicitly: any value is stable). At rest under a net torque ``tau`` below break-away the joint creeps
+  at ``tau / stick`` rad/s; a joint coming to a stop loses its velocity without overshooting through zero.
+- sliding (+1 / -1): the constant ``-coulomb sign(v)`` (MuJoCo's ``qfrc_applied``), the joint's own (viscous)
+  damping only. Entered from the damper phase when the joint breaks away (``stick |v| > coulomb`` and ``|v|``
+  growing in the same direction), left when the velocity changes sign.
+
+The friction force that MuJoCo's constraint solver sees (the explicit part) is therefore never above the break-away
+torque: a heavy damper on a joint moving at a finite speed would otherwise enter the contact solution as a huge
+torque for that step (MuJoCo solves the constraints with the explicit forces and applies implicit damping after).
 
 MuJoCo's own `frictionloss` (a constraint of its solver) does the same job solved jointly with the contacts, but
 with a stiction hard enough to hold a joint (creep of micro-radians per second) its Newton solver needs three to
@@ -21,25 +28,29 @@ __all__ = ["joint_friction_step"]
 
 
 @njit(exact=True)
-def joint_friction_step(qvel, dof, coulomb, damping, stick, state, base, dof_damping, qfrc_applied):
+def joint_friction_step(qvel, dof, coulomb, damping, stick, state, vprev, base, dof_damping, qfrc_applied):
     """One physics step's friction of the joints at MuJoCo degrees of freedom ``dof`` (n,): ``state`` (n, int:
-    0 sticking, +1 / -1 sliding in the positive / negative direction) is updated from ``qvel`` and the damping
-    (``damping`` (n,), the joint's own, plus ``stick`` while sticking) and the applied generalized force
-    (``base`` (n,), the command's, minus ``coulomb`` (n,) in the sliding direction) written into MuJoCo's
-    ``dof_damping`` and ``qfrc_applied``."""
+    0 damper, +1 / -1 sliding in the positive / negative direction) and ``vprev`` (n,: the velocity at the last
+    call) are updated from ``qvel``, and the damping (``damping`` (n,), the joint's own, plus the damper phase's)
+    and the applied generalized force (``base`` (n,), the command's, minus ``coulomb`` (n,) in the sliding
+    direction) written into MuJoCo's ``dof_damping`` and ``qfrc_applied``."""
     for i in range(dof.shape[0]):
         d = dof[i]
         v = qvel[d]
+        vp = vprev[i]
+        vprev[i] = v
         s = state[i]
-        if s == 0:  # stuck through the last step: its friction was the damper's force
-            if abs(stick * v) > coulomb[i]:
+        av = abs(v)
+        fc = coulomb[i]
+        if s == 0:
+            if stick * av > fc and v * vp > 0.0 and av > abs(vp):  # breaks away
                 s = 1 if v > 0.0 else -1
-        elif v * s <= 0.0:  # the sliding joint stopped or turned: it sticks
+        elif v * s <= 0.0:  # the sliding joint stopped or turned: the damper stops it
             s = 0
         state[i] = s
         if s == 0:
-            dof_damping[d] = damping[i] + stick
+            dof_damping[d] = damping[i] + (stick if stick * av <= fc else fc / av)
             qfrc_applied[d] = base[i]
         else:
             dof_damping[d] = damping[i]
-            qfrc_applied[d] = base[i] - coulomb[i] * s
+            qfrc_applied[d] = base[i] - fc * s

@@ -105,11 +105,13 @@ class JointFriction:
         self.stick = float(stick)
         model.dof_frictionloss[self.dof] = 0.0
         self.state = np.zeros(len(self.dof), dtype=np.int64)
+        self.vprev = np.zeros(len(self.dof))
         self.base = np.zeros(len(self.dof))  # the command's own generalized force on these joints (position mode)
         self._views = (None,)
 
     def reset(self) -> None:
         self.state[:] = 0
+        self.vprev[:] = 0.0
         self.base[:] = 0.0
 
     def write(self, model, data) -> None:
@@ -117,7 +119,8 @@ class JointFriction:
         v = self._views
         if v[0] is not data:
             v = self._views = (data, data.qvel, model.dof_damping, data.qfrc_applied)
-        joint_friction_step(v[1], self.dof, self.coulomb, self.damping, self.stick, self.state, self.base, v[2], v[3])
+        joint_friction_step(v[1], self.dof, self.coulomb, self.damping, self.stick, self.state, self.vprev, self.base,
+                            v[2], v[3])
 
 
 class Simulator:

@@ -28,17 +28,18 @@ How each mechanism is simulated, and why this way:
   implicit-in-velocity integrator treats the damping implicitly), so no explicitly integrated motor state at the
   control rate is needed and nothing is lagged by one step. Cost: one more degree of freedom per elastic joint.
 - Friction (`wbcbench/sim/friction_kernel.py`): Coulomb with stiction and viscous, on the motor side. Viscous:
-  MuJoCo's joint `damping`. Coulomb: a stick-slip switch per joint, decided before each physics step from the
-  joint's velocity (Karnopp's model). Sticking, the joint's damping is raised by `stiction_damping` (MuJoCo
-  integrates damping implicitly, so any value is stable): a torque below break-away moves the joint at only
-  torque / `stiction_damping` (16 urad/s for 1.6 N m at the default 1e5 N m s/rad), and the damper's force is the
-  friction force; when it would exceed the break-away torque (the URDF's `frictionloss` plus `coulomb`) the joint
-  slides against a constant -coulomb sign(v) (MuJoCo's `qfrc_applied`) until its velocity changes sign. Cost:
-  one compiled call per physics step. `stiction_impedance` selects the former formulation instead, MuJoCo's
-  `frictionloss` constraint made near-hard (impedance d, `solimp` = [d, 1 - (1 - d) / 10, ...]; a joint at 80 %
-  of its break-away torque creeps about 0.03 (1 - d) rad/s): solved with the contacts, but its Newton solver then
-  needs 3-4 iterations per physics step instead of 1, the switch's largest cost (docs/results/real-robot.md,
-  "Cost").
+  MuJoCo's joint `damping`. Coulomb (break-away torque: the URDF's `frictionloss` plus `coulomb`): a switch per
+  joint decided before each physics step from its velocity (after Karnopp's stick-slip model). Sticking or
+  stopping, the friction is a saturated damper -min(`stiction_damping` |v|, break-away) sign(v), put into MuJoCo's
+  joint damping (implicit in velocity under implicitfast, so any value is stable): a torque below break-away
+  moves the joint at only torque / `stiction_damping` (16 urad/s for 1.6 N m at the default 1e5 N m s/rad), and a
+  stopping joint does not overshoot through zero. Breaking away, the joint slides against a constant
+  -break-away sign(v) (MuJoCo's `qfrc_applied`) until its velocity changes sign. The friction force the contact
+  solution sees is never above the break-away torque. Cost: one compiled call per physics step.
+  `stiction_impedance` selects the former formulation instead, MuJoCo's `frictionloss` constraint made near-hard
+  (impedance d, `solimp` = [d, 1 - (1 - d) / 10, ...]; a joint at 80 % of its break-away torque creeps about
+  0.03 (1 - d) rad/s): solved jointly with the contacts, but its Newton solver then needs 3-4 iterations per
+  physics step instead of 1, the switch's largest cost (docs/results/real-robot.md, "Cost").
 - Current/torque limit: the actuator's force range (the smaller of the profile's effort limit and the preset's).
 - Torque loop (torque mode): the commanded torque reaches the joint through a pure delay and a first-order lag
   of the given bandwidth; the loop servoes the joint torque sensor's reading, so the sensor's noise enters the
@@ -245,10 +246,15 @@ def load_realism(preset: "str | Path | Realism", robot) -> Realism:
     return parse_realism(Section(resolved_preset(path), str(path)), robot, path.stem)
 
 
+#: Top-level keys that are one setting given in alternative ways (a preset gives at most one of each group).
+_ALTERNATIVES = (frozenset({"stiction_damping", "stiction_impedance"}),)
+
+
 def resolved_preset(path: Path, seen: tuple = ()) -> dict:
     """A preset file's mapping with its `extends:` resolved: the named preset (a shipped name, or a path relative to
     this file) is loaded first and this file's sections replace its sections; a section set to null removes it
-    (`hip_flexibility: null`: the same robot without the hip spring)."""
+    (`hip_flexibility: null`: the same robot without the hip spring). `stiction_impedance` replaces the base's
+    `stiction_damping` and the other way round (the two friction models)."""
     data = load_yaml(path)
     if not isinstance(data, dict):
         raise ConfigError("a realism preset must be a mapping of sections", file=str(path))
@@ -264,7 +270,12 @@ def resolved_preset(path: Path, seen: tuple = ()) -> dict:
                 raise UnknownNameError("realism preset", base, preset_names(), file=str(path), key="extends")
         if base_path.resolve() in seen:
             raise ConfigError(f"extends itself through {base}", file=str(path), key="extends")
-        data = {**resolved_preset(base_path, seen + (path.resolve(),)), **data}
+        inherited = resolved_preset(base_path, seen + (path.resolve(),))
+        for group in _ALTERNATIVES:  # one setting given two ways: this file's replaces the base's
+            if group & data.keys():
+                for k in group:
+                    inherited.pop(k, None)
+        data = {**inherited, **data}
     return {k: v for k, v in data.items() if v is not None}
 
 
