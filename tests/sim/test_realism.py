@@ -395,3 +395,23 @@ def test_friction_kernel_phases_and_bounded_explicit_force():
     assert step(1e-4) == 0  # (the sign changed since the last step)
     assert step(2e-4) == 1 and damping[1] == own[0] and applied[1] == 0.25 - 2.0  # breaks away
     assert step(0.1) == 1 and step(-1e-3) == 0 and abs((damping[1] - own[0]) * 1e-3 - 2.0) < 1e-12
+
+
+def test_torque_loop_and_friction_in_one_call_equals_two_calls(robot):
+    """The physics step's one compiled call (torque loop and friction) gives the same state, bit for bit, as the
+    two calls."""
+    r = load_realism("talos-actuation", robot)
+    sims = [Simulator(robot, mode="torque", options=SimOptions(realism=r)) for _ in range(2)]
+    separate = sims[1]
+    separate.step = lambda n=1: [(separate._torque_loop.write(separate._data_views()[6], separate._act_idx),
+                                  separate._friction.write(separate.model, separate.data),
+                                  mujoco.mj_step(separate.model, separate.data)) for _ in range(n)]
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        tau = rng.normal(0.0, 5.0, robot.na)
+        for sim in sims:
+            sim.apply(Command(tau=tau))
+            sim.step(20)
+    np.testing.assert_array_equal(sims[0].data.qpos, sims[1].data.qpos)
+    np.testing.assert_array_equal(sims[0]._friction.state, sims[1]._friction.state)
+    assert np.abs(sims[0]._friction.state).sum() > 0  # some joints slid

@@ -14,7 +14,7 @@ from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
 from .contact_kernel import ContactRecords, sole_wrenches
-from .friction_kernel import joint_friction_step
+from .friction_kernel import joint_friction_step, torque_loop_and_friction_step
 from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, state_layout, state_size, tick_aux
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
@@ -85,6 +85,13 @@ class TorqueLoop:
         self.k = torque_loop_step(self.buf, self.k, self.target, self.out, self.alpha, self._next_noise(), self.limit,
                                   dst, idx)
 
+    def write_with_friction(self, dst: np.ndarray, idx: np.ndarray, fr: "JointFriction", model, data) -> None:
+        """`write`, then `fr.write(model, data)`, in one compiled call."""
+        v = fr.views(model, data)
+        self.k = torque_loop_and_friction_step(self.buf, self.k, self.target, self.out, self.alpha, self._next_noise(),
+                                               self.limit, dst, idx, v[1], fr.dof, fr.coulomb, fr.damping, fr.stick,
+                                               fr.state, fr.vprev, fr.base, v[2], v[3])
+
     def next(self) -> np.ndarray:
         """The torque delivered during the next physics step."""
         tau = np.empty(len(self.limit))
@@ -114,11 +121,16 @@ class JointFriction:
         self.vprev[:] = 0.0
         self.base[:] = 0.0
 
-    def write(self, model, data) -> None:
-        """The friction of the next physics step (MuJoCo's arrays viewed once per data: each access makes a view)."""
+    def views(self, model, data) -> tuple:
+        """(data, qvel, dof_damping, qfrc_applied): MuJoCo's arrays viewed once per data (each access makes a view)."""
         v = self._views
         if v[0] is not data:
             v = self._views = (data, data.qvel, model.dof_damping, data.qfrc_applied)
+        return v
+
+    def write(self, model, data) -> None:
+        """The friction of the next physics step."""
+        v = self.views(model, data)
         joint_friction_step(v[1], self.dof, self.coulomb, self.damping, self.stick, self.state, self.vprev, self.base,
                             v[2], v[3])
 
@@ -424,10 +436,14 @@ class Simulator:
                         xf[bid, :3] += p.force
             if self.mode is ActuationMode.SPD:
                 self.data.ctrl[self._act] = self._spd_torque()
-            elif self._torque_loop is not None:
-                self._torque_loop.write(self._data_views()[6], self._act_idx)
-            if self._friction is not None:
-                self._friction.write(self.model, self.data)
+            elif self._torque_loop is not None and self._friction is not None:  # (one compiled call for both)
+                self._torque_loop.write_with_friction(self._data_views()[6], self._act_idx, self._friction,
+                                                      self.model, self.data)
+            else:
+                if self._torque_loop is not None:
+                    self._torque_loop.write(self._data_views()[6], self._act_idx)
+                if self._friction is not None:
+                    self._friction.write(self.model, self.data)
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
 
