@@ -129,7 +129,7 @@ class IKController(Controller):
             self.n_unmet += 1
         self.v = res.x
         self.q_int = pin.integrate(self.model, self.q_int, self.v * self.dt)
-        return Command(q=self.q_int[7:].copy(), v=self.v[6:].copy())
+        return self.corrections.command(Command(q=self.q_int[7:].copy(), v=self.v[6:].copy()))
 
     def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
         """What the stabilizer may know of the model: the integrated configuration and the planned contacts."""

@@ -196,6 +196,8 @@ class InverseDynamicsController(Controller):
         q, v = self._state(meas)
         # the corrections on the model of the last solve (the stabilizer: its wrenches and contact placements)
         refs = self.corrections.apply(meas, refs, q, self._stabilizer_feedback)
+        if self.mode is ActuationMode.TORQUE:
+            q = self.corrections.configuration(q)
         t0 = perf_counter()
         F.update(q, v)
         self._t_pin = perf_counter() - t0
@@ -212,7 +214,7 @@ class InverseDynamicsController(Controller):
             return Command(tau=sol.tau)
         self.v_int = self.v_int + self.dv * self.dt
         self.q_int = pin.integrate(self.model, self.q_int, self.v_int * self.dt)
-        return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
+        return self.corrections.command(Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy()))
 
     def _set_references(self, refs: References) -> None:
         axes = None
