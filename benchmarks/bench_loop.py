@@ -4,12 +4,14 @@ in microseconds per tick, and the real-time factor of the whole loop.
 
     .venv/bin/python benchmarks/bench_loop.py [--scenario walk-20cm] [--controller tsid-torque]
     .venv/bin/python benchmarks/bench_loop.py --against ../other-checkout [--rounds 3] [--core 0]
-    .venv/bin/python benchmarks/bench_loop.py --scenario stand --realism talos-real [--rounds 3]
+    .venv/bin/python benchmarks/bench_loop.py --scenario stand --realism talos-real [--rounds 3] [--also P.yaml]
 
 `--realism PRESET` (without --against) times three runs, alternating round by round in this process: the switch
 off, the preset with ideal sensors (`actuators`: the actuator model alone, i.e. the hidden joints, friction, torque
 loop and hip flexibility, with their probe's channels) and the preset as it is (`preset`: with its sensor profile,
-e.g. talos-like); it prints each part's ratio to the switch off. Choose a scenario in which the robot does the
+e.g. talos-like); it prints each part's ratio to the switch off (of the medians over rounds), and the median
+and range of each round's own tick ratio. `--also PRESET` (repeatable) adds another preset's actuator model to
+the same rounds (e.g. a copy with `stiction_impedance: 0.999`, the former friction model). Choose a scenario in which the robot does the
 same thing in all three, e.g. stand (standing still: the same ticks, and the controller's QP meets the same
 situations; a walk on the realistic robot moves differently, falls, and its controller's time is then not the
 model's cost). The physics part is split further into `mj_step` itself (CPU time, with MuJoCo's mean Newton
@@ -167,6 +169,8 @@ def realism_ratio(args) -> None:
     """The realism switch's cost: off, the actuator model alone (the preset with ideal sensors) and the whole
     preset, alternately; the median over the rounds and each part's ratio to the switch off (CPU time)."""
     legs = {"off": (None, None), "actuators": (args.realism, "ideal"), "preset": (args.realism, None)}
+    for other in args.also:  # more presets' actuator models in the same rounds (e.g. a former friction model)
+        legs[f"actuators:{Path(other).stem}"] = (other, "ideal")
     rounds = {side: [] for side in legs}
     for r in range(args.rounds):
         for side, (preset, sensors) in legs.items():
@@ -178,12 +182,15 @@ def realism_ratio(args) -> None:
     for side in med:
         print(_line(side, med[side]))
     off = med["off"]
-    for side in ("actuators", "preset"):
+    for side in [k for k in legs if k != "off"]:
         on = med[side]
         print(f"  {side}/off (CPU): " + ", ".join(
             f"{part} {on[f'cpu_{part}_us'] / off[f'cpu_{part}_us']:.2f}"
             for part in ("controller", "physics", "mj_step", "rest", "tick")) +
             f"; tick {on['tick_us'] / off['tick_us']:.2f} (wall)")
+        # each round's own ratio (its runs ran back to back, under the same load), then their median and range
+        per = [x["cpu_tick_us"] / o["cpu_tick_us"] for x, o in zip(rounds[side], rounds["off"])]
+        print(f"  {side}/off per round (CPU tick): median {np.median(per):.2f}, range {min(per):.2f}-{max(per):.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps({"median": med, "rounds": rounds}))
 
@@ -197,6 +204,8 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--core", default="0", help="CPU core to pin to with --against ('' for none; default 0)")
     p.add_argument("--realism", default=None, help="time the run with this realism preset against the switch off")
+    p.add_argument("--also", action="append", default=[],
+                   help="with --realism: another preset's actuator model timed in the same rounds (repeatable)")
     args = p.parse_args()
     if args.realism and not args.against:
         realism_ratio(args)

@@ -159,26 +159,60 @@ def test_torque_loop_acts_in_the_simulator(robot):
     assert applied[0] == 0.0 and applied[1] == 0.0 and 0.0 < applied[2] < applied[3] < 50.0
 
 
+def _elbow_moves(robot, extra, torque, steps=200):
+    """No gravity: how far the left elbow (coulomb 10 N m over the URDF's 1 N m: break-away 11 N m) moves in
+    `steps` physics steps under a constant torque."""
+    r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}} | extra)
+    sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
+    tau = np.zeros(robot.na)
+    i = robot.joint_names.index("arm_left_4_joint")
+    tau[i] = torque
+    q0 = sim.measure().q[7 + i]
+    sim.apply(Command(tau=tau))
+    sim.step(steps)
+    return abs(sim.measure().q[7 + i] - q0)
+
+
 def test_friction_holds_a_joint_below_break_away(robot):
-    """No gravity: an elbow torque below the Coulomb friction does not move the joint (it creeps by less than
-    0.1 mrad in 0.2 s); above it, it does. A softer stiction impedance lets it creep faster, in proportion to
-    1 - d."""
-    moved = {}
-    for impedance in (None, 0.99):
-        r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}}
-                   | ({"stiction_impedance": impedance} if impedance else {}))
-        for torque in (8.0, 13.0):
-            sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
-            tau = np.zeros(robot.na)
-            i = robot.joint_names.index("arm_left_4_joint")
-            tau[i] = torque
-            q0 = sim.measure().q[7 + i]
-            sim.apply(Command(tau=tau))
-            sim.step(200)
-            moved[impedance, torque] = abs(sim.measure().q[7 + i] - q0)
-    assert moved[None, 8.0] < 1e-5 and moved[0.99, 8.0] < 1e-4
-    assert 5.0 < moved[0.99, 8.0] / moved[None, 8.0] < 20.0  # (1 - 0.99) / (1 - 0.999) = 10
-    assert moved[None, 13.0] > 1e-2 and moved[0.99, 13.0] > 1e-2
+    """The stick-slip friction (the default): below break-away the elbow creeps at torque / stiction_damping
+    (8 N m / 1e5 N m s/rad over 0.2 s: 16 urad), ten times less at ten times the damping; above it, it slides, as
+    far as under MuJoCo's frictionloss constraint (the former model, `stiction_impedance`), whose creep below
+    break-away scales with 1 - d."""
+    creep = 8.0 / 1e5 * 0.2
+    assert creep * 0.9 < _elbow_moves(robot, {}, 8.0) < creep * 1.1
+    assert creep * 0.09 < _elbow_moves(robot, {"stiction_damping": 1e6}, 8.0) < creep * 0.11
+    moved = {d: _elbow_moves(robot, {"stiction_impedance": d}, 8.0) for d in (0.999, 0.99)}
+    assert moved[0.999] < 1e-5 and moved[0.99] < 1e-4
+    assert 5.0 < moved[0.99] / moved[0.999] < 20.0  # (1 - 0.99) / (1 - 0.999) = 10
+    slid = _elbow_moves(robot, {}, 13.0)
+    assert slid > 1e-2
+    assert abs(slid - _elbow_moves(robot, {"stiction_impedance": 0.999}, 13.0)) < 0.05 * slid
+
+
+def test_friction_stick_slip_in_position_mode_and_faults(robot):
+    """Position mode: the servo's feed-forward (qfrc_applied) and the friction kernel's force add up; a joint
+    fault on a friction joint keeps its damping through the kernel (locked: it stays where it is)."""
+    r = preset(robot, {"actuators": {"arm_left_4_joint": {"coulomb": 10.0}}})
+    i = robot.joint_names.index("arm_left_4_joint")
+    sim = Simulator(robot, mode="torque", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
+    sim.set_joint_fault("arm_left_4_joint", "locked")
+    tau = np.zeros(robot.na)
+    tau[i] = 13.0  # above break-away, but the joint is braked
+    q0 = sim.measure().q[7 + i]
+    sim.apply(Command(tau=tau))
+    sim.step(200)
+    assert abs(sim.measure().q[7 + i] - q0) < 1e-3
+    sim.set_joint_fault("arm_left_4_joint", None)
+    assert sim._friction.damping[list(sim._friction.dof).index(sim.bridge.mj_v_idx[i])] < 10.0
+    sim = Simulator(robot, mode="position", options=SimOptions(gravity=(0.0, 0.0, 0.0), realism=r))
+    q = robot.q0[7:].copy()
+    for ff, moves in ((5.0, False), (40.0, True)):
+        sim.reset()
+        sim.apply(Command(q=q, v=np.zeros(robot.na), tau=np.where(np.arange(robot.na) == i, ff, 0.0)))
+        assert sim.data.qfrc_applied[sim.bridge.mj_v_idx[i]] == ff
+        sim.step(300)
+        err = abs(sim.measure().q[7 + i] - q[i])
+        assert (err > 1e-3) == moves, (ff, err)
 
 
 def test_preset_errors_name_file_and_key(robot):
@@ -297,6 +331,13 @@ def test_preset_extends_replaces_sections_and_null_removes_one(robot, tmp_path):
     g = tmp_path / "child.yaml"   # a path relative to the file
     g.write_text("extends: nohip.yaml\nsensors: talos-like\n")
     assert load_realism(str(g), robot).hip is None and load_realism(str(g), robot).sensors == "talos-like"
+    h = tmp_path / "constraint.yaml"   # the other friction model replaces the base's stiction_damping
+    h.write_text("extends: talos-real\nstiction_impedance: 0.99\n")
+    old = load_realism(str(h), robot)
+    assert old.stiction_impedance == 0.99 and base.stiction_impedance is None and base.stiction_damping == 1e5
+    h.write_text("stiction_impedance: 0.99\nstiction_damping: 1000.0\n")
+    with pytest.raises(ConfigError, match="constraint.yaml: key 'stiction_impedance': give either"):
+        load_realism(str(h), robot)
 
 
 @pytest.mark.parametrize("body, needles", [
@@ -311,3 +352,66 @@ def test_preset_extends_errors(robot, tmp_path, body, needles):
         load_realism(str(f), robot)
     for n in [str(f), *needles]:
         assert n in str(e.value), str(e.value)
+
+
+def test_realism_probe_kernel_equals_numpy(robot):
+    """The probe's compiled values are the numpy formulas' (hidden joints' qpos; sole centre p - R offset)."""
+    from wbcbench.sim.realism import RealismProbe
+
+    sim = Simulator(robot, mode="torque", options=SimOptions(realism=load_realism("talos-actuation", robot)))
+    probe = RealismProbe()
+    channels = probe.attach(sim)
+    assert len(channels["hidden_deflection"]) == 24
+    sim.apply(Command(tau=np.full(robot.na, 3.0)))
+    for _ in range(3):
+        sim.step(20)
+        vals = [np.array(v) for v in probe.values()]
+        d = sim.data
+        np.testing.assert_array_equal(vals[0], d.qpos[probe._adr])
+        for k, g in enumerate(probe._soles):
+            expected = d.geom_xpos[g] - d.geom_xmat[g].reshape(3, 3) @ probe._offset
+            np.testing.assert_allclose(vals[1 + k], expected, rtol=0, atol=1e-15)
+    assert np.abs(vals[0]).max() > 0
+
+
+def test_friction_kernel_phases_and_bounded_explicit_force():
+    """The stick-slip kernel: the damper's explicit force (damping x velocity) never exceeds the break-away torque
+    at any velocity; a joint breaks away only when its speed grows beyond coulomb / stick, slides against the
+    constant friction and returns to the damper when its velocity changes sign."""
+    from wbcbench.sim.friction_kernel import joint_friction_step
+
+    dof = np.array([1], dtype=np.int64)
+    fc, own, stick = np.array([2.0]), np.array([0.5]), 1e5
+    state, vprev, base = np.zeros(1, np.int64), np.zeros(1), np.array([0.25])
+    damping, applied = np.zeros(3), np.zeros(3)
+
+    def step(v):
+        joint_friction_step(np.array([0.0, v, 0.0]), dof, fc, own, stick, state, vprev, base, damping, applied)
+        return int(state[0])
+
+    for v in (1e-6, -3e-5, 0.3, -2.0, -1e-9):  # (never sliding: the speed does not grow in one direction)
+        assert step(v) == 0 and (damping[1] - own[0]) * abs(v) <= fc[0] * (1 + 1e-12) and applied[1] == 0.25
+    assert damping[1] == own[0] + stick
+    assert step(1e-4) == 0  # (the sign changed since the last step)
+    assert step(2e-4) == 1 and damping[1] == own[0] and applied[1] == 0.25 - 2.0  # breaks away
+    assert step(0.1) == 1 and step(-1e-3) == 0 and abs((damping[1] - own[0]) * 1e-3 - 2.0) < 1e-12
+
+
+def test_torque_loop_and_friction_in_one_call_equals_two_calls(robot):
+    """The physics step's one compiled call (torque loop and friction) gives the same state, bit for bit, as the
+    two calls."""
+    r = load_realism("talos-actuation", robot)
+    sims = [Simulator(robot, mode="torque", options=SimOptions(realism=r)) for _ in range(2)]
+    separate = sims[1]
+    separate.step = lambda n=1: [(separate._torque_loop.write(separate._data_views()[6], separate._act_idx),
+                                  separate._friction.write(separate.model, separate.data),
+                                  mujoco.mj_step(separate.model, separate.data)) for _ in range(n)]
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        tau = rng.normal(0.0, 5.0, robot.na)
+        for sim in sims:
+            sim.apply(Command(tau=tau))
+            sim.step(20)
+    np.testing.assert_array_equal(sims[0].data.qpos, sims[1].data.qpos)
+    np.testing.assert_array_equal(sims[0]._friction.state, sims[1]._friction.state)
+    assert np.abs(sims[0]._friction.state).sum() > 0  # some joints slid

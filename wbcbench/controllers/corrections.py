@@ -11,6 +11,10 @@ lists them, and solves for what comes out of the last one. A stage is a `Correct
 * `apply(ctx) -> References`: this tick's references corrected (`ctx.refs`: the references corrected by the
   stages before it; return the same object when nothing changes);
 * `status() -> dict`: counters for the run's summary (default none);
+* `configuration(ctx, q) -> q` and `command(ctx, cmd) -> Command` (optional, default: unchanged): after the
+  references, the two places a stage may act on the joints themselves: the configuration a torque-mode
+  controller solves at (from the measured one) and the command a position scheme sends (after its solve), e.g.
+  `hip_compensation`'s `target: hip_joint`;
 * `LOG_LABELS` and `log`: when not empty, the stage logs `log` (an array of that length, written in place) every
   tick, as the controller's channel `correction_<name>` (the stabilizer stage's channel is `stabilizer`);
 * `needs_integrated_model` (class attribute): the stage corrects towards what a position-controlled robot's
@@ -53,7 +57,7 @@ import numpy as np
 from ..catalogue import BUILTIN_CORRECTIONS  # the built-ins: name -> "module:Attr", imported when first used
 from ..config import Section
 from ..errors import ConfigError, UnknownNameError
-from ..types import Measurement, ModelFeedback, References
+from ..types import Command, Measurement, ModelFeedback, References
 
 if TYPE_CHECKING:
     from ..robots import Robot
@@ -129,6 +133,17 @@ class Correction(ABC):
     def status(self) -> dict:
         """Counters for the run's summary (default: none)."""
         return {}
+
+    def configuration(self, ctx: CorrectionContext, q: np.ndarray) -> np.ndarray:
+        """Torque mode: the configuration the controller solves at, from `q` (the measured one, after `apply` at
+        this tick); return `q` itself when unchanged, a new array otherwise (never change `q` in place: it is the
+        measurement's). Default: unchanged."""
+        return q
+
+    def command(self, ctx: CorrectionContext, cmd: "Command") -> "Command":
+        """Position schemes: the command sent to the robot, from the controller's `cmd` (after its solve at this
+        tick); return `cmd` itself when unchanged. Default: unchanged."""
+        return cmd
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,14 @@ its centre c_h, the real swing foot is the model's turned by delta_st about the 
 swing hip. The stage feeds the estimated deflections forward into the swing leg: the swing foot's reference (its
 position, orientation, velocity and acceleration) is turned by -delta_st about the stance hip and then by -delta_sw
 about the swing hip, both as the controller's model has them (`ctx.q_model`). The same stage serves the three
-controllers; the alternative for the position schemes, adding delta to the commanded hip joint, would need a
-stage after the controller's solve, which the correction protocol does not have.
+controllers.
+
+`target: hip_joint` instead acts on the hip joints themselves, so that the links, not only the swing foot, are
+where the controller puts them (the pelvis kept upright on the stance hip): a hip's link angle is the encoder's
+(motor side) plus delta, so a position scheme's command of that hip is lowered by delta (`Correction.command`,
+after its solve) and TSID in torque mode solves at the measured configuration with delta added to that hip
+(`Correction.configuration`: its model then has the links where they are, and its tasks move them). The same
+estimates, hips (`hips`) and phases (single support) as for the swing foot.
 
 Three estimates of each hip's deflection (`mode`):
 
@@ -53,6 +59,7 @@ __all__ = ["HipCompensationConfig", "HipCompensation"]
 
 MODES = ("fixed", "torque", "model")
 HIPS = ("stance", "swing")
+TARGETS = ("swing_foot", "hip_joint")
 
 
 @dataclass(frozen=True)
@@ -64,6 +71,8 @@ class HipCompensationConfig:
         offset: the fixed mode's deflection [rad] (> 0).
         cutoff: the torque and model modes' low-pass cutoff frequency [Hz] (> 0).
         hips: the hips fed forward, a subset of ("stance", "swing").
+        target: `swing_foot` (the swing foot's reference turned) or `hip_joint` (the hip joints' command or
+            model configuration shifted), module docstring.
         file, key: where `joints` was given (for the error naming an unknown joint when the stage is built).
     """
 
@@ -75,12 +84,13 @@ class HipCompensationConfig:
     hips: tuple[str, ...] = HIPS
     file: str | None = None
     key: str = "joints"
+    target: str = "swing_foot"
 
 
 class HipCompensation(Correction):
     """The correction stage `hip_compensation` (module docstring): `{type: hip_compensation, mode: model,
     stiffness: 973, joints: [leg_left_2_joint, leg_right_2_joint], hips: [stance, swing]}` (`offset` [rad] for
-    `fixed`, `cutoff` [Hz] for `torque`)."""
+    `fixed`, `cutoff` [Hz] for `torque`; `target: hip_joint` to shift the hip joints instead of the swing foot)."""
 
     type = "hip_compensation"
     LOG_LABELS = ("delta_left", "delta_right")
@@ -123,7 +133,7 @@ class HipCompensation(Correction):
         return HipCompensationConfig(mode, sec.float("stiffness", 973.0, positive=True), tuple(joints),
                                      sec.float("offset", 20.0 / 973.0, positive=True),
                                      sec.float("cutoff", 10.0, positive=True), tuple(hips), sec.file,
-                                     sec.key("joints"))
+                                     sec.key("joints"), sec.str("target", "swing_foot", choices=TARGETS))
 
     @classmethod
     def build(cls, config: HipCompensationConfig, robot: Robot, dt: float) -> "HipCompensation":
@@ -138,6 +148,7 @@ class HipCompensation(Correction):
         self._delta_f: np.ndarray | None = None  # torque and model modes: the hips' filtered estimates [rad]
         self.log[:] = 0.0
         self.max_delta = 0.0  # the largest deflection fed forward [rad]
+        self._shift: tuple[tuple[int, float], ...] = ()  # target hip_joint: (joint index in tau, delta) this tick
 
     def status(self) -> dict:
         """The largest deflection fed forward [rad]."""
@@ -197,11 +208,14 @@ class HipCompensation(Correction):
         refs = ctx.refs
         delta = self._estimate(ctx.meas, refs)
         swing = [s for s in Side if s not in refs.contacts and s.other in refs.contacts and s in refs.feet]
+        self._shift = ()
         if not swing or ctx.q_model is None:
             self.log[:] = delta if self.config.mode != "fixed" else 0.0
             return refs
         m, d = self._model, self._data_model
         pin.forwardKinematics(m, d, ctx.q_model)
+        if self.config.target == "hip_joint":
+            return self._joint_shift(refs, swing[0], delta)
         feet = dict(refs.feet)
         for s in swing:
             f = feet[s]
@@ -222,6 +236,38 @@ class HipCompensation(Correction):
                                     np.concatenate((R @ f.acceleration[:3], R @ f.acceleration[3:])))
         self.log[:] = delta
         return refs.corrected(refs.com, refs.targets, refs.wrench_targets, refs.contact_poses, feet=feet)
+
+    def _joint_shift(self, refs: References, s: Side, delta: np.ndarray) -> References:
+        """Target hip_joint: this tick's (joint, delta) of the hips fed forward, for `configuration` / `command`."""
+        if self.config.mode == "fixed":
+            delta = np.zeros(2)
+            delta[list(Side).index(s.other)] = self.config.offset * self._sag_sign(s, refs.feet[s].position)
+        hips = {"stance": s.other, "swing": s}
+        self._shift = tuple((self._tau_index[hips[h]], float(delta[list(Side).index(hips[h])]))
+                            for h in self.config.hips)
+        self.max_delta = max(self.max_delta, max(abs(d) for _, d in self._shift))
+        self.log[:] = delta
+        return refs
+
+    def configuration(self, ctx: CorrectionContext, q: np.ndarray) -> np.ndarray:
+        """Target hip_joint, torque mode: the measured configuration with each fed-forward hip's delta added (the
+        link's angle)."""
+        if not self._shift:
+            return q
+        q = q.copy()
+        for i, d in self._shift:
+            q[7 + i] += d
+        return q
+
+    def command(self, ctx: CorrectionContext, cmd):
+        """Target hip_joint, position schemes: each fed-forward hip's commanded angle lowered by its delta (the
+        motor side that puts the link where the controller wants it)."""
+        if not self._shift or cmd.q is None:
+            return cmd
+        q = cmd.q.copy()
+        for i, d in self._shift:
+            q[i] -= d
+        return type(cmd)(tau=cmd.tau, q=q, v=cmd.v)
 
     def _sag_sign(self, swing: Side, foot: np.ndarray) -> float:
         """+1 when a positive rotation about the stance hip's axis lowers the swing foot at `foot`, else -1 (the

@@ -131,7 +131,7 @@ class IKController(Controller):
             self.unmet_levels = -1
         self.v = v = res.x
         self.q_int = q = pin.integrate(self.model, self.q_int, v * self.dt)
-        return Command(None, q[7:].copy(), v[6:].copy())
+        return self.corrections.command(Command(None, q[7:].copy(), v[6:].copy()))
 
     def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
         """What the stabilizer may know of the model: the integrated configuration and the planned contacts."""

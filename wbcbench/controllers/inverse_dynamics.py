@@ -233,6 +233,8 @@ class InverseDynamicsController(Controller):
         q, v = self._state(meas)
         # the corrections on the model of the last solve (the stabilizer: its wrenches and contact placements)
         refs = self.corrections.apply(meas, refs, q, self._stabilizer_feedback)
+        if self.mode is ActuationMode.TORQUE:
+            q = self.corrections.configuration(q)
         t0 = perf_counter()
         F.update(q, v)
         self._t_pin = perf_counter() - t0
@@ -251,10 +253,12 @@ class InverseDynamicsController(Controller):
         self.q_int = pin.integrate(self.model, self.q_int, self.v_int * self.dt)
         ff = self._ff_over_kp
         if ff is None:
-            return Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
-        if self.mode is ActuationMode.SPD:
-            return Command(tau=np.where(ff > 0.0, sol.tau, 0.0), q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
-        return Command(q=self.q_int[7:] + ff * sol.tau, v=self.v_int[6:].copy())
+            cmd = Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
+        elif self.mode is ActuationMode.SPD:
+            cmd = Command(tau=np.where(ff > 0.0, sol.tau, 0.0), q=self.q_int[7:].copy(), v=self.v_int[6:].copy())
+        else:
+            cmd = Command(q=self.q_int[7:] + ff * sol.tau, v=self.v_int[6:].copy())
+        return self.corrections.command(cmd)
 
     def _set_references(self, refs: References) -> None:
         axes = None

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..robots import Robot
 from ..stabilizers.base import Stabilizer
-from ..types import Measurement, ModelFeedback, References
+from ..types import Command, Measurement, ModelFeedback, References
 from .corrections import Correction, CorrectionContext, StabilizerStage, correction_class
 from .taskset import TaskSetSpec
 
@@ -62,6 +62,9 @@ class PlanCorrections:
         self.names: tuple[str, ...] = tuple(names)
         self.types: tuple[str, ...] = tuple(types)
         self.context = CorrectionContext()
+        # the stages that act on the joints after the references (`Correction.configuration` / `command`)
+        self._configuring = tuple(s for s in stages if type(s).configuration is not Correction.configuration)
+        self._commanding = tuple(s for s in stages if type(s).command is not Correction.command)
         stab = next((s for s in stages if isinstance(s, StabilizerStage)), None)
         self.stabilizer: Stabilizer | None = None if stab is None else stab.stabilizer
         # what logs, in order: (channel, the object whose `log` is the tick's values); the stabilizer's channel is
@@ -122,6 +125,19 @@ class PlanCorrections:
         for stage in stages:
             ctx.refs = stage.apply(ctx)
         return ctx.refs
+
+    def configuration(self, q: np.ndarray) -> np.ndarray:
+        """Torque mode, after `apply`: the configuration to solve at, from the measured `q` (the stages'
+        `configuration` in order; `q` itself when none changes it)."""
+        for stage in self._configuring:
+            q = stage.configuration(self.context, q)
+        return q
+
+    def command(self, cmd: Command) -> Command:
+        """Position schemes, after the solve: the command to send (the stages' `command` in order)."""
+        for stage in self._commanding:
+            cmd = stage.command(self.context, cmd)
+        return cmd
 
     def status(self, out: dict) -> dict:
         """`out` with the stages' counters added (e.g. the lift-offs delayed and their summed delay [s], the

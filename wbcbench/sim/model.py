@@ -298,11 +298,13 @@ def _realism_joints(spec: mujoco.MjSpec, robot: Robot, realism) -> None:
         if j.type != hinge:
             raise ConfigError(f"joint '{name}' is not a hinge; the actuator model handles hinges only",
                               file=realism.file, key="actuators")
+        # the joint's whole break-away torque; with the default friction model the simulator moves it from MuJoCo's
+        # constraint into its stick-slip kernel (`Simulator`, wbcbench/sim/friction_kernel.py)
         j.frictionloss = j.frictionloss + realism.coulomb[i]
-        if realism.coulomb[i] > 0:  # near-hard stiction: MuJoCo's default soft friction lets a joint creep below
-            j.solref_friction = [2.0 * spec.option.timestep, 1.0]  # break-away (mrad/s); as stiff as is stable
-            d = realism.stiction_impedance  # (the preset's; 0.999 by default)
-            j.solimp_friction = [d, 1.0 - (1.0 - d) / 10.0, 0.001, 0.5, 2.0]
+        d = realism.stiction_impedance
+        if realism.coulomb[i] > 0 and d is not None:  # the constraint made near-hard: MuJoCo's default soft
+            j.solref_friction = [2.0 * spec.option.timestep, 1.0]  # friction lets a joint creep below break-away
+            j.solimp_friction = [d, 1.0 - (1.0 - d) / 10.0, 0.001, 0.5, 2.0]  # (mrad/s); as stiff as is stable
         damping = np.array(j.damping, dtype=float).reshape(-1)
         damping[0] += realism.viscous[i]
         j.damping = damping

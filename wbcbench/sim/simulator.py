@@ -14,6 +14,7 @@ from ..robots import Robot, Side
 from ..types import Command, Measurement
 from .bridge import StateBridge
 from .contact_kernel import ContactRecords, sole_wrenches
+from .friction_kernel import joint_friction_step, torque_loop_and_friction_step
 from .state_kernel import STATE_SENSORS, fall_numbers, read_state, read_tick, state_layout, state_size, tick_aux
 from .model import ActuationMode, SimOptions, build_mujoco_model, sole_geom_name
 from .push import Push
@@ -84,11 +85,54 @@ class TorqueLoop:
         self.k = torque_loop_step(self.buf, self.k, self.target, self.out, self.alpha, self._next_noise(), self.limit,
                                   dst, idx)
 
+    def write_with_friction(self, dst: np.ndarray, idx: np.ndarray, fr: "JointFriction", model, data) -> None:
+        """`write`, then `fr.write(model, data)`, in one compiled call."""
+        v = fr.views(model, data)
+        self.k = torque_loop_and_friction_step(self.buf, self.k, self.target, self.out, self.alpha, self._next_noise(),
+                                               self.limit, dst, idx, v[1], fr.dof, fr.coulomb, fr.damping, fr.stick,
+                                               fr.state, fr.vprev, fr.base, v[2], v[3])
+
     def next(self) -> np.ndarray:
         """The torque delivered during the next physics step."""
         tau = np.empty(len(self.limit))
         self.write(tau, self._all)
         return tau
+
+
+class JointFriction:
+    """The realism preset's Coulomb friction with stiction (`wbcbench/sim/friction_kernel.py`) on the joints whose
+    preset sets `coulomb` > 0: their break-away torque (MuJoCo's `frictionloss`, taken out of MuJoCo's constraint
+    solver: set to 0 in `model`), their own damping and the stick damping; each physics step the kernel writes the
+    joints' damping and friction force into the model and data."""
+
+    def __init__(self, model, dofs: np.ndarray, stick: float):
+        self.dof = np.ascontiguousarray(dofs, dtype=np.int64)
+        self.coulomb = np.array(model.dof_frictionloss[self.dof], dtype=np.float64)
+        self.damping = np.array(model.dof_damping[self.dof], dtype=np.float64)
+        self.stick = float(stick)
+        model.dof_frictionloss[self.dof] = 0.0
+        self.state = np.zeros(len(self.dof), dtype=np.int64)
+        self.vprev = np.zeros(len(self.dof))
+        self.base = np.zeros(len(self.dof))  # the command's own generalized force on these joints (position mode)
+        self._views = (None,)
+
+    def reset(self) -> None:
+        self.state[:] = 0
+        self.vprev[:] = 0.0
+        self.base[:] = 0.0
+
+    def views(self, model, data) -> tuple:
+        """(data, qvel, dof_damping, qfrc_applied): MuJoCo's arrays viewed once per data (each access makes a view)."""
+        v = self._views
+        if v[0] is not data:
+            v = self._views = (data, data.qvel, model.dof_damping, data.qfrc_applied)
+        return v
+
+    def write(self, model, data) -> None:
+        """The friction of the next physics step."""
+        v = self.views(model, data)
+        joint_friction_step(v[1], self.dof, self.coulomb, self.damping, self.stick, self.state, self.vprev, self.base,
+                            v[2], v[3])
 
 
 class Simulator:
@@ -119,6 +163,7 @@ class Simulator:
         self.effort = robot.effort_limit
         realism = self.options.realism
         self._torque_loop = None
+        self._friction = None
         if realism is not None:  # the hidden actuator chains (wbcbench/sim/realism)
             if self.mode is ActuationMode.SPD:
                 raise ConfigError("a realism preset needs torque or position mode (the SPD law assumes the "
@@ -126,6 +171,12 @@ class Simulator:
             self.effort = np.minimum(self.effort, np.asarray(realism.torque_limit, dtype=float))
             if self.mode is _TORQUE and realism.torque_loop is not None:
                 self._torque_loop = TorqueLoop(realism.torque_loop, float(self.model.opt.timestep), self.effort)
+            if realism.stiction_impedance is None:  # the stick-slip kernel (else MuJoCo's frictionloss constraint)
+                m = self.model
+                dofs = [int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)])
+                        for j, c in zip(robot.joint_names, realism.coulomb) if c > 0]
+                if dofs:
+                    self._friction = JointFriction(m, np.array(dofs), realism.stiction_damping)
         self._kd_over_kp = self.kd / self.kp  # position mode: the servo's velocity reference enters as kd/kp v
         self.set_pushes(pushes)
         self._sole_geoms = {s: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, sole_geom_name(s))
@@ -197,6 +248,8 @@ class Simulator:
         self._command = Command(tau=np.zeros(self.robot.na), q=q[7:].copy(), v=np.zeros(self.robot.na))
         if self._torque_loop is not None:
             self._torque_loop.reset()
+        if self._friction is not None:
+            self._friction.reset()
         mujoco.mj_forward(self.model, self.data)
 
     def true_q(self) -> np.ndarray:
@@ -257,13 +310,18 @@ class Simulator:
         if a < 0:
             raise UnknownNameError("joint", joint, self.robot.joint_names, key="faults.target")
         dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
+        fr = self._friction
+        k = np.flatnonzero(fr.dof == dof) if fr is not None else ()  # the friction kernel writes this joint's
+        damping_now = fr.damping[k[0]] if len(k) else m.dof_damping[dof]  # damping each step, from its own copy
         saved = self.__dict__.setdefault("_joint_saved", {})
         if joint not in saved:
             saved[joint] = (m.actuator_gainprm[a].copy(), m.actuator_biasprm[a].copy(), int(m.actuator_biastype[a]),
-                            float(m.dof_damping[dof]))
+                            float(damping_now))
         gain, bias, btype, damping = saved[joint]
         m.actuator_gainprm[a], m.actuator_biasprm[a], m.actuator_biastype[a] = gain, bias, btype
         m.dof_damping[dof] = damping
+        if len(k):
+            fr.damping[k[0]] = damping
         if kind is None:
             return
         m.actuator_gainprm[a] = 0.0
@@ -273,6 +331,8 @@ class Simulator:
             m.actuator_biasprm[a, 2] = -float(self.kd[self.robot.joint_names.index(joint)])
         elif kind == "locked":
             m.dof_damping[dof] = 1e5
+            if len(k):
+                fr.damping[k[0]] = 1e5
 
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
@@ -350,6 +410,8 @@ class Simulator:
             self.data.qfrc_applied[:] = 0.0
             if command.tau is not None:
                 self.data.qfrc_applied[self.bridge.mj_v_idx] = command.tau
+            if self._friction is not None:  # the friction kernel adds its force to the command's
+                self._friction.base[:] = self.data.qfrc_applied[self._friction.dof]
 
     def _spd_torque(self) -> np.ndarray:
         """Stable PD (Tan et al. 2011) with the next acceleration predicted from the full dynamics."""
@@ -374,8 +436,14 @@ class Simulator:
                         xf[bid, :3] += p.force
             if self.mode is ActuationMode.SPD:
                 self.data.ctrl[self._act] = self._spd_torque()
-            elif self._torque_loop is not None:
-                self._torque_loop.write(self._data_views()[6], self._act_idx)
+            elif self._torque_loop is not None and self._friction is not None:  # (one compiled call for both)
+                self._torque_loop.write_with_friction(self._data_views()[6], self._act_idx, self._friction,
+                                                      self.model, self.data)
+            else:
+                if self._torque_loop is not None:
+                    self._torque_loop.write(self._data_views()[6], self._act_idx)
+                if self._friction is not None:
+                    self._friction.write(self.model, self.data)
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
 

@@ -14,7 +14,8 @@ is removed):
       convention: dq             # dq (default) or dc, see `Motors`
       regeneration: false        # false (default): no drive returns energy; true: negative power counts
       joints: {"leg_*": {torque_constant: N m/A, gear_ratio: -, resistance: ohm}}
-    stiction_impedance: 0.999    # how hard the Coulomb friction holds below break-away (0.9 to 0.9999)
+    stiction_damping: 100000.0   # [N m s/rad] how hard the Coulomb friction holds below break-away (creep tau / it)
+    stiction_impedance: 0.999    # instead: the friction as MuJoCo's frictionloss constraint (0.9 to 0.9999; slower)
 
 How each mechanism is simulated, and why this way:
 
@@ -26,15 +27,19 @@ How each mechanism is simulated, and why this way:
   link's inertia on the sum. MuJoCo integrates the spring and damper with the rest of the dynamics (its
   implicit-in-velocity integrator treats the damping implicitly), so no explicitly integrated motor state at the
   control rate is needed and nothing is lagged by one step. Cost: one more degree of freedom per elastic joint.
-- Friction: MuJoCo's `frictionloss` (Coulomb, a constraint: the joint sticks below the break-away torque; its
-  solver parameters are made near-hard, as stiff as the physics step allows, so that a joint below break-away
-  creeps by micro-radians rather than milliradians per second) and `damping` (viscous) on the motor side.
-  `stiction_impedance` is the constraint's impedance d (MuJoCo `solimp` = [d, 1 - (1 - d) / 10, ...]): a joint
-  held at 80 % of its break-away torque creeps at about 0.03 (1 - d) rad/s (0.03 mrad/s at the default
-  0.999, 0.3 mrad/s at 0.99, 3 mrad/s at MuJoCo's default 0.9; measured on an elbow, no gravity). The harder,
-  the more Newton iterations MuJoCo's solver needs per step, above all when the commanded torques are noisy
-  (standing with talos-real: about 17 at 0.999, 7 at 0.99): the realism switch's largest cost
-  (docs/results/real-robot.md, "Cost").
+- Friction (`wbcbench/sim/friction_kernel.py`): Coulomb with stiction and viscous, on the motor side. Viscous:
+  MuJoCo's joint `damping`. Coulomb (break-away torque: the URDF's `frictionloss` plus `coulomb`): a switch per
+  joint decided before each physics step from its velocity (after Karnopp's stick-slip model). Sticking or
+  stopping, the friction is a saturated damper -min(`stiction_damping` |v|, break-away) sign(v), put into MuJoCo's
+  joint damping (implicit in velocity under implicitfast, so any value is stable): a torque below break-away
+  moves the joint at only torque / `stiction_damping` (16 urad/s for 1.6 N m at the default 1e5 N m s/rad), and a
+  stopping joint does not overshoot through zero. Breaking away, the joint slides against a constant
+  -break-away sign(v) (MuJoCo's `qfrc_applied`) until its velocity changes sign. The friction force the contact
+  solution sees is never above the break-away torque. Cost: one compiled call per physics step.
+  `stiction_impedance` selects the former formulation instead, MuJoCo's `frictionloss` constraint made near-hard
+  (impedance d, `solimp` = [d, 1 - (1 - d) / 10, ...]; a joint at 80 % of its break-away torque creeps about
+  0.03 (1 - d) rad/s): solved jointly with the contacts, but its Newton solver then needs 3-4 iterations per
+  physics step instead of 1, the switch's largest cost (docs/results/real-robot.md, "Cost").
 - Current/torque limit: the actuator's force range (the smaller of the profile's effort limit and the preset's).
 - Torque loop (torque mode): the commanded torque reaches the joint through a pure delay and a first-order lag
   of the given bandwidth; the loop servoes the joint torque sensor's reading, so the sensor's noise enters the
@@ -121,7 +126,8 @@ class Realism:
     torque_loop: TorqueLoop | None = None
     hip: HipFlexibility | None = None
     motors: Motors | None = None
-    stiction_impedance: float = 0.999
+    stiction_damping: float = 1.0e5
+    stiction_impedance: float | None = None  # set: the friction as MuJoCo's frictionloss constraint instead
     raw: dict = field(default_factory=dict, compare=False)
 
     def describe(self) -> dict:
@@ -134,7 +140,7 @@ class Realism:
                 "torque_loop": self.torque_loop.__dict__ if self.torque_loop else None,
                 "hip_flexibility": ({"joints": list(self.hip.joints), "stiffness": self.hip.stiffness,
                                      "damping": self.hip.damping} if self.hip else None),
-                "stiction_impedance": self.stiction_impedance,
+                "stiction_damping": self.stiction_damping, "stiction_impedance": self.stiction_impedance,
                 **({"motors": self.motors.describe(self.joints)} if self.motors is not None else {})}
 
 
@@ -191,10 +197,14 @@ def parse_realism(sec: Section, robot, name: str | None = None) -> Realism:
         hip = HipFlexibility(tuple(names), hs.float("stiffness", positive=True), hs.float("damping", 0.0, min=0.0))
         hs.finish()
     motors = _parse_motors(sec.section("motors"), joints) if sec.has("motors") else None
-    stiction = sec.float("stiction_impedance", 0.999, min=0.9, max=0.9999)
+    stiction = sec.float("stiction_damping", 1.0e5, positive=True)
+    impedance = sec.float("stiction_impedance", 0.999, min=0.9, max=0.9999) if sec.has("stiction_impedance") else None
+    if impedance is not None and sec.has("stiction_damping"):
+        raise sec.error("stiction_impedance", "give either stiction_damping (the default friction model) or "
+                        "stiction_impedance (MuJoCo's frictionloss constraint), not both")
     sec.finish()
     return Realism(name or Path(sec.file or "realism").stem, sec.file, tuple(joints), sensors,
-                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, motors, stiction,
+                   *(tuple(float(x) for x in vals[k]) for k in _ACT_KEYS), loop, hip, motors, stiction, impedance,
                    dict(sec.data))
 
 
@@ -236,10 +246,15 @@ def load_realism(preset: "str | Path | Realism", robot) -> Realism:
     return parse_realism(Section(resolved_preset(path), str(path)), robot, path.stem)
 
 
+#: Top-level keys that are one setting given in alternative ways (a preset gives at most one of each group).
+_ALTERNATIVES = (frozenset({"stiction_damping", "stiction_impedance"}),)
+
+
 def resolved_preset(path: Path, seen: tuple = ()) -> dict:
     """A preset file's mapping with its `extends:` resolved: the named preset (a shipped name, or a path relative to
     this file) is loaded first and this file's sections replace its sections; a section set to null removes it
-    (`hip_flexibility: null`: the same robot without the hip spring)."""
+    (`hip_flexibility: null`: the same robot without the hip spring). `stiction_impedance` replaces the base's
+    `stiction_damping` and the other way round (the two friction models)."""
     data = load_yaml(path)
     if not isinstance(data, dict):
         raise ConfigError("a realism preset must be a mapping of sections", file=str(path))
@@ -255,7 +270,12 @@ def resolved_preset(path: Path, seen: tuple = ()) -> dict:
                 raise UnknownNameError("realism preset", base, preset_names(), file=str(path), key="extends")
         if base_path.resolve() in seen:
             raise ConfigError(f"extends itself through {base}", file=str(path), key="extends")
-        data = {**resolved_preset(base_path, seen + (path.resolve(),)), **data}
+        inherited = resolved_preset(base_path, seen + (path.resolve(),))
+        for group in _ALTERNATIVES:  # one setting given two ways: this file's replaces the base's
+            if group & data.keys():
+                for k in group:
+                    inherited.pop(k, None)
+        data = {**inherited, **data}
     return {k: v for k, v in data.items() if v is not None}
 
 
@@ -288,9 +308,11 @@ class RealismProbe:
 
         from ..model import sole_geom_name
         from ...robots import Side
+        from .probe_kernel import realism_probe_values
 
         m = sim.model
         self._sim = sim
+        self._kernel = realism_probe_values
         names, adr = [], []
         for j in range(m.njnt):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or ""
@@ -311,12 +333,15 @@ class RealismProbe:
         d = self._sim.data
         if d is not self._data:  # MuJoCo's arrays viewed once per MjData (each attribute access makes a new view)
             self._data = d
-            self._qpos = d.qpos
-            self._rot = [d.geom_xmat[g].reshape(3, 3) for g in self._soles]
-            self._pos = [d.geom_xpos[g] for g in self._soles]
-        off = self._offset
-        feet = [p - R @ off for p, R in zip(self._pos, self._rot)]
-        return [self._qpos[self._adr], *feet] if len(self._adr) else feet
+            self._arrays = (d.qpos, d.geom_xpos, d.geom_xmat)
+            n = len(self._adr)
+            self._out = np.empty(n + 6)
+            self._soles_arr = np.array(self._soles, dtype=np.int64)
+            parts = [self._out[n:n + 3], self._out[n + 3:]]
+            self._parts = [self._out[:n], *parts] if n else parts
+        qpos, xpos, xmat = self._arrays
+        self._kernel(qpos, self._adr, xpos, xmat, self._soles_arr, self._offset, self._out)
+        return self._parts
 
     def metrics(self, log: dict) -> dict:
         from ...metrics.landing import landing_errors
