@@ -234,7 +234,7 @@ class InverseDynamicsController(Controller):
             held = self._feedback_active
             if held[0] != active:  # the contact set changes a few times a walk: its frozenset made then
                 held = self._feedback_active = (active, frozenset(active))
-            return ModelFeedback(self._model_q(), held[1], F.wrenches, poses)
+            return ModelFeedback.of_tick(self._model_q(), held[1], F.wrenches, poses)
         contact_refs = {s: cs.contact.reference for s, cs in F.contacts.items() if cs.contact.reference is not None}
         task_refs = {t.name: t.reference for t in self.tasks if isinstance(t, FrameTask)}
         return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses, contact_refs, task_refs)
