@@ -98,3 +98,14 @@ def test_ik_bounds_match_numpy(talos, seed):
     np.testing.assert_allclose(upper[6:], hi, rtol=1e-14)
     np.testing.assert_allclose(lower[6:], lo, rtol=1e-14)
     assert np.all(lower <= upper)
+
+
+def test_model_feedback_of_tick_is_the_constructors():
+    from wbcbench.side import Side
+    from wbcbench.types import ModelFeedback
+
+    q, active, wrenches, poses = np.arange(5.0), frozenset({Side.LEFT}), {Side.LEFT: np.ones(6)}, {Side.LEFT: 1}
+    assert ModelFeedback.of_tick(q, active, wrenches, poses) == ModelFeedback(q, active, wrenches, poses)
+    a, b = ModelFeedback.of_tick(q, active), ModelFeedback.of_tick(q, active)
+    assert a == ModelFeedback(q, active)
+    assert a.wrenches is not b.wrenches and a.contact_references is not b.contact_references  # dicts of their own

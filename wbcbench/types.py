@@ -287,3 +287,22 @@ class ModelFeedback:
     contact_poses: dict = field(default_factory=dict)
     contact_references: dict = field(default_factory=dict)
     task_references: dict = field(default_factory=dict)
+
+    @classmethod
+    def of_tick(cls, q: np.ndarray, active: frozenset, wrenches: dict | None = None,
+                contact_poses: dict | None = None) -> "ModelFeedback":
+        """A tick's feedback (the references are given at reset only), as the constructor without its per-field
+        machinery (a controller makes one every tick); the fields not given are new empty dicts."""
+        new = _new(cls)
+        q_, active_, wrenches_, poses_, contact_refs_, task_refs_ = _MODEL_FEEDBACK_SET
+        q_(new, q)
+        active_(new, active)
+        wrenches_(new, {} if wrenches is None else wrenches)
+        poses_(new, {} if contact_poses is None else contact_poses)
+        contact_refs_(new, {})
+        task_refs_(new, {})
+        return new
+
+
+_MODEL_FEEDBACK_SET = tuple(ModelFeedback.__dict__[n].__set__ for n in ("q", "active", "wrenches", "contact_poses",
+                                                                       "contact_references", "task_references"))

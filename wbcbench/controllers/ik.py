@@ -135,7 +135,7 @@ class IKController(Controller):
 
     def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
         """What the stabilizer may know of the model: the integrated configuration and the planned contacts."""
-        return ModelFeedback(self.q_int, refs.contacts)
+        return ModelFeedback.of_tick(self.q_int, refs.contacts)
 
     @property
     def last_timing_us(self) -> dict[str, float]:

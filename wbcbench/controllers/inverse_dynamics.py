@@ -33,6 +33,7 @@ from time import perf_counter
 import numpy as np
 import pinocchio as pin
 
+from ..jit import njit
 from ..qp.active_set_guess import ActiveSetGuessSolver
 from ..qp.registry import make_solver
 from ..robots import Robot, Side
@@ -68,6 +69,24 @@ def _servo_feedforward_gains(robot: Robot, which: str) -> np.ndarray | None:
                     left_out += 1
                 jid = m.parents[jid]
     return np.divide(on, kp, out=np.zeros(robot.na), where=kp > 0)
+
+
+@njit(exact=True)
+def _integrate_velocity(v, dv, dt, v_out, step_out):
+    """``v_out = v + dv dt`` and ``step_out = v_out dt``, operation by operation as numpy's (no fused
+    multiply-add)."""
+    for i in range(v.shape[0]):
+        vi = v[i] + dv[i] * dt
+        v_out[i] = vi
+        step_out[i] = vi * dt
+
+
+def _integrated_velocity(v: np.ndarray, dv: np.ndarray, dt: float, step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The position schemes' model velocity after a tick, ``v + dv dt`` (a new array), and the configuration's
+    step ``(v + dv dt) dt`` (into ``step``), in one compiled call (three numpy operations took 1.2 us)."""
+    out = np.empty(v.shape[0])
+    _integrate_velocity(v, dv, dt, out, step)
+    return out, step
 
 
 def _ankle_pitch_axes(robot: Robot) -> dict:
@@ -145,6 +164,7 @@ class InverseDynamicsController(Controller):
         self.qp_status = QP_OK
         self.tau = np.zeros(robot.na)
         self.dv = np.zeros(self.nv)
+        self._v_step = np.zeros(self.nv)  # the position schemes' configuration step of a tick (`step`)
         self.q_int = None
         self.v_int = None
         # the task set's correction stages (plan_corrections.py); those that need an integrated model only in
@@ -214,7 +234,7 @@ class InverseDynamicsController(Controller):
             held = self._feedback_active
             if held[0] != active:  # the contact set changes a few times a walk: its frozenset made then
                 held = self._feedback_active = (active, frozenset(active))
-            return ModelFeedback(self._model_q(), held[1], F.wrenches, poses)
+            return ModelFeedback.of_tick(self._model_q(), held[1], F.wrenches, poses)
         contact_refs = {s: cs.contact.reference for s, cs in F.contacts.items() if cs.contact.reference is not None}
         task_refs = {t.name: t.reference for t in self.tasks if isinstance(t, FrameTask)}
         return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses, contact_refs, task_refs)
@@ -249,8 +269,8 @@ class InverseDynamicsController(Controller):
         self.tau = sol.tau
         if self.mode is ActuationMode.TORQUE:
             return Command(tau=sol.tau)
-        self.v_int = self.v_int + self.dv * self.dt
-        self.q_int = pin.integrate(self.model, self.q_int, self.v_int * self.dt)
+        self.v_int, step = _integrated_velocity(self.v_int, self.dv, self.dt, self._v_step)
+        self.q_int = pin.integrate(self.model, self.q_int, step)
         ff = self._ff_over_kp
         if ff is None:
             cmd = Command(q=self.q_int[7:].copy(), v=self.v_int[6:].copy())

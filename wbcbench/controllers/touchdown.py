@@ -25,6 +25,8 @@ from .corrections import Correction, CorrectionContext, parse_settings
 
 __all__ = ["TouchdownSearchConfig", "TouchdownSearch"]
 
+_SIDES = tuple(Side)
+
 
 @dataclass(frozen=True)
 class TouchdownSearchConfig:
@@ -95,6 +97,16 @@ class TouchdownSearch(Correction):
         meas, refs = ctx.meas, ctx.refs
         c = self.config
         contacts = refs.contacts
+        if not self._search and contacts <= self._prev:
+            # the usual tick: no search under way and no foot newly in contact (none can start one)
+            if len(contacts) < 2:
+                for s in _SIDES:
+                    if s not in contacts:
+                        f = refs.feet.get(s)
+                        if f is not None:
+                            self._last[s] = f
+            self._prev = contacts
+            return refs
         feet = None
         for s in Side:
             if s not in contacts:

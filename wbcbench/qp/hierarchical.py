@@ -341,12 +341,12 @@ class HierarchicalSolver:
         # the usual case: the caller's (n,) float64 arrays (shape and type checked once per pair of arrays), no
         # NaN and ordered: one comparison
         if lower is self._checked_bounds[0] and upper is self._checked_bounds[1] and lower is not None:
-            if (lower <= upper).all():
+            if kernels.bounds_ordered(lower, upper):
                 return lower, upper
         elif (type(lower) is np.ndarray and type(upper) is np.ndarray and lower.dtype == upper.dtype == np.float64
               and lower.shape == upper.shape == (self.n,)):
             self._checked_bounds = (lower, upper)
-            if (lower <= upper).all():
+            if kernels.bounds_ordered(lower, upper):
                 return lower, upper
         bounds = []
         for value, fill, side in ((lower, -np.inf, "lower"), (upper, np.inf, "upper")):
@@ -496,8 +496,8 @@ class HierarchicalSolver:
         ftol = self.feasibility_tol
         sums = None
         # one call for the bound test and the residuals
-        high, low, sums_, level_sq = kernels.bounds_and_residuals(A, b, x, plan.starts, plan.block_level,
-                                                                  len(levels), lb, ub)
+        sums_, level_sq = plan.sums
+        high, low = kernels.bounds_and_residuals(A, b, x, plan.starts, plan.block_level, lb, ub, sums_, level_sq)
         if not (high <= ftol and low <= ftol):  # a bound binds (or x is not finite)
             if not np.isfinite(x).all():
                 for level in levels:  # invalid rows handed over unchecked: say which
@@ -784,6 +784,11 @@ class _ClosedFormPlan:
     b_P: FloatArray | None = None
     A_k: FloatArray | None = None
     c_k: FloatArray | None = None
+    #: the per-task and per-level sums of squared residuals (`kernels.bounds_and_residuals`' outputs)
+    sums: tuple[FloatArray, FloatArray] = ()
+
+    def __post_init__(self) -> None:
+        self.sums = (np.zeros(self.starts.shape[0]), np.zeros(len(self.counts)))
 
     @classmethod
     def of(cls, levels: tuple[Level, ...], n: int) -> _ClosedFormPlan:

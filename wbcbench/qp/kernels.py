@@ -409,22 +409,34 @@ def selection_lsq(P, b_P, A, c, rank_tol):
 
 
 @njit
-def bounds_and_residuals(A, b, x, starts, block_level, n_levels, lb, ub):
-    """``(max(x - ub), max(lb - x), sums, level_sums)``: the bound violations of x (NaN when x is not finite);
-    for each block of rows starting at ``starts[i]``, ``sum (A x - b)^2`` over its rows (numpy's
-    ``add.reduceat((A x - b)**2, starts)``); and those sums added up per level, ``block_level[i]`` being the level
-    of block i."""
+def bounds_ordered(lb, ub):
+    """numpy's ``(lb <= ub).all()`` in one compiled call (a quarter of its time on 50 variables): False when a bound
+    is NaN or a lower bound lies above its upper one."""
+    for i in range(lb.shape[0]):
+        if not lb[i] <= ub[i]:
+            return False
+    return True
+
+
+@njit
+def bounds_and_residuals(A, b, x, starts, block_level, lb, ub, sums, level_sums):
+    """``(max(x - ub), max(lb - x))``: the bound violations of x (NaN when x is not finite; then ``sums`` and
+    ``level_sums`` are zero); into ``sums``, for each block of rows starting at ``starts[i]``, ``sum (A x - b)^2``
+    over its rows (numpy's ``add.reduceat((A x - b)**2, starts)``); into ``level_sums`` those sums added up per
+    level, ``block_level[i]`` being the level of block i (the outputs passed in: new arrays cost more to hand back
+    than the arithmetic)."""
     n = x.shape[0]
     high = -np.inf
     low = -np.inf
+    sums[:] = 0.0
+    level_sums[:] = 0.0
     for i in range(n):
         xi = x[i]
         if not np.isfinite(xi):
-            return np.nan, np.nan, np.zeros(starts.shape[0]), np.zeros(n_levels)
+            return np.nan, np.nan
         high = max(high, xi - ub[i])
         low = max(low, lb[i] - xi)
     m = A.shape[0]
-    sums = np.zeros(starts.shape[0])
     block = -1
     for r in range(m):
         while block + 1 < starts.shape[0] and starts[block + 1] <= r:
@@ -433,7 +445,6 @@ def bounds_and_residuals(A, b, x, starts, block_level, n_levels, lb, ub):
         for i in range(n):
             s += A[r, i] * x[i]
         sums[block] += s * s
-    level_sums = np.zeros(n_levels)
     for i in range(starts.shape[0]):
         level_sums[block_level[i]] += sums[i]
-    return high, low, sums, level_sums
+    return high, low
