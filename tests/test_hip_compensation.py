@@ -38,6 +38,28 @@ def _apply(stage, refs, q, tau=None):
     return stage.apply(CorrectionContext.of(refs, _meas(q, tau), q))
 
 
+def _hip_only_ik(tmp_path, compensation: str):
+    """A realism preset with the hip flexibility alone (talos-actuation without drives and torque loop) and an IK
+    task set with base feedback, the given hip compensation and the DCM stabilizer: (preset, task set) paths."""
+    preset = tmp_path / "hip-only.yaml"
+    preset.write_text("extends: talos-actuation\nactuators: null\ntorque_loop: null\n")
+    ts = tmp_path / "ik-hip.yaml"
+    ts.write_text(f"""solver: daqp
+contacts: {{kp: 1000.0}}
+swing_foot: {{weight: 1.0, kp: 1000.0}}
+tasks:
+  - {{name: com_z, type: com, mask: [0, 0, 1], weight: 1.0, kp: 100.0, level: 1}}
+  - {{name: com_xy, type: com, mask: [1, 1, 0], weight: 1.0, kp: 100.0, level: 2}}
+  - {{name: waist, type: frame, frame: base, mask: [0, 0, 0, 1, 1, 1], weight: 1.0, kp: 300.0, level: 3}}
+  - {{name: posture, type: posture, weight: 1.0, kp: 100.0, level: 4}}
+corrections:
+  - {{type: base_feedback, time_constant: 0.3, liftoff_blend: 0.3}}
+  - {compensation}
+  - {{type: stabilizer, law: dcm, kp_adm: 15.0, kp_dcm: 8.0, ki_dcm: 1.0, kz_dcm: 1.0}}
+""")
+    return preset, ts
+
+
 def test_fixed_mode_turns_the_swing_foot_about_the_stance_hip_in_single_support_only(talos):
     stage = _stage(talos, mode="fixed")
     q = talos.q0
@@ -93,22 +115,7 @@ def test_model_estimate_matches_the_hidden_hip_deflection(tmp_path):
     0.5 s of single support (measured differences 0.025 and 0.021 rad)."""
     from wbcbench.runner import run
 
-    preset = tmp_path / "hip-only.yaml"
-    preset.write_text("extends: talos-actuation\nactuators: null\ntorque_loop: null\n")
-    ts = tmp_path / "ik-hip-model.yaml"
-    ts.write_text("""solver: daqp
-contacts: {kp: 1000.0}
-swing_foot: {weight: 1.0, kp: 1000.0}
-tasks:
-  - {name: com_z, type: com, mask: [0, 0, 1], weight: 1.0, kp: 100.0, level: 1}
-  - {name: com_xy, type: com, mask: [1, 1, 0], weight: 1.0, kp: 100.0, level: 2}
-  - {name: waist, type: frame, frame: base, mask: [0, 0, 0, 1, 1, 1], weight: 1.0, kp: 300.0, level: 3}
-  - {name: posture, type: posture, weight: 1.0, kp: 100.0, level: 4}
-corrections:
-  - {type: base_feedback, time_constant: 0.3, liftoff_blend: 0.3}
-  - {type: hip_compensation, mode: model}
-  - {type: stabilizer, law: dcm, kp_adm: 15.0, kp_dcm: 8.0, ki_dcm: 1.0, kz_dcm: 1.0}
-""")
+    preset, ts = _hip_only_ik(tmp_path, "{type: hip_compensation, mode: model}")
     res = run("walk-20cm-quick", "ik", taskset=ts, realism=str(preset), duration=3.0, out=tmp_path / "run")
     log = res.log
     t = log["t"]
@@ -165,22 +172,7 @@ def test_hip_joint_target_keeps_the_pelvis_upright_and_walks(tmp_path):
     uncompensated fall)."""
     from wbcbench.runner import run
 
-    preset = tmp_path / "hip-only.yaml"
-    preset.write_text("extends: talos-actuation\nactuators: null\ntorque_loop: null\n")
-    ts = tmp_path / "ik-hip-joint.yaml"
-    ts.write_text("""solver: daqp
-contacts: {kp: 1000.0}
-swing_foot: {weight: 1.0, kp: 1000.0}
-tasks:
-  - {name: com_z, type: com, mask: [0, 0, 1], weight: 1.0, kp: 100.0, level: 1}
-  - {name: com_xy, type: com, mask: [1, 1, 0], weight: 1.0, kp: 100.0, level: 2}
-  - {name: waist, type: frame, frame: base, mask: [0, 0, 0, 1, 1, 1], weight: 1.0, kp: 300.0, level: 3}
-  - {name: posture, type: posture, weight: 1.0, kp: 100.0, level: 4}
-corrections:
-  - {type: base_feedback, time_constant: 0.3, liftoff_blend: 0.3}
-  - {type: hip_compensation, mode: model, target: hip_joint}
-  - {type: stabilizer, law: dcm, kp_adm: 15.0, kp_dcm: 8.0, ki_dcm: 1.0, kz_dcm: 1.0}
-""")
+    preset, ts = _hip_only_ik(tmp_path, "{type: hip_compensation, mode: model, target: hip_joint}")
     res = run("walk-20cm-quick", "ik", taskset=ts, realism=str(preset), duration=4.5, out=tmp_path / "run")
     log = res.log
     assert not res.summary["fell"]
