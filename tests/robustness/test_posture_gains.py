@@ -11,7 +11,8 @@ import pytest
 from wbcbench.errors import ConfigError, WbcError
 from wbcbench.recorder import channel, read_log
 from wbcbench.robots import load_robot
-from wbcbench.robustness.posture import FAIL, SUCCESS, PostureStudy, _ablated_presets, scaled_gains, validate
+from wbcbench.robustness.posture import (FAIL, RANGES, SUCCESS, PostureStudy, _ablated_presets, _range_presets,
+                                        scaled_gains, validate)
 from wbcbench.runner import run
 from wbcbench.scenarios import load_scenario, make_scenario
 
@@ -75,6 +76,28 @@ def test_study_variants_and_gain_path(tmp_path):
     assert load_realism(presets["without sensors"], robot).sensors == "ideal"
     assert load_realism(presets["hip_flexibility only"], robot).torque_loop is None
     assert scaled_gains(0.0) == pytest.approx(SUCCESS) and scaled_gains(1.0) == pytest.approx(FAIL)
+
+
+def test_unpublished_range_presets_change_one_value(tmp_path):
+    """The range presets: each unpublished value of the preset (`RANGES`) at each end of its range, the one value
+    changed and every other one the preset's."""
+    from wbcbench.sim.realism import load_realism
+
+    robot = load_robot("talos")
+    rows = _range_presets(PostureStudy(realism="talos-actuation"), tmp_path)
+    assert {p for p, _, _ in rows} == set(RANGES) and len(rows) == 2 * len(RANGES)
+    base = load_realism("talos-actuation", robot)
+    legs = [i for i, n in enumerate(robot.joint_names) if n.startswith("leg_")]
+    arm = robot.joint_names.index("arm_left_1_joint")
+    by = {(p, v): load_realism(path, robot) for p, v, path in rows}
+    stiff = by[("leg and torso drive stiffness [N m/rad]", 1e5)]
+    assert all(stiff.stiffness[i] == 1e5 for i in legs) and stiff.stiffness[arm] == base.stiffness[arm]
+    assert np.array_equal(stiff.coulomb, base.coulomb)
+    delay = by[("torque loop delay, s", 0.005)]
+    assert delay.torque_loop.delay == 0.005 and delay.torque_loop.bandwidth == base.torque_loop.bandwidth
+    assert np.array_equal(delay.stiffness, base.stiffness)
+    assert by[("hip spring damping [N m s/rad]", 50.0)].hip.damping == 50.0
+    assert by[("arm Coulomb friction [N m]", 2.0)].coulomb[arm] == 2.0
 
 
 def test_com_task_errors_reach_the_run():

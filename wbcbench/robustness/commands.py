@@ -53,6 +53,9 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--no-ablation", action="store_true", help="skip the mechanism table")
     g.add_argument("--no-com-task", action="store_true",
                    help="skip the Success gains with a CoM task under model and calibration errors")
+    g.add_argument("--ranges", action="store_true",
+                   help="also the preset's unpublished values (drive stiffness and friction, torque loop, hip "
+                        "damping) one at a time at the ends of their ranges, both gain sets")
     g.add_argument("--duration", "-d", type=float, default=None, help="[s] override the scenario's (8 s)")
     g.add_argument("--jobs", "-j", type=int, default=None, help="parallel processes (default: the cores)")
     g.add_argument("--out", "-o", required=True, help="output directory (report, task sets, raw runs)")
@@ -73,6 +76,7 @@ def _posture_gains(args: argparse.Namespace) -> int:
         raise ConfigError(f"must be >= 1, got {args.jobs}", key="--jobs")
     study = PostureStudy(realism=args.realism, robot=args.robot, duration=args.duration,
                          iterations=args.iterations, ablation=not args.no_ablation, com_task=not args.no_com_task,
+                         ranges=args.ranges,
                          parts=tuple(p.strip() for p in args.parts.split(",") if p.strip()))
     validate(study)
     result = run_study(study, args.out, jobs=args.jobs)

@@ -18,7 +18,11 @@ both gain sets on the ideal robot and on a realistic one (`--realism`, `wbcbench
   (`wbcbench.sim.model_error`) and with the encoders' zeros wrong (the sensor profile's `encoders.offset`);
 - the largest safe gain per body part (legs, torso, arms, head): the others at their Success values, a bisection
   in log scale between the Success gain (must hold) and the Fail gain, `iterations` steps (resolution
-  (Fail / Success) ** (1 / 2 ** iterations)), and the joint at which the first failing gain diverged.
+  (Fail / Success) ** (1 / 2 ** iterations)), and the joint at which the first failing gain diverged;
+- the unpublished values (`ranges`): the preset's values that no TALOS publication gives (drive stiffness and
+  friction, the torque loop's bandwidth, delay and sensor noise, the hip spring's damping; `RANGES`, the ranges its
+  file names) one at a time at the ends of their ranges, the others at the preset's: whether the Success gains
+  still hold and the Fail gains still fail, i.e. whether the conclusion depends on a value nobody measured.
 
 Every trial is a normal run directory under OUT/runs/; the task sets it wrote are under OUT/tasksets/ and the
 derived presets under OUT/presets/. `write_report` gives OUT/posture-gains.md and .json.
@@ -50,11 +54,27 @@ COM_ERRORS = {"none": (None, 0.0),
               "encoder zeros 0.02 rad": (None, 0.02)}
 
 
+#: the preset's unpublished values and the ends of the ranges its file gives (talos-real.yaml): label -> (the
+#: sections and keys to set, the values); an actuator key applies to the listed joint patterns
+RANGES: dict[str, tuple[tuple, tuple[float, ...]]] = {
+    "leg and torso drive stiffness [N m/rad]": ((("actuators", ("leg_*", "torso_*"), "stiffness"),), (1e4, 1e5)),
+    "arm drive stiffness [N m/rad]": ((("actuators", ("arm_*",), "stiffness"),), (3e3, 3e4)),
+    "leg and torso Coulomb friction [N m]": ((("actuators", ("leg_*", "torso_*"), "coulomb"),), (0.0, 5.0)),
+    "leg and torso viscous friction [N m s/rad]": ((("actuators", ("leg_*", "torso_*"), "viscous"),), (0.0, 5.0)),
+    "arm Coulomb friction [N m]": ((("actuators", ("arm_*",), "coulomb"),), (0.0, 2.0)),
+    "torque loop bandwidth [Hz]": ((("torque_loop", None, "bandwidth"),), (20.0, 200.0)),
+    "torque loop delay, s": ((("torque_loop", None, "delay"),), (0.0, 0.005)),
+    "torque sensor noise [N m]": ((("torque_loop", None, "sensor_noise"),), (0.0, 1.0)),
+    "hip spring damping [N m s/rad]": ((("hip_flexibility", None, "damping"),), (0.0, 50.0)),
+}
+
+
 @dataclass(frozen=True)
 class PostureStudy:
     """What to run. `realism`: the realistic robot (a preset name or file); `iterations`: bisection steps per part
     (0: no bisection); `ablation`: the mechanism table; `com_task`: the Success gains with a CoM task under
-    identification and calibration errors (`COM_ERRORS`)."""
+    identification and calibration errors (`COM_ERRORS`); `ranges`: the unpublished values at the ends of their
+    ranges (`RANGES`)."""
 
     realism: str = "talos-actuation"
     robot: str = "talos"
@@ -65,6 +85,7 @@ class PostureStudy:
     ablation: bool = True
     parts: tuple[str, ...] = tuple(PARTS)
     com_task: bool = True
+    ranges: bool = False
 
 
 @dataclass
@@ -173,6 +194,51 @@ def _ablated_presets(study: PostureStudy, out: Path) -> dict[str, str]:
         path.write_text(yaml.safe_dump({"extends": str(base), **body}, sort_keys=False))
         presets[kind] = str(path)
     return presets
+
+
+def _range_presets(study: PostureStudy, out: Path) -> list[tuple[str, float, str]]:
+    """(parameter, value, preset file) for each end of each unpublished range (`RANGES`) the study's preset has:
+    files under OUT/presets/ that extend it with the one value changed."""
+    import yaml
+
+    from ..sim.realism import PRESET_DIR, preset_names, resolved_preset
+
+    name = str(study.realism)
+    base = (PRESET_DIR / f"{name}.yaml") if name in preset_names() else Path(name).resolve()
+    full = resolved_preset(base)
+    (out / "presets").mkdir(parents=True, exist_ok=True)
+    rows = []
+    for k, (label, (targets, values)) in enumerate(RANGES.items()):
+        if any(not isinstance(full.get(section), dict) for section, _, _ in targets):
+            continue  # the preset has no such mechanism
+        for value in values:
+            body = {}
+            for section, patterns, key in targets:
+                sec = dict(body.get(section) or full[section])
+                if patterns is None:
+                    sec[key] = value
+                else:
+                    for pat in patterns:
+                        if isinstance(sec.get(pat), dict):
+                            sec[pat] = {**sec[pat], key: value}
+                body[section] = sec
+            path = out / "presets" / f"range-{k}-{value:g}.yaml"
+            path.write_text(yaml.safe_dump({"extends": str(base), **body}, sort_keys=False))
+            rows.append((label, value, str(path)))
+    return rows
+
+
+def _nominal(study: PostureStudy, label: str):
+    """The study preset's value of an unpublished parameter (`RANGES`), None if it has none."""
+    from ..sim.realism import PRESET_DIR, preset_names, resolved_preset
+
+    name = str(study.realism)
+    full = resolved_preset((PRESET_DIR / f"{name}.yaml") if name in preset_names() else Path(name).resolve())
+    section, patterns, key = RANGES[label][0][0]
+    sec = full.get(section)
+    if not isinstance(sec, dict):
+        return None
+    return sec.get(key) if patterns is None else (sec.get(patterns[0]) or {}).get(key)
 
 
 def _trial(study: PostureStudy, label: str, gains: dict | None, realism: str | None, out: Path,
@@ -307,10 +373,13 @@ def run_study(study: PostureStudy, out_dir: str | Path, jobs: int | None = None)
              for g, gains in (("success", SUCCESS), ("fail", FAIL))]
     presets = _ablated_presets(study, out) if study.ablation else {}
     ablation = [(f"fail-{k.replace(' ', '-')}", FAIL, p) for k, p in presets.items()]
+    range_rows = _range_presets(study, out) if study.ranges else []
+    ranges = [(f"{g}-range-{Path(path).stem}", gains, path) for _, _, path in range_rows
+              for g, gains in (("success", SUCCESS), ("fail", FAIL))]
     com = ([(f"com-{r_label}-error{k}", None, realism, out, e) for r_label, realism in (("ideal", None),
                                                                                        (label, study.realism))
             for k, e in enumerate(COM_ERRORS)] if study.com_task else [])
-    singles = [(study, *row, out) for row in table + ablation] + [(study, *row) for row in com]
+    singles = [(study, *row, out) for row in table + ablation + ranges] + [(study, *row) for row in com]
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         trials = list(pool.map(_job, singles))
         together = None
@@ -323,8 +392,12 @@ def run_study(study: PostureStudy, out_dir: str | Path, jobs: int | None = None)
     result = {"study": asdict(study), "realism_label": label,
               "table": [asdict(t) for t in trials[:len(table)]],
               "ablation": [{"variant": k, **asdict(t)} for k, t in zip(presets, trials[len(table):])],
+              "ranges": [{"parameter": p, "value": v, "nominal": _nominal(study, p),
+                          "success": asdict(trials[len(table) + len(ablation) + 2 * i]),
+                          "fail": asdict(trials[len(table) + len(ablation) + 2 * i + 1])}
+                         for i, (p, v, _) in enumerate(range_rows)],
               "com_task": [{"robot": label if row[2] else "ideal", "error": row[4], **asdict(t)}
-                           for row, t in zip(com, trials[len(table) + len(ablation):])],
+                           for row, t in zip(com, trials[len(table) + len(ablation) + len(ranges):])],
               "limits": [{**asdict(p), "trials": [asdict(t) for t in p.trials]} for p in limits],
               "together": together}
     result = _finite(result)
@@ -369,6 +442,16 @@ def write_report(result: dict, out_dir: str | Path) -> Path:
                   "part's drives made rigid", "",
                   "| variant | outcome | max posture error [rad] | chatter |", "|---|---|---|---|"]
         lines += [f"| {a['variant']} | {_fmt_trial(a)} |" for a in result["ablation"]]
+    if result.get("ranges"):
+        lines += ["", f"## The unpublished values at the ends of their ranges, on {label}", "",
+                  "One value at a time (the preset's file gives each range; the others at the preset's values): "
+                  "does the conclusion (Success holds, Fail fails) depend on a value no TALOS publication gives?", "",
+                  "| parameter | preset's value | value | Success gains | Fail gains |", "|---|---|---|---|---|"]
+        for r in result["ranges"]:
+            lines.append(f"| {r['parameter']} | {r['nominal']:g} | {r['value']:g} | {r['success']['reason']} | "
+                         f"{r['fail']['reason']} |" if r["nominal"] is not None else
+                         f"| {r['parameter']} | - | {r['value']:g} | {r['success']['reason']} | "
+                         f"{r['fail']['reason']} |")
     if result.get("com_task"):
         lines += ["", "## The Success gains with a CoM task, under identification and calibration errors", "",
                   "`tsid-torque-posture-com.yaml` (the Success posture task and a CoM task of weight 1000, Kp 20). On "
