@@ -374,7 +374,7 @@ def run_study(study: PostureStudy, out_dir: str | Path, jobs: int | None = None)
     presets = _ablated_presets(study, out) if study.ablation else {}
     ablation = [(f"fail-{k.replace(' ', '-')}", FAIL, p) for k, p in presets.items()]
     range_rows = _range_presets(study, out) if study.ranges else []
-    ranges = [(f"{g}-range-{Path(path).stem}", gains, path) for _, _, path in range_rows
+    ranges = [(f"{g}-{Path(path).stem}", gains, path) for _, _, path in range_rows
               for g, gains in (("success", SUCCESS), ("fail", FAIL))]
     com = ([(f"com-{r_label}-error{k}", None, realism, out, e) for r_label, realism in (("ideal", None),
                                                                                        (label, study.realism))
