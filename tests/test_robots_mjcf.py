@@ -217,12 +217,18 @@ def one_line_exit_2(capsys):
     return check
 
 
+def _with_loader(profile, tmp_path, loader):
+    """A copy of the generated profile (tmp_path/bad.yaml) whose `loader` is `loader`."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(profile.read_text().replace(f"loader: {yaml.safe_load(profile.read_text())['loader']}",
+                                               f"loader: {loader}"))
+    return bad
+
+
 def test_missing_mjcf_file(tmp_path, profile, one_line_exit_2):
     one_line_exit_2(["robot", "init", str(tmp_path / "nope.xml"), "--out", str(tmp_path / "x.yaml")],
                     "nope.xml", "does not exist", "SOURCE")
-    bad = tmp_path / "bad.yaml"
-    bad.write_text(profile.read_text().replace(f"loader: {yaml.safe_load(profile.read_text())['loader']}",
-                                               "loader: gone.xml"))
+    bad = _with_loader(profile, tmp_path, "gone.xml")
     one_line_exit_2(["run", "stand", "-c", "tsid-torque", "--robot", str(bad), "-d", "0.1"],
                     "bad.yaml", "'loader'", "gone.xml", "does not exist")
 
@@ -232,9 +238,7 @@ def test_an_mjcf_without_a_free_joint(tmp_path, profile, one_line_exit_2):
     arm.write_text('<mujoco><worldbody><body name="b"><joint name="j" type="hinge"/><geom size="0.1"/></body>'
                    '</worldbody></mujoco>')
     one_line_exit_2(["robot", "init", str(arm), "--out", str(tmp_path / "x.yaml")], "arm.xml", "no free joint")
-    bad = tmp_path / "bad.yaml"
-    bad.write_text(profile.read_text().replace(f"loader: {yaml.safe_load(profile.read_text())['loader']}",
-                                               f"loader: {arm}"))
+    bad = _with_loader(profile, tmp_path, arm)
     one_line_exit_2(["run", "stand", "-c", "tsid-torque", "--robot", str(bad), "-d", "0.1"],
                     "bad.yaml", "'loader'", "arm.xml", "no free joint")
 
@@ -253,9 +257,7 @@ def test_a_body_whose_mass_mujoco_infers_from_its_mesh(g1_mjcf, profile, tmp_pat
     text = re.sub(r'(<body name="left_knee_link"[^>]*>\s*)<inertial[^>]*/>', r"\1", g1_mjcf.read_text())
     assert "left_knee_link" in text and text != g1_mjcf.read_text()
     (tmp_path / "massless_knee.xml").write_text(text)
-    bad = tmp_path / "bad.yaml"
-    bad.write_text(profile.read_text().replace(f"loader: {yaml.safe_load(profile.read_text())['loader']}",
-                                               "loader: massless_knee.xml"))
+    bad = _with_loader(profile, tmp_path, "massless_knee.xml")
     one_line_exit_2(["run", "stand", "-c", "tsid-torque", "--robot", str(bad), "-d", "0.1"],
                     "bad.yaml", "'loader'", "massless_knee.xml", "<inertial>")
 
