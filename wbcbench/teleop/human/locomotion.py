@@ -34,6 +34,7 @@ import numpy as np
 
 from ...errors import ConfigError
 from .. import _rotations as rot
+from ..io.conventions import up_vector
 from ..io.recording import MocapRecording
 
 __all__ = ["LOCOMOTION_MODES", "OperatorMotion", "OperatorStep", "StepDetection", "detect_steps", "fix_feet"]
@@ -94,7 +95,7 @@ def fix_feet(recording: MocapRecording, names: dict, up: str, mode: str = "auto"
     need = ("Pelvis", "LeftUpperLeg", "RightUpperLeg")
     if any(names.get(k) not in recording.segments for k in need) or len(up) != 2:
         return recording, OperatorMotion(float("nan"), float("nan"), False, mode)
-    u = np.eye(3)["xyz".index(up[1])] * (1.0 if up[0] == "+" else -1.0)
+    u = up_vector(up)
     pelvis = _hold_nan(recording.position(names["Pelvis"]))
     left = _hold_nan(recording.position(names["LeftUpperLeg"]) - recording.position(names["RightUpperLeg"]))
     c = pelvis
@@ -192,7 +193,7 @@ def detect_steps(recording: MocapRecording, names: dict, up: str,
     if missing or len(up) != 2:
         raise ConfigError(f"locomotion 'stepping' needs the foot segments {missing or ['LeftFoot', 'RightFoot']} "
                           "and a known up axis", file=getattr(recording, "source", None) or None, key="locomotion")
-    u = np.eye(3)["xyz".index(up[1])] * (1.0 if up[0] == "+" else -1.0)
+    u = up_vector(up)
     t = np.asarray(recording.times, dtype=float)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     w = max(1, int(round(cfg.smoothing / dt)))

@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 __all__ = ["HUMAN_STATURE", "Conventions", "detect_conventions", "naming_family",
-           "rotation_orders", "stature_estimates"]
+           "rotation_orders", "stature_estimates", "up_vector"]
 
 #: Length units a file may use: name -> metres per unit ("cmu-asf": the CMU database's ASF unit, 1/0.45 inch,
 #: kept by BVH conversions of it).
@@ -155,6 +155,11 @@ def rotation_orders(joint_names: Sequence[str]) -> dict[str, int]:
 
 
 # ------------------------------------------------------------------------------------------------- geometry
+def up_vector(up: str) -> np.ndarray:
+    """The unit vector (3,) of a signed axis name ("+y", "-z", ...), e.g. a recording's up axis."""
+    return np.eye(3)["xyz".index(up[-1])] * (1.0 if up[0] == "+" else -1.0)
+
+
 def _axis_name(v: np.ndarray) -> str:
     k = int(np.argmax(np.abs(v)))
     return ("+" if v[k] >= 0 else "-") + "xyz"[k]
@@ -239,7 +244,7 @@ def detect_conventions(recording, *, skeleton=None, mapping=None, length_unit: f
         v = np.nanmean((head - foot) / np.linalg.norm(head - foot, axis=1, keepdims=True), axis=0)
         v = v + np.nanmean((pelvis - foot) / np.linalg.norm(pelvis - foot, axis=1, keepdims=True), axis=0)
         up, up_method = _axis_name(v), "feet to head"
-        up_vec = np.eye(3)["xyz".index(up[-1])] * (1.0 if up[0] == "+" else -1.0)
+        up_vec = up_vector(up)
     else:
         finite = np.isfinite(P).all(axis=2)
         ext = np.array([[np.ptp(P[i, finite[i], a]) if finite[i].any() else 0.0 for a in range(3)]
