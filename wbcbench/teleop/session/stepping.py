@@ -91,11 +91,6 @@ class StepPlan:
     look_ahead: float
 
 
-def _rot2(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
-
-
 def _wrap(a: float) -> float:
     return float((a + np.pi) % (2.0 * np.pi) - np.pi)
 
@@ -115,7 +110,7 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
         time_offset: source time of run time 0 [s]; speed: playback factor (run time = (source - offset) / speed).
     """
     from ...planning import Footstep, FootstepPlan, ReachLimits, StepTiming
-    from ...planning.geometry import polygons_penetration, yaw_of
+    from ...planning.geometry import polygons_penetration, rotation_from_yaw, yaw_of
 
     R = np.asarray(T_world_suit.rotation, dtype=float)
     k = float(proportion)
@@ -134,12 +129,13 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
         """`side`'s footstep towards the target, clamped in the stance sole's frame (module docstring)."""
         stance = feet[side.other]
         s_yaw = yaw_of(stance.R_world_sole)
-        rel = _rot2(s_yaw).T @ (target_xy - stance.p_world_sole[:2])
+        R2 = rotation_from_yaw(s_yaw)[:2, :2]  # the stance sole's heading in the ground plane
+        rel = R2.T @ (target_xy - stance.p_world_sole[:2])
         dyaw = float(np.clip(_wrap(target_yaw - s_yaw), -limits.max_turn, limits.max_turn))
         dx = float(np.clip(rel[0], -limits.max_backward, limits.max_forward))
         dy = side.sign * float(np.clip(side.sign * rel[1], min_width, max_width))
         for _ in range(40):
-            xy = stance.p_world_sole[:2] + _rot2(s_yaw) @ np.array([dx, dy])
+            xy = stance.p_world_sole[:2] + R2 @ np.array([dx, dy])
             foot = Footstep.from_xyz_yaw(side, xy[0], xy[1], float(p0[side][2]), s_yaw + dyaw)
             depth = polygons_penetration(sole.footprint(foot.p_world_sole, foot.R_world_sole),
                                          sole.footprint(stance.p_world_sole, stance.R_world_sole))
