@@ -115,6 +115,7 @@ from ..types import PointReference, PoseReference, References
 from ..teleop.source import (ANCHORS, DEFAULT_ANCHOR, DEFAULT_TARGETS, HANDS, REST_BLEND, TeleopReferenceSource,
                              TeleopSourceConfig, rotation_error, stats)
 from .base import Scenario, ScenarioSpec
+from .kinds import WalkScenario, _WalkTable
 
 #: the `teleop_stream` log channel (live streams and the simulated link): the newest frame's age and the
 #: prediction horizon used [ms], the receiver's counters (cumulative), and whether the tick's source was valid
@@ -306,19 +307,10 @@ class TeleopScenario(Scenario):
     #: adjuster once set up
     step_adjustment = adjuster = None
 
-    def adopt_step_adjustment(self, settings: dict, source: str = "") -> None:
-        """The controller's task-set `step_adjustment:` settings, as a walk takes them (`WalkScenario`)."""
-        from dataclasses import replace
-
-        from ..errors import PlanningError
-
-        if self.step_adjustment is None or not settings:
-            return
-        try:
-            self.step_adjustment = replace(self.step_adjustment, **settings)
-        except PlanningError as exc:
-            raise ConfigError(f"step adjustment: {exc}", file=source or self.spec.file,
-                              key="step_adjustment") from None
+    #: the walk's: the controller's task-set `step_adjustment:` settings, as a walk takes them (no key of the
+    #: scenario's own: its `stepping:` section sets only whether the adjustment is on)
+    adopt_step_adjustment = WalkScenario.adopt_step_adjustment
+    _step_adjustment_given: frozenset = frozenset()
 
     def _plan_steps(self, q0: np.ndarray, com0: np.ndarray) -> None:
         """`locomotion: stepping`: the operator's steps -> the robot's walk (wbcbench/teleop/session/stepping.py),
@@ -328,7 +320,6 @@ class TeleopScenario(Scenario):
         from ..planning.geometry import rotation_from_yaw, yaw_of
         from ..teleop.human.locomotion import detect_steps
         from ..teleop.session.stepping import plan_operator_steps
-        from .kinds import _WalkTable
 
         src = self.reference_source
         if src.walk_source is None:
@@ -381,7 +372,6 @@ class TeleopScenario(Scenario):
     def _use_walk(self, w) -> None:
         """The references' table and the walking frame of walk `w` (the plan, or a step adjustment's re-plan)."""
         from ..planning.geometry import yaw_of
-        from .kinds import _WalkTable
 
         self.walk = w
         self._walk_table = _WalkTable(w)
@@ -420,8 +410,6 @@ class TeleopScenario(Scenario):
         posture."""
         self.reference_source.follow(t, meas.q)
         if self.adjuster is not None:  # the walk's own step adjustment (the same attributes: walk, adjuster, ...)
-            from .kinds import WalkScenario
-
             walk = self.walk
             WalkScenario.observe(self, t, meas)
             if self.walk is not walk:
