@@ -310,18 +310,13 @@ class Simulator:
         if a < 0:
             raise UnknownNameError("joint", joint, self.robot.joint_names, key="faults.target")
         dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
-        fr = self._friction
-        k = np.flatnonzero(fr.dof == dof) if fr is not None else ()  # the friction kernel writes this joint's
-        damping_now = fr.damping[k[0]] if len(k) else m.dof_damping[dof]  # damping each step, from its own copy
         saved = self.__dict__.setdefault("_joint_saved", {})
         if joint not in saved:
             saved[joint] = (m.actuator_gainprm[a].copy(), m.actuator_biasprm[a].copy(), int(m.actuator_biastype[a]),
-                            float(damping_now))
+                            self._joint_damping(dof))
         gain, bias, btype, damping = saved[joint]
         m.actuator_gainprm[a], m.actuator_biasprm[a], m.actuator_biastype[a] = gain, bias, btype
-        m.dof_damping[dof] = damping
-        if len(k):
-            fr.damping[k[0]] = damping
+        self._set_joint_damping(dof, damping)
         if kind is None:
             return
         m.actuator_gainprm[a] = 0.0
@@ -330,9 +325,25 @@ class Simulator:
             m.actuator_biastype[a] = mujoco.mjtBias.mjBIAS_AFFINE
             m.actuator_biasprm[a, 2] = -float(self.kd[self.robot.joint_names.index(joint)])
         elif kind == "locked":
-            m.dof_damping[dof] = 1e5
-            if len(k):
-                fr.damping[k[0]] = 1e5
+            self._set_joint_damping(dof, 1e5)
+
+    def _friction_index(self, dof: int) -> int | None:
+        """The friction kernel's index of MuJoCo degree of freedom `dof` (None: the kernel does not manage it; it
+        writes its joints' MuJoCo damping every step, from its own copy of their damping)."""
+        fr = self._friction
+        k = np.flatnonzero(fr.dof == dof) if fr is not None else ()
+        return int(k[0]) if len(k) else None
+
+    def _joint_damping(self, dof: int) -> float:
+        """A degree of freedom's own joint damping [N m s/rad] (without the friction kernel's stick damping)."""
+        k = self._friction_index(dof)
+        return float(self.model.dof_damping[dof] if k is None else self._friction.damping[k])
+
+    def _set_joint_damping(self, dof: int, value: float) -> None:
+        self.model.dof_damping[dof] = value
+        k = self._friction_index(dof)
+        if k is not None:
+            self._friction.damping[k] = value
 
     def fall_status(self) -> FallStatus:
         """Fallen if the state is not finite, the base is too low above the lower foot or too tilted."""
