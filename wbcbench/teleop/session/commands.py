@@ -315,6 +315,12 @@ def render(console, summary: dict, run_dir) -> None:
         v = m.get(key)
         if v and v.get("mean") is not None:
             t.add_row(label, f"mean {v['mean']:.4f}  std {v['std']:.4f}  min {v['min']:.2e}  max {v['max']:.4f}")
+    if m.get("hand_reachable_fraction") is not None:
+        r, o = m["hand_position_error_reachable_m"], m["hand_position_error_out_of_reach_m"]
+        f = (lambda v: f"{v:.4f}" if v is not None else "-")
+        t.add_row("hand error, reachable / out of reach [m]",
+                  f"mean {f(r['mean'])} ({100 * m['hand_reachable_fraction']:.0f} % of the hand samples) / "
+                  f"{f(o['mean'])}")
     if "self_collisions" in m:
         pairs = ", ".join(f"{k} ({n} ticks)" for k, n in m.get("self_collision_pairs", {}).items())
         t.add_row("self-collisions", f"{m['self_collisions']} contact events, {m['self_collision_ticks']} ticks"

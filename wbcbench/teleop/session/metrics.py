@@ -10,6 +10,13 @@ Through an impaired link (a recording replayed through wbcbench/teleop/link/netw
 also holds the hands' undelayed reference (`teleop_truth` channels: the recording's spline at the tick, what the
 robot should be doing now): the hand errors are then also measured against it (`*_true`), and the reference's
 own error against it (`reference_lag`: what the link and the prediction left in the target).
+
+Reachability (wbcbench/teleop/human/reachability.py): every `REACH_STRIDE` ticks (10 ms), whether each hand's
+reference pose and the head's reference position are reachable by the effector's own chain (an arm from where the
+torso was, the torso and neck from where the base was) within its joint limits, and for the hands how fast the
+arm's joints would have to move to follow the reference there (`speed_ratio`, the largest ratio to a joint's
+velocity limit). The errors are then split: reachable (and outside the body) against out of reach, and the
+reachable ticks within the arm's speed.
 """
 
 from __future__ import annotations
@@ -18,9 +25,17 @@ import numpy as np
 import pinocchio as pin
 
 from ...side import Side
+from ..human.reachability import ChainReach
+from ..human.workspace import chain_joints
 from .source import HANDS, rotation_error, stats
 
-__all__ = ["EFFECTORS", "has_targets", "has_truth", "teleop_errors_from_log", "teleop_metrics_from_log"]
+__all__ = ["EFFECTORS", "REACH_STRIDE", "has_targets", "has_truth", "reach_checks", "teleop_errors_from_log",
+           "teleop_metrics_from_log"]
+
+#: reachability is checked every this many ticks (10 ms at 1 kHz)
+REACH_STRIDE = 10
+#: half-width [ticks] of the central difference that gives a reference's velocity
+_VELOCITY_HALF_WIDTH = 5
 
 EFFECTORS = ("left_hand", "right_hand", "head")
 _COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
@@ -35,10 +50,52 @@ def has_truth(log: dict) -> bool:
     return all(f"teleop_truth.{h}.x" in log for h in HANDS)
 
 
-def teleop_errors_from_log(log: dict, robot) -> dict[str, np.ndarray]:
+def reach_checks(robot) -> dict[str, ChainReach] | None:
+    """A :class:`~wbcbench.teleop.human.reachability.ChainReach` per effector (hands: pose, from the torso; head:
+    position, from the base), or None where a chain has a joint with several configuration variables."""
+    model = robot.model
+    torso_joint = model.frames[model.getFrameId(robot.profile.torso_frame)].parentJoint
+    frames = {"left_hand": robot.profile.hands[Side.LEFT], "right_hand": robot.profile.hands[Side.RIGHT],
+              "head": robot.profile.head_frame}
+    try:
+        return {k: ChainReach(model, f, chain_joints(model, f, 1 if k == "head" else torso_joint), robot.q0,
+                              rotation=k != "head") for k, f in frames.items()}
+    except ValueError:
+        return None
+
+
+def _reachability(robot, Q: np.ndarray, ref: dict, t: np.ndarray, stride: int) -> dict[str, np.ndarray] | None:
+    """Sampled ticks, per effector whether its reference was reachable, and the hands' speed ratios."""
+    checks = reach_checks(robot)
+    if checks is None or len(Q) == 0:
+        return None
+    model, data = robot.model, robot.model.createData()
+    n = len(Q)
+    ticks = np.arange(0, n, stride)
+    reachable = np.zeros((len(EFFECTORS), len(ticks)), dtype=bool)
+    speed = np.zeros((len(HANDS), len(ticks)))
+    h = _VELOCITY_HALF_WIDTH
+    for col, i in enumerate(ticks):
+        pin.forwardKinematics(model, data, Q[i])
+        for row, k in enumerate(EFFECTORS):
+            check = checks[k]
+            parent = data.oMi[check.parent]
+            res = check.solve(Q[i], parent, pin.SE3(ref[k][i, 3:].reshape(3, 3), ref[k][i, :3]))
+            reachable[row, col] = res.reachable
+            if k in HANDS:
+                a, b = max(i - h, 0), min(i + h, n - 1)
+                dt = t[b] - t[a] if b > a else 1.0
+                Ra, Rb = ref[k][a, 3:].reshape(3, 3), ref[k][b, 3:].reshape(3, 3)
+                speed[row, col] = check.speed_ratio(res.q, parent, (ref[k][b, :3] - ref[k][a, :3]) / dt,
+                                                    Ra @ pin.log3(Ra.T @ Rb) / dt)
+    return {"reach_ticks": ticks, "reachable": reachable, "speed_ratio": speed}
+
+
+def teleop_errors_from_log(log: dict, robot, reach_stride: int | None = REACH_STRIDE) -> dict[str, np.ndarray]:
     """Per tick: position [m] and rotation (||I - R_ref R^T||_F) errors of both hands, whether each hand's
     reference lies inside the body (its protected point within r_rep + r of a repulsion point), the head's
-    position error, and the time."""
+    position error, and the time; every `reach_stride` ticks (None: not checked) whether each effector's
+    reference was reachable and the hands' speed ratios (module docstring)."""
     n = len(log["t"])
     model = robot.model
     data = model.createData()
@@ -71,6 +128,10 @@ def teleop_errors_from_log(log: dict, robot) -> dict[str, np.ndarray]:
     out = {"position": np.stack([e_pos[h] for h in HANDS]), "rotation": np.stack([e_rot[h] for h in HANDS]),
            "reference_inside_body": np.stack([inside[h] for h in HANDS]), "head_position": e_pos["head"],
            "t": np.asarray(log["t"]) - (log["t"][0] if n else 0.0)}
+    if reach_stride:
+        reach = _reachability(robot, Q, ref, out["t"], int(reach_stride))
+        if reach is not None:
+            out.update(reach)
     if has_truth(log):
         true = {h: np.column_stack([log[f"teleop_truth.{h}.{c}"] for c in _COMPONENTS])[shift] for h in HANDS}
         out["position_true"] = np.stack([np.linalg.norm(true[h][:, :3] - pos[h], axis=1) for h in HANDS])
@@ -94,8 +155,31 @@ def teleop_metrics_from_log(log: dict, robot, errors: dict | None = None) -> dic
         "hand_reference_inside_body_fraction": float(1.0 - outside.mean()) if outside.size else None,
         "head_position_error_m": stats(e["head_position"]),
     }
+    if "reachable" in e:
+        out.update(_split_by_reach(e))
     if "position_true" in e:
         out["hand_position_error_true_m"] = stats(e["position_true"].reshape(-1))
         out["hand_rotation_error_true"] = stats(e["rotation_true"].reshape(-1))
         out["hand_reference_lag_m"] = stats(e["reference_lag"].reshape(-1))
     return out
+
+
+def _split_by_reach(e: dict) -> dict:
+    """The hand and head errors at the sampled ticks, split by reachability (module docstring)."""
+    ticks, reach = e["reach_ticks"], e["reachable"]
+    hands_reach = reach[:2] & ~e["reference_inside_body"][:, ticks]
+    within = hands_reach & (e["speed_ratio"] <= 1.0)
+    pos = e["position"][:, ticks]
+    head = e["head_position"][ticks]
+    frac = (lambda mask: float(mask.mean()) if mask.size else None)
+    return {
+        "hand_position_error_reachable_m": stats(pos[hands_reach]),
+        "hand_position_error_out_of_reach_m": stats(pos[~reach[:2]]),
+        "hand_reachable_fraction": frac(hands_reach),
+        "hand_position_error_reachable_within_speed_m": stats(pos[within]),
+        "hand_reachable_within_speed_fraction": frac(within),
+        "head_position_error_reachable_m": stats(head[reach[2]]),
+        "head_position_error_out_of_reach_m": stats(head[~reach[2]]),
+        "head_reachable_fraction": frac(reach[2]),
+        "reach_check_period_ticks": int(ticks[1] - ticks[0]) if len(ticks) > 1 else 1,
+    }
