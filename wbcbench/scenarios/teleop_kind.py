@@ -94,7 +94,13 @@ paper Table II), each {mean, std, min, max} over both hands and all ticks, the s
 (`hand_position_error_outside_body_m`, `hand_rotation_error_outside_body`: the reference's protected point,
 the gripper centre of the profile's `repulsors`, farther than r_rep + r_frame from every repulsion point at the
 robot's configuration of that tick) and the fraction inside (`hand_reference_inside_body_fraction`): a
-reference inside the hips cannot be tracked without interpenetration, whatever the controller;
+reference inside the hips cannot be tracked without interpenetration, whatever the controller; every 10 ms,
+the same split by reachability (wbcbench/teleop/human/reachability.py: whether the effector's own chain, an arm
+from where the torso was, can put it at its reference within the joint limits): `hand_position_error_reachable_m`
+(reachable and outside the body), `hand_position_error_out_of_reach_m`, `hand_reachable_fraction`, the reachable
+ticks whose reference the arm's joints can also follow at their velocity limits
+(`hand_position_error_reachable_within_speed_m`, `hand_reachable_within_speed_fraction`), and the head's
+(`head_position_error_reachable_m`, `head_position_error_out_of_reach_m`, `head_reachable_fraction`);
 `head_position_error_m`; and `teleop` (invalid ticks, loss events and their duration, clamped ticks per
 effector, the stream's receiver counters, the network link's counters and the prediction horizon). Through the
 simulated link, also the hand errors against the undelayed reference (`hand_position_error_true_m`,
