@@ -1,4 +1,4 @@
-"""Trim a BVH or C3D file to a window and a lower frame rate (how the clips of this corpus were made from their
+"""Trim a BVH, C3D or TRC file to a window and a lower frame rate (how the clips of this corpus were made from their
 sources, see MANIFEST.yaml):
 
     python tests/data/teleop/trim.py SOURCE.bvh OUT.bvh --start 0 --duration 4 --rate 60
@@ -6,7 +6,8 @@ sources, see MANIFEST.yaml):
 
 A C3D file keeps its labelled markers (subject prefix and all; unlabelled ``*N`` markers are dropped) in its own
 ``POINT:UNITS``; a gap (negative residual) stays a gap (NaN). Its analog channels, force plates and events are
-not copied.
+not copied. A TRC file keeps its markers, written in millimetres (``--decimals`` of a millimetre); a gap stays an
+empty cell.
 """
 
 from __future__ import annotations
@@ -47,6 +48,16 @@ def trim_c3d(a) -> str:
     return f"{a.out}: {len(next(iter(markers.values())))} frames of {len(markers)} markers at {rate / w.step:.4g} Hz"
 
 
+def trim_trc(a) -> str:
+    from wbcbench.teleop.io.trc import read_trc_markers, write_trc
+
+    labels, xyz, rate = read_trc_markers(a.source)
+    w = _window(xyz.shape[0], 1.0 / rate, a)
+    markers = {lab: np.round(xyz[w, k] * 1e3, a.decimals) * 1e-3 for k, lab in enumerate(labels)}
+    write_trc(a.out, markers, rate / w.step, units="mm", decimals=a.decimals)
+    return f"{a.out}: {len(xyz[w])} frames of {len(markers)} markers at {rate / w.step:.4g} Hz"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("source")
@@ -54,10 +65,13 @@ def main(argv=None) -> int:
     ap.add_argument("--start", type=float, default=0.0, help="[s]")
     ap.add_argument("--duration", type=float, default=4.0, help="[s]")
     ap.add_argument("--rate", type=float, default=60.0, help="[Hz] (every k-th frame; not above the source's)")
-    ap.add_argument("--decimals", type=int, default=4, help="BVH: decimals kept; C3D: of the file's unit")
+    ap.add_argument("--decimals", type=int, default=4, help="BVH: decimals kept; C3D: of the file's unit; TRC: of a mm")
     a = ap.parse_args(argv)
     if Path(a.source).suffix.lower() == ".c3d":
         print(trim_c3d(a))
+        return 0
+    if Path(a.source).suffix.lower() == ".trc":
+        print(trim_trc(a))
         return 0
     data = parse_bvh(a.source)
     w = _window(len(data.motion), data.frame_time, a)
