@@ -1,6 +1,6 @@
 """Recordings in: the :class:`MocapRecording` container, the canonical segment names, the readers and writers of
-BVH, Xsens MVNX and pose CSV files, C3D and TRC marker files, :func:`load_recording` (any supported file), and :func:`map_segments` (which
-segment of a file's skeleton is which)."""
+BVH, Xsens MVNX and pose CSV files and of C3D and TRC marker files, :func:`load_recording` (any supported file),
+and :func:`map_segments` (which segment of a file's skeleton is which)."""
 
 from . import bvh as _bvh
 from . import c3d as _c3d

@@ -68,11 +68,11 @@ def parse_length_unit(text: str | float) -> float | str:
 
 
 def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_axis: str = "auto") -> MocapRecording:
-    """Read a ``.bvh``, ``.mvnx``, pose ``.csv``, or a ``.c3d`` or ``.trc`` marker file. Its conventions are detected from the data
-    (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit and up axis, unless
-    given; for every format the forward axis, rest pose, rotation orders and naming family) and kept in the
-    recording's ``conventions`` (``conventions["line"]``: one line saying what was found); ``length_unit_note``
-    says which unit was used.
+    """Read a ``.bvh``, ``.mvnx``, pose ``.csv``, or a ``.c3d`` or ``.trc`` marker file. Its conventions are
+    detected from the data (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit
+    and up axis, unless given; for every format the forward axis, rest pose, rotation orders and naming family)
+    and kept in the recording's ``conventions`` (``conventions["line"]``: one line saying what was found);
+    ``length_unit_note`` says which unit was used.
 
     Raises:
         ConfigError: unknown suffix, missing file, or any reader error (one line naming the file).
