@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,3 +114,31 @@ def test_a_bad_trc_is_one_line(tmp_path):
                                "--out", str(tmp_path / path.stem)], capture_output=True, text=True)
         assert proc.returncode == 2 and word in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, \
             proc.stderr
+
+
+def test_cast_markers_carries_the_static_knee_on_the_thigh_cluster(tmp_path):
+    """tests/data/teleop/cast_markers.py (how the corpus' OpenSim walks got their knee and ankle markers): a static
+    trial moved rigidly, frame by frame, without its knee and ankle markers, gets them back where the motion took
+    them."""
+    import importlib.util
+
+    from scipy.spatial.transform import Rotation
+
+    corpus = Path(__file__).resolve().parents[1] / "data" / "teleop"
+    spec = importlib.util.spec_from_file_location("cast_markers", corpus / "cast_markers.py")
+    cast = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cast)
+    labels, xyz, rate = read_trc_markers(corpus / "opensim_static.trc")
+    n = 40
+    static = np.repeat(xyz[:1], n, axis=0)  # one standing frame of the corpus' static trial
+    R = Rotation.from_rotvec(np.linspace([0.0, 0.0, 0.0], [0.3, -0.8, 0.2], n)).as_matrix()
+    moved = np.einsum("nij,npj->npi", R, static) + np.linspace([0.0, 0.0, 0.0], [0.5, 0.1, -0.3], n)[:, None]
+    carried = [k for k in labels if ".Knee." in k or ".Ankle." in k]
+    write_trc(tmp_path / "static.trc", {k: static[:, i] for i, k in enumerate(labels)}, rate)
+    write_trc(tmp_path / "motion.trc", {k: moved[:, i] for i, k in enumerate(labels) if k not in carried}, rate)
+    assert cast.main([str(tmp_path / "static.trc"), str(tmp_path / "motion.trc"), str(tmp_path / "out.trc")]) == 0
+    out_labels, out, _ = read_trc_markers(tmp_path / "out.trc")
+    assert len(carried) == 8
+    for k in carried:
+        err = np.linalg.norm(out[:, out_labels.index(k)] - moved[:, labels.index(k)], axis=1)
+        assert err.max() < 1e-6, (k, err.max())  # up to the files' 1e-4 mm
