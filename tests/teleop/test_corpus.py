@@ -27,7 +27,7 @@ def _reader_for(clip):
 
 def test_every_clip_has_its_source_licence_and_attribution():
     files = {c["file"] for c in CLIPS}
-    assert files == {p.name for p in CORPUS.glob("*.bvh")} | {p.name for p in CORPUS.glob("*.c3d")}
+    assert files == {p.name for suffix in ("bvh", "c3d", "trc") for p in CORPUS.glob(f"*.{suffix}")}
     for c in CLIPS:
         src = c["source"]
         assert src["original"] and src["licence"] and src["attribution"] and src["obtained_from"], c["file"]

@@ -1,17 +1,20 @@
-"""Trim a BVH or C3D file to a window and a lower frame rate (how the clips of this corpus were made from their
+"""Trim a BVH, C3D or TRC file to a window and a lower frame rate (how the clips of this corpus were made from their
 sources, see MANIFEST.yaml):
 
     python tests/data/teleop/trim.py SOURCE.bvh OUT.bvh --start 0 --duration 4 --rate 60
     python tests/data/teleop/trim.py SOURCE.c3d OUT.c3d --start 10.5 --duration 3 --rate 60
 
-A C3D file keeps its labelled markers (subject prefix and all; unlabelled ``*N`` markers are dropped) in its own
+A C3D file keeps its labelled markers (subject prefix and all; unlabelled ``*N`` markers are dropped, and those
+whose label matches ``--drop``, a regular expression, such as a modelling software's output points) in its own
 ``POINT:UNITS``; a gap (negative residual) stays a gap (NaN). Its analog channels, force plates and events are
-not copied.
+not copied. A TRC file keeps its markers, written in millimetres (``--decimals`` of a millimetre); a gap stays an
+empty cell.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 import numpy as np
@@ -42,9 +45,19 @@ def trim_c3d(a) -> str:
     w = _window(xyz.shape[0], 1.0 / rate, a)
     scale = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}[units]
     markers = {lab: np.round(xyz[w, k], a.decimals) * scale for k, lab in enumerate(labels)
-               if lab and not lab.startswith("*")}
+               if lab and not lab.startswith("*") and not (a.drop and re.fullmatch(a.drop, lab))}
     write_c3d(a.out, markers, rate / w.step, units=units)
     return f"{a.out}: {len(next(iter(markers.values())))} frames of {len(markers)} markers at {rate / w.step:.4g} Hz"
+
+
+def trim_trc(a) -> str:
+    from wbcbench.teleop.io.trc import read_trc_markers, write_trc
+
+    labels, xyz, rate = read_trc_markers(a.source)
+    w = _window(xyz.shape[0], 1.0 / rate, a)
+    markers = {lab: np.round(xyz[w, k] * 1e3, a.decimals) * 1e-3 for k, lab in enumerate(labels)}
+    write_trc(a.out, markers, rate / w.step, units="mm", decimals=a.decimals)
+    return f"{a.out}: {len(xyz[w])} frames of {len(markers)} markers at {rate / w.step:.4g} Hz"
 
 
 def main(argv=None) -> int:
@@ -54,10 +67,14 @@ def main(argv=None) -> int:
     ap.add_argument("--start", type=float, default=0.0, help="[s]")
     ap.add_argument("--duration", type=float, default=4.0, help="[s]")
     ap.add_argument("--rate", type=float, default=60.0, help="[Hz] (every k-th frame; not above the source's)")
-    ap.add_argument("--decimals", type=int, default=4, help="BVH: decimals kept; C3D: of the file's unit")
+    ap.add_argument("--decimals", type=int, default=4, help="BVH: decimals kept; C3D: of the file's unit; TRC: of a mm")
+    ap.add_argument("--drop", default="", help="C3D: a regular expression; the labels it matches are not copied")
     a = ap.parse_args(argv)
     if Path(a.source).suffix.lower() == ".c3d":
         print(trim_c3d(a))
+        return 0
+    if Path(a.source).suffix.lower() == ".trc":
+        print(trim_trc(a))
         return 0
     data = parse_bvh(a.source)
     w = _window(len(data.motion), data.frame_time, a)

@@ -27,10 +27,22 @@ Segment origins, in the marker data's frame (positions converted to metres from 
   thumb-side to the little-finger-side wrist marker made orthogonal; other segments: z along the segment,
   y the body's left made orthogonal.
 
-Other full-body sets with the same head, thorax, arm and leg labels are read through :data:`MARKER_ALIASES`: the
-Vicon set of the CMU and HDM05 databases has its pelvis markers on a waist belt (front and back waist, ``LFWT``
-``RFWT`` ``LBWT`` ``RBWT``) where Plug-in Gait has the ASIS and PSIS; they stand in for them (the belt sits a few
-centimetres above and outside the iliac spines, so the hip joint centres come out that much higher and wider).
+Other full-body sets are read through :data:`MARKER_ALIASES`: the Vicon set of the CMU and HDM05 databases has
+its pelvis markers on a waist belt (front and back waist, ``LFWT`` ``RFWT`` ``LBWT`` ``RBWT``) where Plug-in Gait
+has the ASIS and PSIS; they stand in for them (the belt sits a few centimetres above and outside the iliac spines,
+so the hip joint centres come out that much higher and wider). OpenSim's gait marker set (its Gait2354/Gait2392
+examples: ``R.ASIS`` ``V.Sacral`` ``R.Acromium`` ``R.Elbow`` ``R.Wrist.Lat``/``.Med`` ``R.Knee.Lat``/``.Med``
+``R.Ankle.Lat``/``.Med`` ``R.Toe.Tip`` ``Sternum``) names the same landmarks otherwise, and has no C7, T10, CLAV
+or four head markers:
+
+* thorax from ``Sternum`` and the acromia: Neck at the acromion mid-point, T8 half-way to the sternum marker,
+  thorax up from the pelvis centre (ASIS and sacrum mid-points) to the Neck (so it leans with the lumbar spine);
+* head from ``R.Temple`` ``L.Temple`` ``Top.Head``: y from the right temple to the left one, z from the temples'
+  mid-point towards the head top marker (made orthogonal); the origin 20 cm below the head top along z (the
+  temple markers sit forward of the head's centre: the head top, on the vertex, is above it);
+* a medial knee or ankle marker (``KNM``/``MED``, the Conventional Gait Model 2's labels) puts the joint centre
+  half-way between it and the lateral one instead of the chord offset.
+
 :func:`marker_set` names the set a file's labels follow.
 
 A marker's gap (no data, or a negative residual) is NaN: the segments built from it are invalid in that frame.
@@ -46,16 +58,26 @@ from ...errors import ConfigError
 from .. import _rotations as rot
 from .recording import MocapRecording
 
-__all__ = ["C3D_REQUIRED", "MARKER_ALIASES", "marker_set", "read_c3d", "write_c3d"]
+__all__ = ["C3D_REQUIRED", "MARKER_ALIASES", "marker_set", "markers_recording", "read_c3d", "write_c3d"]
 
 #: markers a C3D file must label (the pelvis also needs LPSI+RPSI or SACR)
 C3D_REQUIRED = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "CLAV", "STRN", "LASI", "RASI",
                 "LSHO", "LELB", "LWRA", "RSHO", "RELB", "RWRA", "LKNE", "LANK", "LTOE", "RKNE", "RANK", "RTOE")
+#: the thorax's and the head's markers: Plug-in Gait's, else OpenSim's gait set (after :data:`MARKER_ALIASES`)
+_THORAX_SETS = (("C7", "T10", "CLAV", "STRN"), ("STRN", "LSHO", "RSHO"))
+_HEAD_SETS = (("LFHD", "RFHD", "LBHD", "RBHD"), ("L.TEMPLE", "R.TEMPLE", "TOP.HEAD"))
+_OPENSIM_GAIT = "OpenSim gait (Gait2354)"
 #: Plug-in Gait label -> the labels other marker sets give the same landmark (the first present is used): the
-#: CMU / HDM05 Vicon set's waist belt markers for the ASIS and PSIS
-MARKER_ALIASES = {"LASI": ("LFWT",), "RASI": ("RFWT",), "LPSI": ("LBWT",), "RPSI": ("RBWT",)}
+#: CMU / HDM05 Vicon set's waist belt markers for the ASIS and PSIS; OpenSim's gait set (upper case)
+MARKER_ALIASES = {"LASI": ("LFWT", "L.ASIS"), "RASI": ("RFWT", "R.ASIS"), "LPSI": ("LBWT",), "RPSI": ("RBWT",),
+                  "SACR": ("V.SACRAL",), "STRN": ("STERNUM",),
+                  **{f"{s}{pig}": (f"{s}.{osim}",) for s in "LR" for pig, osim in (
+                      ("SHO", "ACROMIUM"), ("ELB", "ELBOW"), ("WRA", "WRIST.LAT"), ("WRB", "WRIST.MED"),
+                      ("KNE", "KNEE.LAT"), ("KNM", "KNEE.MED"), ("ANK", "ANKLE.LAT"), ("MED", "ANKLE.MED"),
+                      ("TOE", "TOE.TIP"))}}
 #: an alias label -> the marker set that uses it (for :func:`marker_set`)
-_ALIAS_SETS = {"LFWT": "Vicon waist (CMU, HDM05)", "RFWT": "Vicon waist (CMU, HDM05)"}
+_ALIAS_SETS = {"LFWT": "Vicon waist (CMU, HDM05)", "RFWT": "Vicon waist (CMU, HDM05)",
+               "L.ASIS": _OPENSIM_GAIT, "R.ASIS": _OPENSIM_GAIT}
 _UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254}
 _R_ELBOW, _R_KNEE, _R_ANKLE, _SHOULDER_DROP, _HEAD_DROP = 0.042, 0.057, 0.042, 0.05, 0.10
 _PARENTS = {"Pelvis": None, "T8": "Pelvis", "Neck": "T8", "Head": "Neck",
@@ -135,12 +157,19 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
     `m`: marker label (upper case) -> (N, 3) positions [m]; labels of other marker sets are read through
     :data:`MARKER_ALIASES`."""
     m = with_aliases(m)
-    missing = [k for k in C3D_REQUIRED if k not in m]
+    sets = {}
+    missing = [k + "".join(f"/{a}" for a in MARKER_ALIASES.get(k, ())) for k in C3D_REQUIRED
+               if k not in m and k not in _THORAX_SETS[0] + _HEAD_SETS[0]]  # the thorax and head: below
     if not ("SACR" in m or ("LPSI" in m and "RPSI" in m)):
         missing.append("LPSI+RPSI or SACR")
+    for part, options in (("thorax", _THORAX_SETS), ("head", _HEAD_SETS)):
+        sets[part] = next((k for k, o in enumerate(options) if all(label in m for label in o)), None)
+        if sets[part] is None:
+            missing.append(" or ".join("+".join(o) for o in options))
     if missing:
-        raise ConfigError(f"C3D: Plug-in Gait markers {missing} not found (labels: {', '.join(sorted(m)[:12])}"
-                          f"{', ...' if len(m) > 12 else ''}); the full-body Plug-in Gait set is needed",
+        raise ConfigError(f"markers {missing} not found (labels: {', '.join(sorted(m)[:12])}"
+                          f"{', ...' if len(m) > 12 else ''}); a full-body set is needed: Plug-in Gait, the CMU/HDM05 "
+                          "Vicon waist set or OpenSim's gait set",
                           file=file or None)
     asis = 0.5 * (m["LASI"] + m["RASI"])
     back = m["SACR"] if "SACR" in m else 0.5 * (m["LPSI"] + m["RPSI"])
@@ -152,15 +181,26 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
     for side, sign in (("Left", 1.0), ("Right", -1.0)):
         pos[f"{side}UpperLeg"] = (asis + ((-0.24 * pd - 0.0099)[:, None] * x)
                                   + (sign * (0.33 * pw + 0.0073))[:, None] * y + (-0.30 * pw - 0.0109)[:, None] * z)
-    top, bottom = 0.5 * (m["C7"] + m["CLAV"]), 0.5 * (m["T10"] + m["STRN"])
+    if sets["thorax"] == 0:
+        top, bottom = 0.5 * (m["C7"] + m["CLAV"]), 0.5 * (m["T10"] + m["STRN"])
+        pos["T8"] = 0.25 * (m["C7"] + m["T10"] + m["CLAV"] + m["STRN"])
+    else:  # the acromia and the sternum marker (OpenSim's gait set)
+        top, bottom = 0.5 * (m["LSHO"] + m["RSHO"]), 0.5 * (asis + back)
+        pos["T8"] = 0.5 * (top + m["STRN"])
     up = _unit(top - bottom)
-    pos["T8"] = 0.25 * (m["C7"] + m["T10"] + m["CLAV"] + m["STRN"])
     pos["Neck"] = top
-    front, rear = 0.5 * (m["LFHD"] + m["RFHD"]), 0.5 * (m["LBHD"] + m["RBHD"])
-    R_head = _frame(front - rear, 0.5 * (m["LFHD"] + m["LBHD"]) - 0.5 * (m["RFHD"] + m["RBHD"]))
-    head_x, head_left = R_head[..., 0], R_head[..., 1]
-    head_up = np.cross(head_x, head_left)
-    pos["Head"] = 0.25 * (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"]) - _HEAD_DROP * head_up
+    if sets["head"] == 0:
+        front, rear = 0.5 * (m["LFHD"] + m["RFHD"]), 0.5 * (m["LBHD"] + m["RBHD"])
+        R_head = _frame(front - rear, 0.5 * (m["LFHD"] + m["LBHD"]) - 0.5 * (m["RFHD"] + m["RBHD"]))
+        head_x, head_left = R_head[..., 0], R_head[..., 1]
+        head_up = np.cross(head_x, head_left)
+        head_centre = 0.25 * (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"])
+    else:  # two temples and the head top (OpenSim's gait set)
+        temples = 0.5 * (m["L.TEMPLE"] + m["R.TEMPLE"])
+        R_head = _frame_z(m["TOP.HEAD"] - temples, m["L.TEMPLE"] - m["R.TEMPLE"])
+        head_x, head_up = R_head[..., 0], R_head[..., 2]
+        head_centre = m["TOP.HEAD"] - _HEAD_DROP * head_up  # the head band's level, 10 cm below the vertex
+    pos["Head"] = head_centre - _HEAD_DROP * head_up
     rots: dict[str, np.ndarray] = {"Pelvis": R_pelvis,
                                    "Head": np.stack([head_x, head_up, np.cross(head_x, head_up)], axis=-1)}
     left = y
@@ -170,8 +210,10 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
         wrist = 0.5 * (m[f"{s}WRA"] + m[f"{s}WRB"]) if f"{s}WRB" in m else m[f"{s}WRA"]
         elbow = _medial(m[f"{s}ELB"], shoulder, pos["T8"], _R_ELBOW)
         hip = pos[f"{side}UpperLeg"]
-        knee = _medial(m[f"{s}KNE"], hip, m[f"{other}KNE"], _R_KNEE)
-        ankle = _medial(m[f"{s}ANK"], knee, m[f"{other}ANK"], _R_ANKLE)
+        knee = (0.5 * (m[f"{s}KNE"] + m[f"{s}KNM"]) if f"{s}KNM" in m
+                else _medial(m[f"{s}KNE"], hip, m[f"{other}KNE"], _R_KNEE))
+        ankle = (0.5 * (m[f"{s}ANK"] + m[f"{s}MED"]) if f"{s}MED" in m
+                 else _medial(m[f"{s}ANK"], knee, m[f"{other}ANK"], _R_ANKLE))
         pos.update({f"{side}UpperArm": shoulder, f"{side}ForeArm": elbow, f"{side}Hand": wrist,
                     f"{side}LowerLeg": knee, f"{side}Foot": ankle, f"{side}Toe": m[f"{s}TOE"]})
         hand_y = wrist - m[f"{s}FIN"] if f"{s}FIN" in m else elbow - wrist
@@ -219,6 +261,13 @@ def read_c3d(path: str | Path) -> MocapRecording:
     residuals = c["data"].get("meta_points", {}).get("residuals")
     if residuals is not None and np.asarray(residuals).shape == (1, xyz.shape[1], xyz.shape[0]):
         xyz[np.asarray(residuals)[0].T < 0] = np.nan
+    return markers_recording(labels, xyz, rate, file)
+
+
+def markers_recording(labels, xyz: np.ndarray, rate: float, file: str = "") -> MocapRecording:
+    """A :class:`~wbcbench.teleop.MocapRecording` of the canonical segments from marker trajectories, for any
+    marker file reader: `xyz` (N, P, 3) [m] (NaN: a gap), the P markers' `labels` (a subject prefix ``Name:`` and
+    the case do not matter; of equal labels the first is kept; labels past P are ignored), sampled at `rate` [Hz]."""
     markers: dict[str, np.ndarray] = {}
     for k, label in enumerate(labels[: xyz.shape[1]]):
         key = label.rsplit(":", 1)[-1].strip().upper()

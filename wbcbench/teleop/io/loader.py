@@ -15,11 +15,13 @@ from .csv_poses import read_pose_csv
 from .mvnx import read_mvnx
 from .recording import MocapRecording
 from .skeleton_map import map_segments
+from .trc import read_trc
 
 __all__ = ["LENGTH_UNITS", "RECORDING_SUFFIXES", "detect_length_unit", "load_recording", "parse_length_unit"]
 
 #: Suffix -> reader.
-RECORDING_SUFFIXES = {".bvh": read_bvh, ".mvnx": read_mvnx, ".csv": read_pose_csv, ".c3d": read_c3d}
+RECORDING_SUFFIXES = {".bvh": read_bvh, ".mvnx": read_mvnx, ".csv": read_pose_csv, ".c3d": read_c3d,
+                      ".trc": read_trc}
 
 
 #: [m] the vertical extent of a standing adult's joints (ankle or toe to head joint), for the unit detection
@@ -66,11 +68,11 @@ def parse_length_unit(text: str | float) -> float | str:
 
 
 def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_axis: str = "auto") -> MocapRecording:
-    """Read a ``.bvh``, ``.mvnx``, pose ``.csv`` or ``.c3d`` (Plug-in Gait markers) file. Its conventions are detected from the data
-    (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit and up axis, unless
-    given; for every format the forward axis, rest pose, rotation orders and naming family) and kept in the
-    recording's ``conventions`` (``conventions["line"]``: one line saying what was found); ``length_unit_note``
-    says which unit was used.
+    """Read a ``.bvh``, ``.mvnx``, pose ``.csv``, or a ``.c3d`` or ``.trc`` marker file. Its conventions are
+    detected from the data (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit
+    and up axis, unless given; for every format the forward axis, rest pose, rotation orders and naming family)
+    and kept in the recording's ``conventions`` (``conventions["line"]``: one line saying what was found);
+    ``length_unit_note`` says which unit was used.
 
     Raises:
         ConfigError: unknown suffix, missing file, or any reader error (one line naming the file).
@@ -89,7 +91,7 @@ def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_ax
     if reader is not read_bvh:
         rec = reader(path)
         conv = detect_conventions(rec, mapping=_mapping(rec), length_unit=1.0, up_axis=up_axis, unit_method="file")
-        if reader is read_c3d:  # the segments are built from the markers under the canonical names
+        if reader in (read_c3d, read_trc):  # the segments are built from the markers under the canonical names
             conv = dataclasses.replace(conv, naming=f"{rec.conventions.get('marker_set', 'Plug-in Gait')} markers")
         return dataclasses.replace(rec, conventions=conv.as_dict())
     unit = parse_length_unit(length_unit)

@@ -39,7 +39,7 @@ def add_subcommand(sub: argparse._SubParsersAction) -> None:
                        description="Whole-body teleoperation (paper 004): the operator's hands and head from "
                                    "motion capture drive the robot's grippers and head; feet in contact, CoM held.")
     p.add_argument("--mocap", "-i", default=None,
-                   help="a shipped recording (see --list), a .bvh/.mvnx/.csv/.c3d file, or udp://HOST:PORT")
+                   help="a shipped recording (see --list), a .bvh/.mvnx/.csv/.c3d/.trc file, or udp://HOST:PORT")
     p.add_argument("--list", action="store_true", help="list the shipped recordings and exit")
     p.add_argument("--controller", "-c", default=DEFAULT_CONTROLLER, help=f"default {DEFAULT_CONTROLLER}")
     p.add_argument("--robot", "-r", default="talos", help="robot name or profile YAML path (default: talos)")
