@@ -66,7 +66,7 @@ def parse_length_unit(text: str | float) -> float | str:
 
 
 def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_axis: str = "auto") -> MocapRecording:
-    """Read a ``.bvh``, ``.mvnx``, pose ``.csv`` or ``.c3d`` (Plug-in Gait markers) file. Its conventions are detected from the data
+    """Read a ``.bvh``, ``.mvnx``, pose ``.csv`` or ``.c3d`` (marker) file. Its conventions are detected from the data
     (:func:`~wbcbench.teleop.io.conventions.detect_conventions`: a BVH file's length unit and up axis, unless
     given; for every format the forward axis, rest pose, rotation orders and naming family) and kept in the
     recording's ``conventions`` (``conventions["line"]``: one line saying what was found); ``length_unit_note``
@@ -90,7 +90,8 @@ def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_ax
         rec = reader(path)
         conv = detect_conventions(rec, mapping=_mapping(rec), length_unit=1.0, up_axis=up_axis, unit_method="file")
         if reader is read_c3d:  # the segments are built from the markers under the canonical names
-            conv = dataclasses.replace(conv, naming=f"{rec.conventions.get('marker_set', 'Plug-in Gait')} markers")
+            conv = dataclasses.replace(conv, naming=f"{rec.conventions.get('marker_set', 'Plug-in Gait')} markers",
+                                       notes=tuple(rec.conventions.get("notes", ())))
         return dataclasses.replace(rec, conventions=conv.as_dict())
     unit = parse_length_unit(length_unit)
     data = parse_bvh(path)
