@@ -84,6 +84,7 @@ for _S, _s in (("L", "L_"), ("R", "R_")):
                                f"{_S}FIN": ((f"{_s}HM2", f"{_s}HM5"), f"{_s}HM2"), f"{_S}KNE": (f"{_s}FLE",),
                                f"{_S}ANK": (f"{_s}FAL",), f"{_S}TOE": (f"{_s}FM2", (f"{_s}FM1", f"{_s}FM5")),
                                f"{_S}HEE": (f"{_s}FCC",)})
+del _S, _s
 #: lateral label -> the medial marker's labels: the joint centre is their midpoint
 MEDIAL_MARKERS = {f"{S}{j}": (f"{S}_{med}",) for S in "LR" for j, med in (("ELB", "HME"), ("KNE", "FME"),
                                                                            ("ANK", "TAM"))}
@@ -274,8 +275,8 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
 
 
 def read_c3d(path: str | Path) -> MocapRecording:
-    """Read a C3D marker file (Plug-in Gait or anatomical-landmark markers) into a :class:`~wbcbench.teleop.MocapRecording` of the
-    canonical segments (module docstring); positions in metres.
+    """Read a C3D marker file (Plug-in Gait or anatomical-landmark markers) into a
+    :class:`~wbcbench.teleop.MocapRecording` of the canonical segments (module docstring); positions in metres.
 
     Raises:
         ConfigError: ezc3d missing, an unreadable file, no frames, an unknown unit, or missing markers (one line
