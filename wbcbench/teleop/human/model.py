@@ -461,14 +461,18 @@ class HumanModel:
         (pl, ul), (pr, ur) = out
         return pl, pr, ul, ur
 
-    def feet_frame(self, q: FloatArray) -> pin.SE3:
-        """:func:`feet_frame` of the model's soles for ``q`` (the hips' heading when the feet stand in a stride)."""
+    def feet_frame(self, q: FloatArray, stride: bool = False) -> pin.SE3:
+        """:func:`feet_frame` of the model's soles for ``q``; `stride`: the hips' heading when the feet stand in a
+        stride."""
+        if not stride:
+            return feet_frame(*self.sole_points(q))
         hips = self.keypoints(q, ("LeftUpperLeg", "RightUpperLeg"))
         return feet_frame(*self.sole_points(q), hips_left=hips["LeftUpperLeg"] - hips["RightUpperLeg"])
 
-    def place_feet(self, q: FloatArray, T_world_feet: pin.SE3) -> FloatArray:
-        """``q`` moved rigidly (root only) so that its :meth:`feet_frame` is ``T_world_feet``."""
-        T_feet = self.feet_frame(q)
+    def place_feet(self, q: FloatArray, T_world_feet: pin.SE3, stride: bool = False) -> FloatArray:
+        """``q`` moved rigidly (root only) so that its :meth:`feet_frame` (`stride`: of a stride) is
+        ``T_world_feet``."""
+        T_feet = self.feet_frame(q, stride)
         return self.with_root_placement(q, T_world_feet * T_feet.inverse() * self.root_placement(q))
 
     def shoulder_height(self) -> float:
