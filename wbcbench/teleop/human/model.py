@@ -219,8 +219,9 @@ class FitResult(NamedTuple):
 
 
 #: the largest angle [deg] between the right-to-left foot direction and the hips' for the feet frame to take its
-#: heading from the feet (`feet_frame`)
-STRIDE_ANGLE = 30.0
+#: heading from the feet (`feet_frame`): beyond 45 deg the feet's direction is closer to the hips' forward axis
+#: than to their left-right one (a stride)
+STRIDE_ANGLE = 45.0
 
 
 def feet_frame(p_left: FloatArray, p_right: FloatArray, up_left: FloatArray, up_right: FloatArray,

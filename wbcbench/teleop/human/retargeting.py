@@ -10,7 +10,7 @@ stream), which should show the operator standing, arms along the body (the robot
    :func:`~wbcbench.teleop.human.model.feet_frame` of the model's soles (ankles lowered by the ankle height)
    coincides with the feet frame of the robot's sole frames (:func:`robot_feet_frame`: midpoint of the soles,
    heading from the right sole to the left one, z the world vertical). With ``stride_heading`` (set for
-   `locomotion: stepping`) an operator caught mid-stride (the feet's direction more than 30 deg from the hips')
+   `locomotion: stepping`) an operator caught mid-stride (the feet's direction more than 45 deg from the hips')
    takes the hips' heading: the feet's then points along the walk, and the steps would map sideways. Without it
    (feet fixed) such an operator is calibrated turned by that angle (17 of 37 real-capture clips, 20 to 89 deg);
    facing the hips there made two operators who bow down after a stride bow forward, and TALOS followed their
