@@ -153,3 +153,53 @@ def test_a_c3d_without_the_markers_is_one_line(tmp_path):
     bad.write_bytes(b"\x02P" + b"\x00" * 100)
     with pytest.raises(ConfigError, match="garbage.c3d"):
         read_c3d(bad)
+
+
+def anatomical_markers(markers: dict, P: dict) -> dict:
+    """The Plug-in Gait markers of `plug_in_gait_markers` relabelled as the anatomical-landmark set (the Rehazenter
+    gait dataset's labels: L_IAS, CV7, SJN, L_SAE, L_HLE/L_HME, L_RSP/L_UHE, L_HM2/L_HM5, L_FLE/L_FME,
+    L_FAL/L_TAM, L_FCC, L_FM1/L_FM2/L_FM5), with medial markers mirrored through the joint centres, no head
+    markers."""
+    out = {"CV7": markers["C7"], "TV10": markers["T10"], "SJN": markers["CLAV"], "SXS": markers["STRN"]}
+    for side, s in (("Left", "L"), ("Right", "R")):
+        out.update({f"{s}_IAS": markers[f"{s}ASI"], f"{s}_IPS": markers[f"{s}PSI"], f"{s}_SAE": markers[f"{s}SHO"],
+                    f"{s}_RSP": markers[f"{s}WRA"], f"{s}_UHE": markers[f"{s}WRB"], f"{s}_FCC": markers[f"{s}HEE"],
+                    f"{s}_HM2": markers[f"{s}FIN"] + 0.02 * (markers[f"{s}WRA"] - markers[f"{s}WRB"]),
+                    f"{s}_HM5": markers[f"{s}FIN"] - 0.02 * (markers[f"{s}WRA"] - markers[f"{s}WRB"]),
+                    f"{s}_FM2": markers[f"{s}TOE"], f"{s}_FM1": markers[f"{s}TOE"], f"{s}_FM5": markers[f"{s}TOE"]})
+        for tag, lateral, medial, centre in (("ELB", "HLE", "HME", "ForeArm"), ("KNE", "FLE", "FME", "LowerLeg"),
+                                             ("ANK", "FAL", "TAM", "Foot")):
+            out[f"{s}_{lateral}"] = markers[f"{s}{tag}"]
+            out[f"{s}_{medial}"] = 2.0 * P[f"{side}{centre}"] - markers[f"{s}{tag}"]
+    return out
+
+
+def test_the_anatomical_landmark_set_is_read_and_named(tmp_path):
+    """The anatomical-landmark set (L_IAS, L_FLE, CV7, SJN ...) gives the Plug-in Gait set's segments from the same
+    landmarks, its elbow, knee and ankle centres from the medial markers (exact where Plug-in Gait's are chord
+    approximations), the head from the trunk when there are no head markers (said in the detection line); a file
+    missing one of its markers is refused naming the marker in that set's labels."""
+    markers, P, rate = plug_in_gait_markers(seconds=1.0)
+    anat = anatomical_markers(markers, P)
+    rec = read_c3d(write_c3d(tmp_path / "anat.c3d", {f"Subject:{k}": v for k, v in anat.items()}, rate))
+    pig = read_c3d(write_c3d(tmp_path / "pig.c3d", markers, rate))
+    for seg in ("Pelvis", "T8", "Neck", "LeftUpperArm", "RightHand", "LeftUpperLeg", "RightUpperLeg"):
+        np.testing.assert_allclose(rec.position(seg), pig.position(seg), atol=2e-3, err_msg=seg)
+    for seg in ("LeftForeArm", "RightForeArm", "LeftLowerLeg", "RightLowerLeg", "LeftFoot", "RightFoot"):
+        err = np.linalg.norm(rec.position(seg) - P[seg], axis=1)
+        assert err.max() < 2e-3, (seg, err.max())  # the epicondyles' / malleoli's midpoints: the centres
+    # the head: the trunk's frame, above the neck; it follows the thorax, not the head's own turns
+    head, neck = rec.position("Head"), rec.position("Neck")
+    up = neck - rec.position("T8")
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", head - neck, up) > 0.05)
+    assert marker_set({k.upper() for k in anat}) == "anatomical landmark (ISB)"
+    c = load_recording(tmp_path / "anat.c3d").conventions
+    assert c["naming"] == "anatomical landmark (ISB) markers" and c["up"] == "+z", c["line"]
+    assert "head from the trunk" in c["line"] and c["notes"] == ["head from the trunk (no head markers)"]
+    assert "head" not in load_recording(tmp_path / "pig.c3d").conventions["line"].split("rotation orders")[1]
+    for drop in ("L_RSP", "R_FAL", "SJN"):
+        path = write_c3d(tmp_path / f"no_{drop}.c3d", {k: v for k, v in anat.items() if k != drop}, rate)
+        with pytest.raises(ConfigError, match=drop) as info:
+            read_c3d(path)
+        assert "anatomical landmark (ISB) markers" in str(info.value) and "\n" not in str(info.value)

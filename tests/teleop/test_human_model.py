@@ -147,3 +147,23 @@ def test_unknown_joint_in_angles(human):
     q, used = human.configuration_from_channels({"nonsense:x": 1.0})
     assert used == 0
     np.testing.assert_array_equal(q, human.neutral())
+
+
+def test_the_feet_frame_of_a_stride_faces_the_hips():
+    """Feet side by side: the heading is the feet's (right to left foot); feet in a stride (one 0.45 m ahead, as an
+    operator caught mid-walk): the right-to-left foot direction points along the walk, so the heading is the
+    hips'."""
+    from wbcbench.teleop.human.model import STRIDE_ANGLE, feet_frame
+
+    up = np.array([0.0, 0.0, 1.0])
+    hips = np.array([0.05, 0.2, 0.0])  # the hips' left, turned 14 deg from +y
+    side_by_side = feet_frame(np.array([0.0, 0.1, 0.0]), np.array([0.0, -0.1, 0.0]), up, up, hips_left=hips)
+    np.testing.assert_allclose(side_by_side.rotation[:, 1], [0.0, 1.0, 0.0], atol=1e-12)  # the feet's
+    stride = feet_frame(np.array([0.45, 0.05, 0.0]), np.array([0.0, -0.05, 0.0]), up, up, hips_left=hips)
+    np.testing.assert_allclose(stride.rotation[:, 1], hips / np.linalg.norm(hips), atol=1e-12)
+    np.testing.assert_allclose(stride.translation, [0.225, 0.0, 0.0])
+    a = np.radians(STRIDE_ANGLE + 1.0)  # just past the angle: the hips'
+    past = feet_frame(np.array([np.sin(a), np.cos(a), 0.0]), np.zeros(3), up, up, hips_left=np.array([0.0, 1.0, 0.0]))
+    np.testing.assert_allclose(past.rotation[:, 1], [0.0, 1.0, 0.0], atol=1e-12)
+    legacy = feet_frame(np.array([0.45, 0.05, 0.0]), np.array([0.0, -0.05, 0.0]), up, up)  # no hips: the feet's
+    assert abs(legacy.rotation[0, 1]) > 0.9

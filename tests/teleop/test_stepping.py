@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+import yaml
 
 from wbcbench.planning.geometry import SoleRectangle, polygon_margin, support_polygon
 from wbcbench.recorder import channel
@@ -112,17 +113,50 @@ def test_stepping_follows_the_operators_placements(short_walk):
 
 
 def test_stepping_on_the_walking_clip_clamps_to_the_robots_limits(talos, tmp_path):
-    """The corpus' walking operator steps 0.5-1.0 m (scaled): beyond TALOS' step limits (0.3 m forward), so the
-    robot's steps are clamped; it lands where it planned, and stands."""
-    res = run_session(str(WALKING_CLIP), robot=talos, locomotion="stepping", out=tmp_path / "run")
+    """The corpus' walking operator steps 0.5-1.0 m (scaled): beyond TALOS' step limits (0.3 m forward); with
+    `catch_up: 0` the robot's steps are clamped; it lands where it planned, and stands."""
+    res = run_session(str(WALKING_CLIP), robot=talos, locomotion="stepping", stepping={"catch_up": 0},
+                      out=tmp_path / "run")
     s = res.summary
     assert not s["fell"], s["fall_reason"]
     st = s["metrics"]["teleop"]["stepping"]
-    assert st["robot_steps_taken"] >= 2 and st["steps_reached"] >= 2
+    assert st["robot_steps_taken"] >= 2 and st["steps_reached"] >= 2 and st["extra_steps"] == 0
     assert st["tracking_error_m"]["max"] < 0.05, st["steps"]
+    assert st["clamp_m"]["max"] > 0.2   # clamped
     for r in st["steps"]:
         assert r["placement_error_m"] <= r["clamp_m"] + 0.05
     assert s["metrics"].get("self_collisions", 0) == 0
+
+
+#: a real slow walk (the Rehazenter dataset, tests/data/teleop/MANIFEST.yaml): the operator is caught mid-stride
+REAL_WALK = DATA / "rehazenter_2014001_c1_01.c3d"
+
+
+def test_a_real_walk_is_followed_step_for_step(talos, tmp_path):
+    """The Rehazenter walk (0.4 m/s, three steps of 0.42-0.45 m scaled, longer than TALOS' 0.3 m): the steps are
+    detected where the file's own gait events put them; the calibration in the stride faces the operator's hips
+    (the feet's right-to-left direction points along the walk), so the placements lie along the robot's forward
+    axis; the robot reaches each of the operator's scaled placements in more steps than the operator (catch-up),
+    lands within 10 cm of each, and stands, with no self-collision."""
+    clip = next(c for c in yaml.safe_load((DATA / "MANIFEST.yaml").read_text())["clips"] if c["file"] == REAL_WALK.name)
+    rec = load_recording(REAL_WALK)
+    names = map_segments(rec.segments, rec.parents).names
+    steps = detect_steps(rec, names, rec.conventions["up"])
+    strikes = clip["events"]["foot_strike"]
+    assert [s.side for s in steps] == ["right", "left", "right"]
+    for s in steps:  # each touch-down within 0.1 s of a foot strike the capture's own events give that foot
+        assert min(abs(s.touch_down - e) for e in strikes[s.side]) < 0.1, (s.side, s.touch_down)
+    res = run_session(str(REAL_WALK), robot=talos, locomotion="stepping", out=tmp_path / "run")
+    s = res.summary
+    assert not s["fell"], s["fall_reason"]
+    assert s["metrics"].get("self_collisions", 0) == 0
+    st = s["metrics"]["teleop"]["stepping"]
+    assert st["operator_steps"] == 3 and st["steps_reached"] == 3
+    assert st["robot_steps_taken"] > st["operator_steps"] and st["extra_steps"] > 0   # it needed more steps
+    x = [r["target"][0] for r in st["steps"]]
+    assert all(abs(r["target"][1]) < 0.25 for r in st["steps"]) and x == sorted(x) and x[-1] > 1.5, st["steps"]
+    errors = [r["placement_error_m"] for r in st["steps"]]
+    assert max(errors) < 0.10, st["steps"]
 
 
 def test_bad_locomotion_is_one_line(one_line_exit_2, tmp_path):
@@ -153,7 +187,7 @@ def test_operator_steps_are_clamped_by_the_robots_limits(talos):
     steps = [step("right", 0.6, -0.085, 1.0),     # 0.6 m: beyond max_forward
              step("left", 0.45, -0.2, 1.5),       # across the right foot
              step("left", 0.45, 0.085, 2.0)]      # the left again
-    cfg = SteppingConfig()
+    cfg = SteppingConfig(catch_up=0)
     sp = plan_operator_steps(steps, T_world_suit=SimpleNamespace(rotation=np.eye(3)), proportion=1.0,
                              feet_suit0=ankle0, feet0=feet0, limits=lim, sole=sole, config=cfg)
     plan = sp.plan
@@ -167,6 +201,14 @@ def test_operator_steps_are_clamped_by_the_robots_limits(talos):
     for i, r in enumerate(sp.placements):
         assert plan.lift_off_time(r["robot_step"]) >= r["operator_touch_down_s"] + cfg.effective_latency - 1e-9
     assert sp.look_ahead <= 1e-9
+    # with catch-up the 0.6 m step is reached: the left foot steps past the right one, then the right again
+    sp = plan_operator_steps(steps[:1], T_world_suit=SimpleNamespace(rotation=np.eye(3)), proportion=1.0,
+                             feet_suit0=ankle0, feet0=feet0, limits=lim, sole=sole, config=SteppingConfig())
+    assert [s.side for s in sp.plan.steps] == [Side.RIGHT, Side.LEFT, Side.RIGHT] and sp.extra_steps == 2
+    assert np.allclose(sp.placements[0]["planned"][:2], [0.6, -0.085]) and sp.placements[0]["clamp_m"] < 1e-9
+    assert sp.placements[0]["robot_step"] == 2
+    for a, b in zip(sp.plan.steps, sp.plan.steps[1:]):   # every step within the limits from the one before
+        assert b.p_world_sole[0] - a.p_world_sole[0] <= lim.max_forward + 1e-9
 
 
 def test_step_adjustment_keeps_a_pushed_stepping_robot_up(talos, tmp_path):

@@ -84,8 +84,9 @@ params (YAML `params:` or `TeleopScenario.from_source`):
     task `waist` turns with it.
     Use a task set that walks (`wbcbench teleop --locomotion stepping` takes tasksets/<robot>/teleop-stepping.yaml).
   stepping: {single_support, double_support, final_double_support, preview_horizon, initial_shift [s], apex [m],
-    latency [s], step_adjustment (bool, default false: the walk's DCM-based step adjustment, with the profile's
-    limits and the task set's `step_adjustment:` settings)} for `locomotion: stepping` (`SteppingConfig`).
+    latency [s], catch_up (robot step pairs that reach a placement beyond the step limits, default 3; 0 clamps),
+    step_adjustment (bool, default false: the walk's DCM-based step adjustment, with the profile's limits and the
+    task set's `step_adjustment:` settings)} for `locomotion: stepping` (`SteppingConfig`).
 
 Metrics (summary.json `metrics`), from the log's ground-truth configuration against the reference the
 controller was given at each tick: `hand_position_error_m` and `hand_rotation_error` (||I - R_ref R^T||_F,
@@ -208,6 +209,8 @@ class TeleopScenario(Scenario):
                                                           "initial_shift", "apex") if st.has(k)}
             if st.has("latency"):
                 kw["latency"] = st.float("latency", min=0.0)
+            if st.has("catch_up"):
+                kw["catch_up"] = st.int("catch_up", min=0)
             if st.bool("step_adjustment", False):
                 from ..planning.step_adjustment import StepAdjustmentConfig
 

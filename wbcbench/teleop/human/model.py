@@ -218,16 +218,33 @@ class FitResult(NamedTuple):
     iterations: int
 
 
-def feet_frame(p_left: FloatArray, p_right: FloatArray, up_left: FloatArray, up_right: FloatArray) -> pin.SE3:
+#: the largest angle [deg] between the right-to-left foot direction and the hips' for the feet frame to take its
+#: heading from the feet (`feet_frame`): beyond 45 deg the feet's direction is closer to the hips' forward axis
+#: than to their left-right one (a stride)
+STRIDE_ANGLE = 45.0
+
+
+def feet_frame(p_left: FloatArray, p_right: FloatArray, up_left: FloatArray, up_right: FloatArray,
+               hips_left: FloatArray | None = None) -> pin.SE3:
     """The frame between two feet: origin at the midpoint of the sole points, z the mean up direction, y from
-    the right foot to the left one (made orthogonal to z), x = y cross z (forward)."""
+    the right foot to the left one (made orthogonal to z), x = y cross z (forward).
+
+    `hips_left` (optional, the right-to-left hip vector): when the feet's direction is more than
+    :data:`STRIDE_ANGLE` from it (about the vertical), the feet stand in a stride (one ahead of the other, as in a
+    walk) and point the walking direction, not the body's left: y is then the hips' direction."""
     z = np.asarray(up_left, dtype=float) + np.asarray(up_right, dtype=float)
     z /= np.linalg.norm(z)
     y = np.asarray(p_left, dtype=float) - np.asarray(p_right, dtype=float)
     y -= (y @ z) * z
     norm = np.linalg.norm(y)
-    if norm < 1e-6:
+    if norm < 1e-6 and hips_left is None:
         raise ConfigError("the two feet coincide: no feet frame")
+    if hips_left is not None:
+        h = np.asarray(hips_left, dtype=float) - (np.asarray(hips_left, dtype=float) @ z) * z
+        if np.linalg.norm(h) > 1e-6:
+            h /= np.linalg.norm(h)
+            if norm < 1e-6 or (y / norm) @ h < np.cos(np.radians(STRIDE_ANGLE)):
+                y, norm = h, 1.0
     y /= norm
     x = np.cross(y, z)
     return pin.SE3(np.column_stack([x, y, z]), 0.5 * (np.asarray(p_left) + np.asarray(p_right)))
@@ -445,13 +462,18 @@ class HumanModel:
         (pl, ul), (pr, ur) = out
         return pl, pr, ul, ur
 
-    def feet_frame(self, q: FloatArray) -> pin.SE3:
-        """:func:`feet_frame` of the model's soles for ``q``."""
-        return feet_frame(*self.sole_points(q))
+    def feet_frame(self, q: FloatArray, stride: bool = False) -> pin.SE3:
+        """:func:`feet_frame` of the model's soles for ``q``; `stride`: the hips' heading when the feet stand in a
+        stride."""
+        if not stride:
+            return feet_frame(*self.sole_points(q))
+        hips = self.keypoints(q, ("LeftUpperLeg", "RightUpperLeg"))
+        return feet_frame(*self.sole_points(q), hips_left=hips["LeftUpperLeg"] - hips["RightUpperLeg"])
 
-    def place_feet(self, q: FloatArray, T_world_feet: pin.SE3) -> FloatArray:
-        """``q`` moved rigidly (root only) so that its :meth:`feet_frame` is ``T_world_feet``."""
-        T_feet = self.feet_frame(q)
+    def place_feet(self, q: FloatArray, T_world_feet: pin.SE3, stride: bool = False) -> FloatArray:
+        """``q`` moved rigidly (root only) so that its :meth:`feet_frame` (`stride`: of a stride) is
+        ``T_world_feet``."""
+        T_feet = self.feet_frame(q, stride)
         return self.with_root_placement(q, T_world_feet * T_feet.inverse() * self.root_placement(q))
 
     def shoulder_height(self) -> float:

@@ -1,5 +1,5 @@
-"""C3D marker files (Vicon, Qualisys, OptiTrack exports) through ``ezc3d``: Plug-in Gait markers -> the segment
-poses of the retargeting's canonical segments.
+"""C3D marker files (Vicon, Qualisys, OptiTrack exports) through ``ezc3d``: Plug-in Gait or anatomical-landmark
+markers -> the segment poses of the retargeting's canonical segments.
 
 Markers are matched by label, case-insensitive, a subject prefix (``Name:LASI``) dropped. The full-body Plug-in
 Gait set is needed (``LWRB``/``RWRB``, ``LFIN``/``RFIN``, ``LTHI``, ``LTIB``, ``LHEE`` are optional)::
@@ -25,12 +25,23 @@ Segment origins, in the marker data's frame (positions converted to metres from 
   chord function, without the subject's measured widths);
 * hands: origin the wrist centre, y from the finger marker to the wrist (else along the forearm), x from the
   thumb-side to the little-finger-side wrist marker made orthogonal; other segments: z along the segment,
-  y the body's left made orthogonal.
+  y the body's left (the pelvis') made orthogonal; the feet's y from the 1st to the 5th metatarsal head (left
+  foot; the reverse for the right) where both are marked, so that a foot's heading is its own.
 
-Other full-body sets are read through :data:`MARKER_ALIASES`: the Vicon set of the CMU and HDM05 databases has
-its pelvis markers on a waist belt (front and back waist, ``LFWT`` ``RFWT`` ``LBWT`` ``RBWT``) where Plug-in Gait
-has the ASIS and PSIS; they stand in for them (the belt sits a few centimetres above and outside the iliac spines,
-so the hip joint centres come out that much higher and wider). OpenSim's gait marker set (its Gait2354/Gait2392
+Other full-body sets with the same head, thorax, arm and leg labels are read through :data:`MARKER_ALIASES`: the
+Vicon set of the CMU and HDM05 databases has its pelvis markers on a waist belt (front and back waist, ``LFWT``
+``RFWT`` ``LBWT`` ``RBWT``) where Plug-in Gait has the ASIS and PSIS; they stand in for them (the belt sits a few
+centimetres above and outside the iliac spines, so the hip joint centres come out that much higher and wider).
+The anatomical-landmark set (:data:`ANATOMICAL`: the landmark names of Van Sint Jan's atlas that the ISB
+recommendations use, ``L_IAS L_IPS L_FLE L_FME L_FAL L_TAM L_FM1 CV7 SJN SXS L_HLE L_RSP L_HM2`` ..., e.g. the
+Rehazenter gait dataset's and Qualisys' full-body sets) is read through :data:`ANATOMICAL_MARKERS` (its landmark
+for each Plug-in Gait label, a tuple meaning their midpoint) and :data:`MEDIAL_MARKERS`: with a medial marker the
+elbow, knee and ankle centres are the midpoints of the epicondyles / malleoli (ISB) instead of the lateral marker
+moved medially. Without head markers (``L_HDF`` ...) the head is the trunk's: its frame the thorax frame (x from
+the back markers to the front ones, up from T10/STRN to C7/CLAV), its origin ``HEAD_ABOVE_NECK`` times the
+pelvis-to-neck distance above the neck (0.18 to 0.30, median 0.23, measured on the corpus' Plug-in Gait and Vicon
+clips); the head then follows the trunk only (said in the detection line, :func:`head_source`).
+OpenSim's gait marker set (its Gait2354/Gait2392
 examples: ``R.ASIS`` ``V.Sacral`` ``R.Acromium`` ``R.Elbow`` ``R.Wrist.Lat``/``.Med`` ``R.Knee.Lat``/``.Med``
 ``R.Ankle.Lat``/``.Med`` ``R.Toe.Tip`` ``Sternum``) names the same landmarks otherwise, and has no C7, T10, CLAV
 or four head markers:
@@ -41,9 +52,9 @@ or four head markers:
   mid-point towards the head top marker (made orthogonal); the origin 20 cm below the head top along z (the
   temple markers sit forward of the head's centre: the head top, on the vertex, is above it);
 * a medial knee or ankle marker (``KNM``/``MED``, the Conventional Gait Model 2's labels) puts the joint centre
-  half-way between it and the lateral one instead of the chord offset.
+  half-way between it and the lateral one instead of the chord offset (:data:`MEDIAL_MARKERS`).
 
-:func:`marker_set` names the set a file's labels follow.
+:func:`marker_set` names the set a file's labels follow (from the labels, never the file name).
 
 A marker's gap (no data, or a negative residual) is NaN: the segments built from it are invalid in that frame.
 """
@@ -58,7 +69,8 @@ from ...errors import ConfigError
 from .. import _rotations as rot
 from .recording import MocapRecording
 
-__all__ = ["C3D_REQUIRED", "MARKER_ALIASES", "marker_set", "markers_recording", "read_c3d", "write_c3d"]
+__all__ = ["ANATOMICAL", "ANATOMICAL_MARKERS", "C3D_REQUIRED", "MARKER_ALIASES", "MEDIAL_MARKERS", "head_source",
+           "marker_set", "markers_recording", "read_c3d", "write_c3d"]
 
 #: markers a C3D file must label (the pelvis also needs LPSI+RPSI or SACR)
 C3D_REQUIRED = ("LFHD", "RFHD", "LBHD", "RBHD", "C7", "T10", "CLAV", "STRN", "LASI", "RASI",
@@ -78,6 +90,30 @@ MARKER_ALIASES = {"LASI": ("LFWT", "L.ASIS"), "RASI": ("RFWT", "R.ASIS"), "LPSI"
 #: an alias label -> the marker set that uses it (for :func:`marker_set`)
 _ALIAS_SETS = {"LFWT": "Vicon waist (CMU, HDM05)", "RFWT": "Vicon waist (CMU, HDM05)",
                "L.ASIS": _OPENSIM_GAIT, "R.ASIS": _OPENSIM_GAIT}
+#: the anatomical-landmark marker set's name (module docstring)
+ANATOMICAL = "anatomical landmark (ISB)"
+#: Plug-in Gait label -> the anatomical set's labels for the same landmark (the first present is used; a tuple: the
+#: midpoint of its markers): ASIS / PSIS, C7, T10 (or T8), jugular notch (SJN, or SNJ) and xiphoid for CLAV and
+#: STRN, the acromioclavicular joint (SAE, or SAJ) for SHO, the lateral epicondyles and malleolus for ELB, KNE and
+#: ANK, the radial and ulnar styloids for WRA and WRB, the 2nd/5th metacarpal heads for FIN, the 2nd metatarsal
+#: head (or the 1st/5th's midpoint) for TOE, the calcaneus for HEE, the head's front and back markers
+ANATOMICAL_MARKERS = {"LASI": ("L_IAS",), "RASI": ("R_IAS",), "LPSI": ("L_IPS",), "RPSI": ("R_IPS",),
+                      "C7": ("CV7",), "T10": ("TV10", "TV8"), "CLAV": ("SJN", "SNJ"), "STRN": ("SXS",),
+                      "LFHD": ("L_HDF",), "RFHD": ("R_HDF",), "LBHD": ("L_HDB",), "RBHD": ("R_HDB",)}
+for _S, _s in (("L", "L_"), ("R", "R_")):
+    ANATOMICAL_MARKERS.update({f"{_S}SHO": (f"{_s}SAE", f"{_s}SAJ"), f"{_S}ELB": (f"{_s}HLE",),
+                               f"{_S}WRA": (f"{_s}RSP",), f"{_S}WRB": (f"{_s}UHE",),
+                               f"{_S}FIN": ((f"{_s}HM2", f"{_s}HM5"), f"{_s}HM2"), f"{_S}KNE": (f"{_s}FLE",),
+                               f"{_S}ANK": (f"{_s}FAL",), f"{_S}TOE": (f"{_s}FM2", (f"{_s}FM1", f"{_s}FM5")),
+                               f"{_S}HEE": (f"{_s}FCC",)})
+del _S, _s
+#: lateral label -> the medial marker's labels (the anatomical set's, the Conventional Gait Model 2's, which
+#: OpenSim's gait set's medial markers alias): the joint centre is their midpoint
+MEDIAL_MARKERS = {f"{S}{j}": (f"{S}_{med}",) + extra for S in "LR" for j, med, extra in (
+    ("ELB", "HME", ()), ("KNE", "FME", (f"{S}KNM",)), ("ANK", "TAM", (f"{S}MED",)))}
+_HEAD_MARKERS = ("LFHD", "RFHD", "LBHD", "RBHD")
+#: the head's origin above the neck, in pelvis-to-neck distances, when the head is the trunk's (module docstring)
+HEAD_ABOVE_NECK = 0.23
 _UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254}
 _R_ELBOW, _R_KNEE, _R_ANKLE, _SHOULDER_DROP, _HEAD_DROP = 0.042, 0.057, 0.042, 0.05, 0.10
 _PARENTS = {"Pelvis": None, "T8": "Pelvis", "Neck": "T8", "Head": "Neck",
@@ -131,45 +167,83 @@ def _medial(lateral: np.ndarray, proximal: np.ndarray, towards: np.ndarray, radi
 
 def marker_set(labels) -> str:
     """The marker set upper-case `labels` (subject prefixes dropped) follow: "Plug-in Gait" when its ASIS markers
-    are there, else the set whose alias labels stand in for them (:data:`MARKER_ALIASES`), else "unknown"."""
+    are there, :data:`ANATOMICAL` when that set's are (``L_IAS``, ``R_IAS``), else the set whose alias labels
+    stand in for them (:data:`MARKER_ALIASES`), else "unknown"."""
     labels = set(labels)
     if {"LASI", "RASI"} <= labels:
         return "Plug-in Gait"
+    if {"L_IAS", "R_IAS"} <= labels:
+        return ANATOMICAL
     for alias, name in _ALIAS_SETS.items():
         if alias in labels:
             return name
     return "unknown"
 
 
-def with_aliases(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """`m` with each missing Plug-in Gait label filled from its first present alias (:data:`MARKER_ALIASES`)."""
+def _aliases(family: str) -> dict:
+    return ANATOMICAL_MARKERS if family == ANATOMICAL else MARKER_ALIASES
+
+
+def _alias_value(m: dict, alias):
+    """The alias's positions: a label's, or the midpoint of a tuple's labels (None if one is missing)."""
+    if isinstance(alias, tuple):
+        return np.mean([m[a] for a in alias], axis=0) if all(a in m for a in alias) else None
+    return m.get(alias)
+
+
+def with_aliases(m: dict[str, np.ndarray], family: str | None = None) -> dict[str, np.ndarray]:
+    """`m` with each missing Plug-in Gait label filled from its first present alias in the marker set `family`
+    (default: the one `m`'s labels follow; :data:`MARKER_ALIASES`, :data:`ANATOMICAL_MARKERS`)."""
     out = dict(m)
-    for label, aliases in MARKER_ALIASES.items():
+    for label, aliases in _aliases(marker_set(m) if family is None else family).items():
         if label not in out:
-            found = next((a for a in aliases if a in out), None)
+            found = next((v for v in (_alias_value(m, a) for a in aliases) if v is not None), None)
             if found is not None:
-                out[label] = out[found]
+                out[label] = found
     return out
+
+
+def head_source(labels) -> str:
+    """Where the head's pose comes from for upper-case marker `labels`: "markers" (four head markers), or "trunk"
+    (an anatomical set without them: the thorax frame, module docstring)."""
+    m = with_aliases(dict.fromkeys(labels, 0.0))
+    if all(k in m for k in _HEAD_MARKERS) or marker_set(labels) != ANATOMICAL:
+        return "markers"
+    return "trunk"
+
+
+def _needed(label: str, family: str) -> str:
+    """How `label` is spelled in the marker set `family` (the anatomical set's alternatives joined by '|', a
+    midpoint's by '+'; other sets: the label and its :data:`MARKER_ALIASES` joined by '/')."""
+    if family != ANATOMICAL:
+        return label + "".join(f"/{a}" for a in MARKER_ALIASES.get(label, ()))
+    return "|".join("+".join(a) if isinstance(a, tuple) else a for a in ANATOMICAL_MARKERS.get(label, (label,)))
 
 
 def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dict, dict]:
     """(segment -> (N, 3) origin, segment -> (N, 3, 3) orientation) from Plug-in Gait markers (module docstring);
     `m`: marker label (upper case) -> (N, 3) positions [m]; labels of other marker sets are read through
     :data:`MARKER_ALIASES`."""
-    m = with_aliases(m)
+    family = marker_set(m)
+    head = head_source(m)
+    labels = sorted(m)
+    m = with_aliases(m, family)
     sets = {}
-    missing = [k + "".join(f"/{a}" for a in MARKER_ALIASES.get(k, ())) for k in C3D_REQUIRED
+    missing = [_needed(k, family) for k in C3D_REQUIRED
                if k not in m and k not in _THORAX_SETS[0] + _HEAD_SETS[0]]  # the thorax and head: below
     if not ("SACR" in m or ("LPSI" in m and "RPSI" in m)):
-        missing.append("LPSI+RPSI or SACR")
+        missing.append("L_IPS+R_IPS" if family == ANATOMICAL else "LPSI+RPSI or SACR")
     for part, options in (("thorax", _THORAX_SETS), ("head", _HEAD_SETS)):
         sets[part] = next((k for k, o in enumerate(options) if all(label in m for label in o)), None)
-        if sets[part] is None:
-            missing.append(" or ".join("+".join(o) for o in options))
+        if sets[part] is None and not (part == "head" and head == "trunk"):
+            if family == ANATOMICAL:
+                missing += [_needed(k, family) for k in options[0] if k not in m]
+            else:
+                missing.append(" or ".join("+".join(o) for o in options))
     if missing:
-        raise ConfigError(f"markers {missing} not found (labels: {', '.join(sorted(m)[:12])}"
-                          f"{', ...' if len(m) > 12 else ''}); a full-body set is needed: Plug-in Gait, the CMU/HDM05 "
-                          "Vicon waist set or OpenSim's gait set",
+        raise ConfigError(f"markers {missing} not found (labels: {', '.join(labels[:12])}"
+                          f"{', ...' if len(labels) > 12 else ''}); a full-body set is needed: Plug-in Gait, the CMU/HDM05 "
+                          "Vicon waist set, OpenSim's gait set or the anatomical-landmark (ISB) set",
                           file=file or None)
     asis = 0.5 * (m["LASI"] + m["RASI"])
     back = m["SACR"] if "SACR" in m else 0.5 * (m["LPSI"] + m["RPSI"])
@@ -189,18 +263,22 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
         pos["T8"] = 0.5 * (top + m["STRN"])
     up = _unit(top - bottom)
     pos["Neck"] = top
-    if sets["head"] == 0:
+    if head == "trunk":  # the thorax frame, the origin above the neck (module docstring)
+        head_x = _unit(_perp(0.5 * (m["CLAV"] + m["STRN"]) - 0.5 * (m["C7"] + m["T10"]), up))
+        head_up = up
+        trunk = float(np.nanmedian(np.linalg.norm(top - asis, axis=-1)))
+        pos["Head"] = top + HEAD_ABOVE_NECK * trunk * up
+    elif sets["head"] == 0:
         front, rear = 0.5 * (m["LFHD"] + m["RFHD"]), 0.5 * (m["LBHD"] + m["RBHD"])
         R_head = _frame(front - rear, 0.5 * (m["LFHD"] + m["LBHD"]) - 0.5 * (m["RFHD"] + m["RBHD"]))
         head_x, head_left = R_head[..., 0], R_head[..., 1]
         head_up = np.cross(head_x, head_left)
-        head_centre = 0.25 * (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"])
+        pos["Head"] = 0.25 * (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"]) - _HEAD_DROP * head_up
     else:  # two temples and the head top (OpenSim's gait set)
         temples = 0.5 * (m["L.TEMPLE"] + m["R.TEMPLE"])
         R_head = _frame_z(m["TOP.HEAD"] - temples, m["L.TEMPLE"] - m["R.TEMPLE"])
         head_x, head_up = R_head[..., 0], R_head[..., 2]
-        head_centre = m["TOP.HEAD"] - _HEAD_DROP * head_up  # the head band's level, 10 cm below the vertex
-    pos["Head"] = head_centre - _HEAD_DROP * head_up
+        pos["Head"] = m["TOP.HEAD"] - 2 * _HEAD_DROP * head_up  # 20 cm below the vertex (module docstring)
     rots: dict[str, np.ndarray] = {"Pelvis": R_pelvis,
                                    "Head": np.stack([head_x, head_up, np.cross(head_x, head_up)], axis=-1)}
     left = y
@@ -208,12 +286,18 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
         other = "R" if s == "L" else "L"
         shoulder = m[f"{s}SHO"] - _SHOULDER_DROP * up
         wrist = 0.5 * (m[f"{s}WRA"] + m[f"{s}WRB"]) if f"{s}WRB" in m else m[f"{s}WRA"]
-        elbow = _medial(m[f"{s}ELB"], shoulder, pos["T8"], _R_ELBOW)
+        medial = {k: next((m[a] for a in MEDIAL_MARKERS[k] if a in m), None) for k in
+                  (f"{s}ELB", f"{s}KNE", f"{s}ANK")}
         hip = pos[f"{side}UpperLeg"]
-        knee = (0.5 * (m[f"{s}KNE"] + m[f"{s}KNM"]) if f"{s}KNM" in m
-                else _medial(m[f"{s}KNE"], hip, m[f"{other}KNE"], _R_KNEE))
-        ankle = (0.5 * (m[f"{s}ANK"] + m[f"{s}MED"]) if f"{s}MED" in m
-                 else _medial(m[f"{s}ANK"], knee, m[f"{other}ANK"], _R_ANKLE))
+
+        def centre(label, proximal, towards, radius):
+            if medial[label] is not None:  # the epicondyles' / malleoli's midpoint
+                return 0.5 * (m[label] + medial[label])
+            return _medial(m[label], proximal, towards, radius)
+
+        elbow = centre(f"{s}ELB", shoulder, pos["T8"], _R_ELBOW)
+        knee = centre(f"{s}KNE", hip, m[f"{other}KNE"], _R_KNEE)
+        ankle = centre(f"{s}ANK", knee, m[f"{other}ANK"], _R_ANKLE)
         pos.update({f"{side}UpperArm": shoulder, f"{side}ForeArm": elbow, f"{side}Hand": wrist,
                     f"{side}LowerLeg": knee, f"{side}Foot": ankle, f"{side}Toe": m[f"{s}TOE"]})
         hand_y = wrist - m[f"{s}FIN"] if f"{s}FIN" in m else elbow - wrist
@@ -221,16 +305,20 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
         rots[f"{side}Hand"] = _frame(hand_x, hand_y)
     distal = {p: c for c, p in _PARENTS.items() if p is not None and not c.endswith("Toe")}
     distal.pop("Pelvis", None)
+    hints = {}  # the feet's left: across the forefoot where the 1st and 5th metatarsal heads are marked
+    for side, s, sign in (("Left", "L", 1.0), ("Right", "R", -1.0)):
+        if f"{s}_FM1" in m and f"{s}_FM5" in m:
+            hints[f"{side}Foot"] = hints[f"{side}Toe"] = sign * (m[f"{s}_FM5"] - m[f"{s}_FM1"])
     for seg, parent in _PARENTS.items():
         if seg not in rots:  # z along the segment, towards its proximal end (the toes: along the foot)
             axis = pos[seg] - pos[distal[seg]] if seg in distal else pos[seg] - pos[parent]
-            rots[seg] = _frame_z(axis, left)
+            rots[seg] = _frame_z(axis, hints.get(seg, left))
     return pos, rots
 
 
 def read_c3d(path: str | Path) -> MocapRecording:
-    """Read a C3D marker file (Plug-in Gait markers) into a :class:`~wbcbench.teleop.MocapRecording` of the
-    canonical segments (module docstring); positions in metres.
+    """Read a C3D marker file (Plug-in Gait or anatomical-landmark markers) into a
+    :class:`~wbcbench.teleop.MocapRecording` of the canonical segments (module docstring); positions in metres.
 
     Raises:
         ConfigError: ezc3d missing, an unreadable file, no frames, an unknown unit, or missing markers (one line
@@ -275,6 +363,7 @@ def markers_recording(labels, xyz: np.ndarray, rate: float, file: str = "") -> M
             markers[key] = xyz[:, k]
     pos, rots = segments_from_markers(markers, file)
     found_set = marker_set(markers)
+    notes = ["head from the trunk (no head markers)"] if head_source(markers) == "trunk" else []
     names = tuple(_PARENTS)
     positions = np.stack([pos[s] for s in names], axis=1)
     R = np.stack([rots[s] for s in names], axis=1)
@@ -288,7 +377,7 @@ def markers_recording(labels, xyz: np.ndarray, rate: float, file: str = "") -> M
                           positions=positions, orientations=quats,
                           parents=tuple(-1 if p is None else names.index(p) for p in _PARENTS.values()),
                           up_axis="xyz"[int(np.argmax(np.abs(np.nanmean(pos["Neck"] - pos["Pelvis"], axis=0))))],
-                          conventions={"marker_set": found_set})
+                          conventions={"marker_set": found_set, "notes": notes})
 
 
 def write_c3d(path: str | Path, markers: dict[str, np.ndarray], rate: float, units: str = "mm") -> Path:

@@ -67,6 +67,7 @@ class Conventions:
         rotation_orders: order -> number of joints (e.g. {"ZXY": 20, "ZYX": 1}); empty without joint angles.
         naming: the naming family.
         mapping: how the canonical segments were found ("names", "topology", "file") or "" if not.
+        notes: what else the reader had to decide (e.g. a marker file's head taken from its trunk), on the line.
     """
 
     length_unit: float
@@ -83,6 +84,7 @@ class Conventions:
     naming: str
     mapping: str
     stature_estimates: Mapping[str, float] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
     @property
     def up_axis(self) -> str:
@@ -99,13 +101,15 @@ class Conventions:
         orders = ", ".join(f"{o} x{n}" for o, n in self.rotation_orders.items()) or "-"
         rest = f"{self.rest_pose}-pose ({self.arm_angle_deg:.0f} deg)" if np.isfinite(self.arm_angle_deg) else "-"
         return (f"skeleton: {self.naming} names ({self.mapping or 'unmapped'}); unit {unit}; up {self.up} "
-                f"({self.up_method}); forward {self.forward or '?'}; rest {rest}; rotation orders {orders}")
+                f"({self.up_method}); forward {self.forward or '?'}; rest {rest}; rotation orders {orders}"
+                + "".join(f"; {n}" for n in self.notes))
 
     def as_dict(self) -> dict:
         """Plain values (for summary.json)."""
         d = asdict(self)
         d["rotation_orders"] = dict(self.rotation_orders)
         d["stature_estimates"] = dict(self.stature_estimates)
+        d["notes"] = list(self.notes)
         d = {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in d.items()}
         d["line"] = self.line()
         return d

@@ -92,7 +92,8 @@ def load_recording(path: str | Path, *, length_unit: float | str = "auto", up_ax
         rec = reader(path)
         conv = detect_conventions(rec, mapping=_mapping(rec), length_unit=1.0, up_axis=up_axis, unit_method="file")
         if reader in (read_c3d, read_trc):  # the segments are built from the markers under the canonical names
-            conv = dataclasses.replace(conv, naming=f"{rec.conventions.get('marker_set', 'Plug-in Gait')} markers")
+            conv = dataclasses.replace(conv, naming=f"{rec.conventions.get('marker_set', 'Plug-in Gait')} markers",
+                                       notes=tuple(rec.conventions.get("notes", ())))
         return dataclasses.replace(rec, conventions=conv.as_dict())
     unit = parse_length_unit(length_unit)
     data = parse_bvh(path)

@@ -12,7 +12,12 @@ stack; the upper body keeps being retargeted, carried by the robot's walk.
    forward `max_forward`, backward `max_backward`, sideways between the soles' width plus `min_clearance` and the
    initial separation plus `max_lateral`, turn `max_turn`; a footprint still overlapping the stance one is moved
    outwards. Steps alternate: when the operator steps twice with one foot, the robot's other foot steps in between,
-   towards its own latest target (counted in `extra_steps`).
+   towards its own latest target (counted in `extra_steps`). A placement beyond the limits (an operator's step
+   longer than the robot's) is reached in more steps (`catch_up`, at most that many pairs): the other foot steps
+   as far as its limits allow towards its place beside the target (the robot's stance width, the target's
+   heading), then the foot steps again towards its target; the pairs are counted in `extra_steps` too. A robot
+   that takes more steps than its operator falls behind in time (each step takes `single_support` +
+   `double_support`), not in place. `catch_up: 0` clamps instead.
 4. **Plan**: a `FootstepPlan` with the planner's uniform timing (`single_support`, `double_support`), not the
    operator's: a human steps every 0.4-0.6 s, TALOS' walks here take 0.9-1 s per step, so the robot's steps queue
    behind the operator's. Robot step i lifts off at ``T_init + i P`` with ``T_init`` the least time that keeps
@@ -52,6 +57,7 @@ class SteppingConfig:
     apex: float = 0.05
     latency: float | None = None
     settle: float = 0.15
+    catch_up: int = 3
 
     def __post_init__(self) -> None:
         for name in ("single_support", "double_support", "final_double_support", "preview_horizon",
@@ -61,6 +67,9 @@ class SteppingConfig:
                 raise ConfigError(f"stepping.{name} must be > 0, got {v!r}", key=f"stepping.{name}")
         if self.latency is not None and not (np.isfinite(self.latency) and self.latency >= 0):
             raise ConfigError(f"stepping.latency must be >= 0 s, got {self.latency!r}", key="stepping.latency")
+        if not (isinstance(self.catch_up, (int, np.integer)) and self.catch_up >= 0):
+            raise ConfigError(f"stepping.catch_up must be an integer >= 0, got {self.catch_up!r}",
+                              key="stepping.catch_up")
 
     @property
     def effective_latency(self) -> float:
@@ -89,6 +98,10 @@ class StepPlan:
     extra_steps: int
     latency: float
     look_ahead: float
+
+
+#: a placement this close to its target is reached (no catch-up step) [m]
+_REACHED = 1e-3
 
 
 def _wrap(a: float) -> float:
@@ -161,6 +174,16 @@ def plan_operator_steps(steps, *, T_world_suit, proportion: float, feet_suit0: d
         foot = feet[side] = place(side, target_xy, target_yaw)
         robot_steps.append(foot)
         triggers.append(t_td)
+        for _ in range(config.catch_up):  # beyond the limits: the other foot past it, then this foot again
+            if np.linalg.norm(foot.p_world_sole[:2] - target_xy) <= _REACHED:
+                break
+            other = side.other
+            beside = target_xy + rotation_from_yaw(target_yaw)[:2, :2] @ np.array([0.0, other.sign * sep])
+            feet[other] = place(other, beside, target_yaw)
+            foot = feet[side] = place(side, target_xy, target_yaw)
+            robot_steps += [feet[other], foot]
+            triggers += [t_td, t_td]
+            extra += 2
         last_side = side
         xy = foot.p_world_sole[:2]
         placements.append({"side": st.side, "operator_touch_down_s": float(t_td),
