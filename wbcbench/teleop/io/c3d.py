@@ -234,6 +234,8 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
     if not ("SACR" in m or ("LPSI" in m and "RPSI" in m)):
         missing.append("L_IPS+R_IPS" if family == ANATOMICAL else "LPSI+RPSI or SACR")
     for part, options in (("thorax", _THORAX_SETS), ("head", _HEAD_SETS)):
+        if family == ANATOMICAL:  # its own landmarks for Plug-in Gait's, or (head) the trunk's
+            options = options[:1]
         sets[part] = next((k for k, o in enumerate(options) if all(label in m for label in o)), None)
         if sets[part] is None and not (part == "head" and head == "trunk"):
             if family == ANATOMICAL:
@@ -241,7 +243,8 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
             else:
                 missing.append(" or ".join("+".join(o) for o in options))
     if missing:
-        raise ConfigError(f"markers {missing} not found (labels: {', '.join(labels[:12])}"
+        kind = f"{family} markers" if family != "unknown" else "markers"
+        raise ConfigError(f"{kind} {missing} not found (labels: {', '.join(labels[:12])}"
                           f"{', ...' if len(labels) > 12 else ''}); a full-body set is needed: Plug-in Gait, the CMU/HDM05 "
                           "Vicon waist set, OpenSim's gait set or the anatomical-landmark (ISB) set",
                           file=file or None)
