@@ -105,6 +105,21 @@ class FrameBatch:
         self._seen: list = [None] * k
         self._R = np.zeros((k, 3, 3))
         self._t = np.zeros((k, 3))
+        # the kernel's own arrays (constants, references, work) in three buffers by type, these attributes views of
+        # them: a compiled call types and unboxes each array argument (~40 ns each), and 36 arguments cost more
+        # than a third of the call
+        fk = self.fk
+        header = np.array([model.njoints, k, len(self._rows), len(self._com_rows), nv], dtype=np.intp)
+        self._ints, (fk._kinds, fk._parents, fk._idx_q, self._parents, self._axes, self._owner, self._rows,
+                     self._com_axes, self._com_rows) = _pack(
+            [header, fk._kinds, fk._parents, fk._idx_q, self._parents, self._axes, self._owner, self._rows,
+             self._com_axes, self._com_rows], np.intp, skip=1)
+        self._floats, (fk._R0, fk._t0, fk.R, fk.t, self._Rf, self._tf, self._R, self._t, self._p_ref, self._R_ref,
+                       self._com_ref) = _pack(
+            [fk._R0, fk._t0, fk.R, fk.t, self._Rf, self._tf, self._R, self._t, self._p_ref, self._R_ref,
+             self._com_ref], np.float64)
+        self._flags, (self._support, self._local, self._classical, self._split) = _pack(
+            [self._support, self._local, self._classical, self._split], np.bool_)
         self._args: tuple | None = None
         self._args_key: tuple = (None,) * 4
 
@@ -135,24 +150,32 @@ class FrameBatch:
         if args is None or key[0] is not data or key[1] is not A or key[2] is not e or key[3] is not drift:
             args = self._args = self._arguments(data, A, e, drift)
             self._args_key = (data, A, e, drift)
-        _frame_rows(*args)
+        _frame_rows_packed(*args)
 
     def _arguments(self, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> tuple:
         """The kernel's arguments for these buffers: views of pinocchio's (fixed-size, filled in place by every
-        kinematics update and ``data.q_in = q``), the stack's and our own arrays, made once and reused (building
-        the tuple of 35 arguments each tick cost a few us)."""
-        fk = self.fk
+        kinematics update and ``data.q_in = q``), the stack's and our own three buffers, made once and reused."""
         with_drift = drift is not None
         if self._com:
             Ag, dAg, com = data.Ag, data.dAg, data.com[0]
         else:
             Ag = dAg = _EMPTY2
             com = _EMPTY
-        return (data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
-                self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                if with_drift else _EMPTY, self._support, self._local, self._classical, self._split, self._p_ref, self._R_ref,
-                self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
-                com, self._com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
+        return (data.q_in, self._ints, self._floats, self._flags, data.J, data.dJ if with_drift else data.J,
+                data.v_in if with_drift else _EMPTY, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg, com,
+                self._com_inv_mass)
+
+
+def _pack(arrays: list, dtype, skip: int = 0) -> tuple:
+    """One flat buffer of ``dtype`` holding ``arrays`` one after the other (C order), and views of it shaped as
+    the arrays (but the first ``skip`` ones)."""
+    flat = [np.ascontiguousarray(a, dtype=dtype).ravel() for a in arrays]
+    buf = np.concatenate(flat) if flat else np.zeros(0, dtype=dtype)
+    views, start = [], 0
+    for a, f in zip(arrays, flat):
+        views.append(buf[start:start + f.size].reshape(np.shape(a)))
+        start += f.size
+    return buf, tuple(views[skip:])
 
 
 _EMPTY = np.zeros(0)
@@ -246,6 +269,55 @@ def classical_acceleration(JW, dJ, v, support, p, out):
     out[1] = a[1] + w[2] * pd[0] - w[0] * pd[2]
     out[2] = a[2] + w[0] * pd[1] - w[1] * pd[0]
     out[3], out[4], out[5] = wd[0], wd[1], wd[2]
+
+
+@njit
+def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass):
+    """`_frame_rows` with the batch's own arrays taken from its three buffers (`FrameBatch._pack`'s layout:
+    ``ints`` = [njoints, k, rows, CoM rows, nv], then the arrays)."""
+    n, k, n_rows, n_com, nv = ints[0], ints[1], ints[2], ints[3], ints[4]
+    o = 5
+    kinds = ints[o:o + n]
+    jparents = ints[o + n:o + 2 * n]
+    idx_q = ints[o + 2 * n:o + 3 * n]
+    o += 3 * n
+    parents = ints[o:o + k]
+    o += k
+    axes = ints[o:o + n_rows]
+    owner = ints[o + n_rows:o + 2 * n_rows]
+    rows = ints[o + 2 * n_rows:o + 3 * n_rows]
+    o += 3 * n_rows
+    com_axes = ints[o:o + n_com]
+    com_rows = ints[o + n_com:o + 2 * n_com]
+    f = 0
+    R0 = floats[f:f + 9 * n].reshape((n, 3, 3))
+    f += 9 * n
+    t0 = floats[f:f + 3 * n].reshape((n, 3))
+    f += 3 * n
+    Rj = floats[f:f + 9 * n].reshape((n, 3, 3))
+    f += 9 * n
+    tj = floats[f:f + 3 * n].reshape((n, 3))
+    f += 3 * n
+    Rf = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    tf = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    R = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    t = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    p_ref = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    R_ref = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    com_ref = floats[f:f + n_com]
+    support = flags[0:k * nv].reshape((k, nv))
+    local = flags[k * nv:k * nv + k]
+    classical = flags[k * nv + k:k * nv + 2 * k]
+    split = flags[k * nv + 2 * k:k * nv + 3 * k]
+    _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
+                classical, split, p_ref, R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref,
+                com_axes, com_rows, inv_mass)
 
 
 @njit
