@@ -142,6 +142,10 @@ class BalanceEstimator:
         anchor = q_model is not None
         support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, force[_LEFT], torque[_LEFT],
                                 force[_RIGHT], torque[_RIGHT], *self._step_args, self._state, out)
+        self._take(out, support)
+
+    def _take(self, out: np.ndarray, support: int) -> None:
+        """The outputs of `_balance_step` (``out``, the support foot 0 / 1) as the estimate."""
         self._normal_force = out  # the dict `normal_force` made from it when asked for
         self.support = _RIGHT if support else _LEFT
         self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
@@ -275,3 +279,9 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
         state[1 + a] = out[5 + a]
         out[8 + a] = state[4 + a]
     return support
+
+
+balance_step = _balance_step
+"""`BalanceEstimator`'s compiled update, for a kernel of another package that runs it with more (the balance
+stabilizer's estimate and DCM step in one call); its arguments are those of `_balance_step`, the estimator's
+`_step_args` after the measurement's."""
