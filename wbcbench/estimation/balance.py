@@ -145,10 +145,44 @@ class BalanceEstimator:
         self._take(out, support)
 
     def _take(self, out: np.ndarray, support: int) -> None:
-        """The outputs of `_balance_step` (``out``, the support foot 0 / 1) as the estimate."""
+        """The outputs of `_balance_step` (``out``, the support foot 0 / 1) as the estimate (`zmp`, `com`,
+        `com_vel` views of it made when read: a stabilizer's compiled step reads ``out`` itself)."""
         self._normal_force = out  # the dict `normal_force` made from it when asked for
         self.support = _RIGHT if support else _LEFT
-        self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
+        self._out = out
+        self._zmp = self._com = self._com_vel = None
+
+    _out = _zmp = _com = _com_vel = None
+
+    @property
+    def zmp(self) -> np.ndarray:
+        """The measured ZMP (3,) [m], world, at the last update (NaN without a loaded foot)."""
+        z = self._zmp
+        return self._out[2:5] if z is None else z
+
+    @zmp.setter
+    def zmp(self, value: np.ndarray) -> None:
+        self._zmp = value
+
+    @property
+    def com(self) -> np.ndarray:
+        """The anchored CoM (3,) [m], world, at the last update."""
+        c = self._com
+        return self._out[5:8] if c is None else c
+
+    @com.setter
+    def com(self, value: np.ndarray) -> None:
+        self._com = value
+
+    @property
+    def com_vel(self) -> np.ndarray:
+        """Its filtered velocity (3,) [m/s]."""
+        v = self._com_vel
+        return self._out[8:11] if v is None else v
+
+    @com_vel.setter
+    def com_vel(self, value: np.ndarray) -> None:
+        self._com_vel = value
 
     @property
     def normal_force(self) -> dict:
