@@ -191,6 +191,13 @@ def copy_finite(a, b, c, a_out, b_out, c_out):
 
 
 @njit
+def copy_rows_finite(a, b, c, out):
+    """`copy_finite` into the rows of ``out`` (3, dim) (the row of an empty input left as it is): a reference and
+    its derivatives as the rows of one new array, made read-only once."""
+    return _copy_finite(a, out[0]) and _copy_finite(b, out[1]) and _copy_finite(c, out[2])
+
+
+@njit
 def _copy_finite(src, dst):
     for i in range(src.shape[0]):
         x = src[i]
