@@ -108,16 +108,25 @@ class FrameBatch:
         # the kernel's own arrays (constants, references, work) in three buffers by type, these attributes views of
         # them: a compiled call types and unboxes each array argument (~40 ns each), and 36 arguments cost more
         # than a third of the call
+        # the forward kinematics of the joints that carry the frames only (the universe, then each frame's joint and
+        # its ancestors, parents first: the same kernel and numbers as on the whole model, on TALOS' feet and base
+        # 13 joints of 34), the frames' parent joints numbered among them
         fk = self.fk
-        header = np.array([model.njoints, k, len(self._rows), len(self._com_rows), nv], dtype=np.intp)
-        self._ints, (fk._kinds, fk._parents, fk._idx_q, self._parents, self._axes, self._owner, self._rows,
+        keep = sorted({0} | {int(a) for j in self._parents for a in model.supports[int(j)]})
+        index = {j: i for i, j in enumerate(keep)}
+        kinds, idx_q, R0, t0 = fk._kinds[keep], fk._idx_q[keep], fk._R0[keep], fk._t0[keep]
+        jparents = np.array([index[int(fk._parents[j])] for j in keep], dtype=np.intp)
+        self._parents = np.array([index[int(j)] for j in self._parents], dtype=np.intp)
+        n = len(keep)
+        header = np.array([n, k, len(self._rows), len(self._com_rows), nv], dtype=np.intp)
+        self._ints, (self._kinds, self._jparents, self._idx_q, self._parents, self._axes, self._owner, self._rows,
                      self._com_axes, self._com_rows) = _pack(
-            [header, fk._kinds, fk._parents, fk._idx_q, self._parents, self._axes, self._owner, self._rows,
-             self._com_axes, self._com_rows], np.intp, skip=1)
-        self._floats, (fk._R0, fk._t0, fk.R, fk.t, self._Rf, self._tf, self._R, self._t, self._p_ref, self._R_ref,
-                       self._com_ref) = _pack(
-            [fk._R0, fk._t0, fk.R, fk.t, self._Rf, self._tf, self._R, self._t, self._p_ref, self._R_ref,
-             self._com_ref], np.float64)
+            [header, kinds, jparents, idx_q, self._parents, self._axes, self._owner, self._rows, self._com_axes,
+             self._com_rows], np.intp, skip=1)
+        self._floats, (self._R0, self._t0, self._Rj, self._tj, self._Rf, self._tf, self._R, self._t, self._p_ref,
+                       self._R_ref, self._com_ref) = _pack(
+            [R0, t0, np.zeros((n, 3, 3)), np.zeros((n, 3)), self._Rf, self._tf, self._R, self._t, self._p_ref,
+             self._R_ref, self._com_ref], np.float64)
         self._flags, (self._support, self._local, self._classical, self._split) = _pack(
             [self._support, self._local, self._classical, self._split], np.bool_)
         self._args: tuple | None = None
@@ -273,8 +282,8 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 
 @njit
 def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass):
-    """`_frame_rows` with the batch's own arrays taken from its three buffers (`FrameBatch._pack`'s layout:
-    ``ints`` = [njoints, k, rows, CoM rows, nv], then the arrays)."""
+    """`_frame_rows` with the batch's own arrays taken from its three buffers (`_pack`'s layout: ``ints`` = [joints
+    kept, k, rows, CoM rows, nv], then the arrays)."""
     n, k, n_rows, n_com, nv = ints[0], ints[1], ints[2], ints[3], ints[4]
     o = 5
     kinds = ints[o:o + n]
