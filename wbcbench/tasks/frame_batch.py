@@ -105,19 +105,15 @@ class FrameBatch:
         self._seen: list = [None] * k
         self._R = np.zeros((k, 3, 3))
         self._t = np.zeros((k, 3))
+        # the forward kinematics of the joints that carry the frames only (`ForwardKinematics.pruned`: the same
+        # kernel and numbers, on TALOS' feet and base 14 joints of 34), the frames' parent joints numbered among them
+        sub = self.fk.pruned(self._parents)
+        kinds, jparents, idx_q, R0, t0 = sub._kinds, sub._parents, sub._idx_q, sub._R0, sub._t0
+        self._parents = np.array([sub._index[int(j)] for j in self._parents], dtype=np.intp)
+        n = len(kinds)
         # the kernel's own arrays (constants, references, work) in three buffers by type, these attributes views of
         # them: a compiled call types and unboxes each array argument (~40 ns each), and 36 arguments cost more
         # than a third of the call
-        # the forward kinematics of the joints that carry the frames only (the universe, then each frame's joint and
-        # its ancestors, parents first: the same kernel and numbers as on the whole model, on TALOS' feet and base
-        # 13 joints of 34), the frames' parent joints numbered among them
-        fk = self.fk
-        keep = sorted({0} | {int(a) for j in self._parents for a in model.supports[int(j)]})
-        index = {j: i for i, j in enumerate(keep)}
-        kinds, idx_q, R0, t0 = fk._kinds[keep], fk._idx_q[keep], fk._R0[keep], fk._t0[keep]
-        jparents = np.array([index[int(fk._parents[j])] for j in keep], dtype=np.intp)
-        self._parents = np.array([index[int(j)] for j in self._parents], dtype=np.intp)
-        n = len(keep)
         header = np.array([n, k, len(self._rows), len(self._com_rows), nv], dtype=np.intp)
         self._ints, (self._kinds, self._jparents, self._idx_q, self._parents, self._axes, self._owner, self._rows,
                      self._com_axes, self._com_rows) = _pack(
