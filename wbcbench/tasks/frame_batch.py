@@ -141,21 +141,31 @@ class FrameBatch:
                 self._R_ref[i] = ref
                 self._p_ref[i] = task._p_ref
                 seen[i] = ref
-        com_ref = self._com_ref
+        shared = _EMPTY
         if self._com:
-            com_seen = self._com_seen
-            for i, (task, rows, axes) in enumerate(self._com_slices):
-                p_ref = task._p_ref
-                if p_ref is not com_seen[i]:  # set_reference stores a new array
-                    if p_ref is None:
-                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
-                    com_ref[rows] = p_ref[axes]
-                    com_seen[i] = p_ref
+            # the usual case, every CoM task with the same reference (`CoMTask.share_reference`): the kernel reads
+            # it as it is; else each task's selected axes are copied when replaced
+            first = self._com_slices[0][0]._p_ref
+            for task, _, _ in self._com_slices:
+                if task._p_ref is not first:
+                    first = None
+                    break
+            if first is not None:
+                shared = first
+            else:
+                com_ref, com_seen = self._com_ref, self._com_seen
+                for i, (task, rows, axes) in enumerate(self._com_slices):
+                    p_ref = task._p_ref
+                    if p_ref is not com_seen[i]:  # set_reference stores a new array
+                        if p_ref is None:
+                            raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+                        com_ref[rows] = p_ref[axes]
+                        com_seen[i] = p_ref
         args, key = self._args, self._args_key
         if args is None or key[0] is not data or key[1] is not A or key[2] is not e or key[3] is not drift:
             args = self._args = self._arguments(data, A, e, drift)
             self._args_key = (data, A, e, drift)
-        _frame_rows_packed(*args)
+        _frame_rows_packed(*args, shared)
 
     def _arguments(self, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> tuple:
         """The kernel's arguments for these buffers: views of pinocchio's (fixed-size, filled in place by every
@@ -277,9 +287,10 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 
 
 @njit
-def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass):
+def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass, com_shared):
     """`_frame_rows` with the batch's own arrays taken from its three buffers (`_pack`'s layout: ``ints`` = [joints
-    kept, k, rows, CoM rows, nv], then the arrays)."""
+    kept, k, rows, CoM rows, nv], then the arrays); ``com_shared`` (3,) the reference of every CoM task, or empty
+    (then each row's from the buffer)."""
     n, k, n_rows, n_com, nv = ints[0], ints[1], ints[2], ints[3], ints[4]
     o = 5
     kinds = ints[o:o + n]
@@ -322,17 +333,19 @@ def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift
     split = flags[k * nv + 2 * k:k * nv + 3 * k]
     _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
                 classical, split, p_ref, R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref,
-                com_axes, com_rows, inv_mass)
+                com_axes, com_rows, inv_mass, com_shared)
 
 
 @njit
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
                 classical, split, p_ref,
-                R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
-    # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (com_ref per row)
+                R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass,
+                com_shared):
+    # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (p_ref: com_shared, else com_ref per row)
+    shared = com_shared.shape[0] == 3
     for r in range(com_rows.shape[0]):
         ax, row = com_axes[r], com_rows[r]
-        e[row] = com_ref[r] - com[ax]
+        e[row] = (com_shared[ax] if shared else com_ref[r]) - com[ax]
         s = 0.0
         for c in range(Ag.shape[1]):
             A[row, c] = Ag[ax, c] * inv_mass
