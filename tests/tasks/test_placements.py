@@ -30,6 +30,28 @@ def test_joint_and_frame_placements_are_pinocchios(erd_talos, seed):
         np.testing.assert_allclose(tf[k], M.translation, atol=1e-12)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_pruned_kinematics_give_the_kept_joints_and_frames_bit_for_bit(erd_talos, seed):
+    """A foot's placement from its leg alone (`pruned`: the frame batch's and estimators' use) is the whole model's,
+    the same bits; the arms and head are not computed at all."""
+    model = erd_talos.model
+    q, _ = erd_talos.random_state(seed)
+    fk = ForwardKinematics(model)
+    ids = [model.getFrameId(n) for n in ("left_sole_link", "right_sole_link")]
+    legs = fk.pruned([model.frames[i].parentJoint for i in ids])
+    kept = sorted(legs._index, key=legs._index.get)
+    assert kept[0] == 0 and len(kept) == 14 and len(kept) < model.njoints  # universe, free flyer, 2 x 6 leg joints
+    assert all(model.names[j].startswith(("root", "leg_", "universe")) for j in kept)
+    R, t = fk.joints(q)
+    R_sub, t_sub = legs.joints(q)
+    assert np.array_equal(R_sub, R[kept]) and np.array_equal(t_sub, t[kept])
+    Rf, tf = np.empty((2, 3, 3)), np.empty((2, 3))
+    Rf_sub, tf_sub = np.empty((2, 3, 3)), np.empty((2, 3))
+    fk.frames(q, fk.frame_arrays(ids), Rf, tf)
+    legs.frames(q, legs.frame_arrays(ids), Rf_sub, tf_sub)
+    assert np.array_equal(Rf_sub, Rf) and np.array_equal(tf_sub, tf)
+
+
 def test_other_joint_types_are_not_supported():
     model = pin.Model()
     j = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge")

@@ -59,6 +59,7 @@ class KinematicHierarchy:
         self.names = tuple(self.contacts)
         self.in_contact = {n: True for n in self.names}
         self._key: tuple[bool, ...] = tuple(True for _ in self.names)  # in_contact's values in `names` order
+        self._wanted: frozenset | None = None  # the contact set of the last `set_contacts` (a frozenset)
         self.q_lo, self.q_hi = position_limits
         self.v_max = velocity_limit
         self.dt = dt
@@ -85,9 +86,13 @@ class KinematicHierarchy:
             self.free_tasks[n].set_reference_to_current(m, d)
             self.in_contact[n] = n in active
         self._key = tuple(self.in_contact[n] for n in self.names)
+        self._wanted = None
 
     def set_contacts(self, wanted: Collection) -> None:
         """A contact made this tick takes its frame's current pose as its reference (the model's touch-down)."""
+        if wanted is self._wanted:  # the plan's contact set of the last tick (a phase keeps its frozenset)
+            return
+        self._wanted = wanted if type(wanted) is frozenset else None
         in_contact = self.in_contact
         changed = False
         for n in self.names:

@@ -20,7 +20,7 @@ import pinocchio as pin
 from ..jit import njit
 from ..tasks.placements import ForwardKinematics, joint_placements
 
-__all__ = ["PlacementMemo", "memo_joint_placements", "placement_memo"]
+__all__ = ["PlacementMemo", "memo_arrays", "memo_joint_placements", "placement_memo"]
 
 
 class PlacementMemo:
@@ -29,10 +29,17 @@ class PlacementMemo:
 
     def __init__(self, fk: ForwardKinematics, nq: int):
         n = fk.R.shape[0]
-        self.q = np.full((2, nq), np.nan)  # NaN: equal to no configuration
-        self.R = np.zeros((2, n, 3, 3))
-        self.t = np.zeros((2, n, 3))
-        self.next = np.zeros(1, dtype=np.intp)
+        # the model's kinematic constants and the slots in two buffers (`ints`, `floats`: `memo_arrays` views them
+        # inside a kernel), these attributes views of them: two arguments of a compiled call instead of nine
+        self.ints = np.concatenate([np.array([n, nq], dtype=np.intp), fk._kinds, fk._parents, fk._idx_q,
+                                    np.zeros(1, dtype=np.intp)])
+        self.floats = np.concatenate([fk._R0.ravel(), fk._t0.ravel(), np.full(2 * nq, np.nan),  # NaN: no configuration
+                                      np.zeros(2 * n * 9), np.zeros(2 * n * 3)])
+        o = 12 * n
+        self.q = self.floats[o:o + 2 * nq].reshape(2, nq)
+        self.R = self.floats[o + 2 * nq:o + 2 * nq + 18 * n].reshape(2, n, 3, 3)
+        self.t = self.floats[o + 2 * nq + 18 * n:].reshape(2, n, 3)
+        self.next = self.ints[2 + 3 * n:]
         self.args = (self.q, self.R, self.t, self.next)
 
 
@@ -72,3 +79,21 @@ def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo
     for i in range(n):
         memo_q[slot, i] = q[i]
     return slot
+
+
+@njit
+def memo_arrays(ints, floats):
+    """Inside a kernel, the arrays of a `PlacementMemo` from its two buffers: ``(kinds, parents, idx_q, R0, t0,
+    memo_q, memo_R, memo_t, memo_next)``, the arguments `memo_joint_placements` takes after ``q`` (views)."""
+    n, nq = ints[0], ints[1]
+    kinds = ints[2:2 + n]
+    parents = ints[2 + n:2 + 2 * n]
+    idx_q = ints[2 + 2 * n:2 + 3 * n]
+    memo_next = ints[2 + 3 * n:3 + 3 * n]
+    R0 = floats[0:9 * n].reshape((n, 3, 3))
+    t0 = floats[9 * n:12 * n].reshape((n, 3))
+    o = 12 * n
+    memo_q = floats[o:o + 2 * nq].reshape((2, nq))
+    memo_R = floats[o + 2 * nq:o + 2 * nq + 18 * n].reshape((2, n, 3, 3))
+    memo_t = floats[o + 2 * nq + 18 * n:o + 2 * nq + 24 * n].reshape((2, n, 3))
+    return kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next

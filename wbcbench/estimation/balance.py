@@ -19,7 +19,7 @@ from ..robots import Robot
 from ..side import Side
 from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
 from ..types import Measurement
-from ._memo import memo_joint_placements, placement_memo
+from ._memo import memo_arrays, memo_joint_placements, placement_memo
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
@@ -62,12 +62,15 @@ class BalanceEstimator:
             frames = [self.sensor_ids[Side.LEFT], self.sensor_ids[Side.RIGHT], self.sole_ids[Side.LEFT],
                       self.sole_ids[Side.RIGHT]]
             feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
-                               *placement_memo(robot.model, fk).args, *fk.frame_arrays(frames),
-                               com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
-                               np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD.copy(),
-                               float(min_normal_force), float(self.alpha), float(dt), np.zeros((6, 3, 3)),
-                               np.zeros((6, 3)))
+            memo = placement_memo(robot.model, fk)
+            frame_parents, R_frames, t_frames = fk.frame_arrays(frames)
+            # the kernel's float arrays in one buffer (`_balance_arrays` views them): an argument of a compiled call
+            # costs it ~40 ns
+            floats = np.concatenate([a.ravel() for a in (
+                R_frames, t_frames, com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
+                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros((6, 3, 3)), np.zeros((6, 3)))])
+            self._step_args = (memo.ints, memo.floats, frame_parents, floats, float(min_normal_force),
+                               float(self.alpha), float(dt))
         self._state = np.zeros(7)  # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3)
         self.reset()
 
@@ -139,9 +142,47 @@ class BalanceEstimator:
         anchor = q_model is not None
         support = _balance_step(meas.q, q_model if anchor else meas.q, anchor, force[_LEFT], torque[_LEFT],
                                 force[_RIGHT], torque[_RIGHT], *self._step_args, self._state, out)
+        self._take(out, support)
+
+    def _take(self, out: np.ndarray, support: int) -> None:
+        """The outputs of `_balance_step` (``out``, the support foot 0 / 1) as the estimate (`zmp`, `com`,
+        `com_vel` views of it made when read: a stabilizer's compiled step reads ``out`` itself)."""
         self._normal_force = out  # the dict `normal_force` made from it when asked for
         self.support = _RIGHT if support else _LEFT
-        self.zmp, self.com, self.com_vel = out[2:5], out[5:8], out[8:11]
+        self._out = out
+        self._zmp = self._com = self._com_vel = None
+
+    _out = _zmp = _com = _com_vel = None
+
+    @property
+    def zmp(self) -> np.ndarray:
+        """The measured ZMP (3,) [m], world, at the last update (NaN without a loaded foot)."""
+        z = self._zmp
+        return self._out[2:5] if z is None else z
+
+    @zmp.setter
+    def zmp(self, value: np.ndarray) -> None:
+        self._zmp = value
+
+    @property
+    def com(self) -> np.ndarray:
+        """The anchored CoM (3,) [m], world, at the last update."""
+        c = self._com
+        return self._out[5:8] if c is None else c
+
+    @com.setter
+    def com(self, value: np.ndarray) -> None:
+        self._com = value
+
+    @property
+    def com_vel(self) -> np.ndarray:
+        """Its filtered velocity (3,) [m/s]."""
+        v = self._com_vel
+        return self._out[8:11] if v is None else v
+
+    @com_vel.setter
+    def com_vel(self, value: np.ndarray) -> None:
+        self._com_vel = value
 
     @property
     def normal_force(self) -> dict:
@@ -157,9 +198,34 @@ class BalanceEstimator:
 
 
 @njit
-def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kinds, parents, idx_q, R0, t0, memo_q,
-                  memo_R, memo_t, memo_next, frame_parents, R_frames, t_frames, mass, lever, msub, csub, foot_mass,
-                  foot_com, gravity, min_normal_force, alpha, dt, Rf, tf, state, out):
+def _balance_arrays(n, frame_parents, floats):
+    """The float arrays of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
+    ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf)``, views."""
+    k = frame_parents.shape[0]
+    R_frames = floats[0:9 * k].reshape((k, 3, 3))
+    o = 9 * k
+    t_frames = floats[o:o + 3 * k].reshape((k, 3))
+    o += 3 * k
+    mass = floats[o:o + n]
+    o += n
+    lever = floats[o:o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    msub = floats[o:o + n]
+    o += n
+    csub = floats[o:o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    foot_mass = floats[o:o + 2]
+    foot_com = floats[o + 2:o + 8].reshape((2, 3))
+    gravity = floats[o + 8:o + 11]
+    o += 11
+    Rf = floats[o:o + 54].reshape((6, 3, 3))
+    tf = floats[o + 54:o + 72].reshape((6, 3))
+    return R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf
+
+
+@njit
+def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
+                  floats, min_normal_force, alpha, dt, state, out):
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
@@ -167,7 +233,11 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
     the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
-    the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations)."""
+    the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations), given as its two
+    buffers; the other arrays as one buffer (`_balance_arrays`)."""
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next = memo_arrays(memo_ints, memo_floats)
+    R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf = _balance_arrays(
+        kinds.shape[0], frame_parents, floats)
     j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
     R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
@@ -243,3 +313,9 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, kin
         state[1 + a] = out[5 + a]
         out[8 + a] = state[4 + a]
     return support
+
+
+balance_step = _balance_step
+"""`BalanceEstimator`'s compiled update, for a kernel of another package that runs it with more (the balance
+stabilizer's estimate and DCM step in one call); its arguments are those of `_balance_step`, the estimator's
+`_step_args` after the measurement's."""

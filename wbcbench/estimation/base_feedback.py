@@ -38,7 +38,7 @@ from ..jit import njit
 from ..side import Side
 from ..tasks.placements import ForwardKinematics, frame_placements
 from ..types import Measurement, PointReference, PoseReference, References
-from ._memo import memo_joint_placements, placement_memo
+from ._memo import memo_arrays, memo_joint_placements, placement_memo
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
 
@@ -62,12 +62,13 @@ class BaseFeedbackConfig:
 
 
 @njit
-def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
-                R_frames, t_frames, R, t, drift, alpha):
+def _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift, alpha):
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
     model's and the measured configuration (`placements.joint_placements` through the model's memo
     (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
-    (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`."""
+    (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`. The memo and the model's constants come as its two
+    buffers (`PlacementMemo.ints`, `floats`)."""
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next = memo_arrays(memo_ints, memo_floats)
     j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
     frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[:2], t[:2])
     j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
@@ -76,24 +77,22 @@ def _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, 
 
 
 @njit(exact=True)
-def _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
-                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift):
+def _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
+                          alpha, R_drift, p_drift):
     """`_drift_step`, then D = (``R_drift`` (3, 3), ``p_drift`` (3,)) of the new drift (`BaseFeedback._transform`'s
     numbers: the same cosine and sine)."""
-    _drift_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next, frame_parents,
-                R_frames, t_frames, R, t, drift, alpha)
+    _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift, alpha)
     _transform_of(drift, R_drift, p_drift)
 
 
 @njit(exact=True)
-def _double_support_step(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
-                         frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift, com_position,
-                         com_velocity, com_acceleration, com_out):
+def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
+                         alpha, R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out):
     """`_drift_step_transform`, then the CoM reference mapped through the new D into ``com_out`` (9,)
     (`_map_point`; skipped for an empty ``com_out``): a double-support tick of `BaseFeedback.correct` up to the
     feet's references, in one call."""
-    _drift_step_transform(q_model, q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next,
-                          frame_parents, R_frames, t_frames, R, t, drift, alpha, R_drift, p_drift)
+    _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
+                          alpha, R_drift, p_drift)
     if com_out.shape[0] == 9:
         _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out)
 
@@ -199,9 +198,9 @@ class BaseFeedback:
         self._fk = fk = ForwardKinematics(robot.model)
         self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
         if fk.supported:
-            self._step_args = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0,
-                               *placement_memo(robot.model, fk).args,
-                               *fk.frame_arrays([self.sole_ids[s] for s in Side]), *self._soles)
+            memo = placement_memo(robot.model, fk)
+            self._step_args = (memo.ints, memo.floats, *fk.frame_arrays([self.sole_ids[s] for s in Side]),
+                               *self._soles)
         self.alpha = 1.0 - np.exp(-dt / config.time_constant)
         self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D

@@ -15,9 +15,12 @@ from ..robots import Robot
 from ..side import Side
 from ..types import Measurement, ModelFeedback, PointReference, References
 from .base import Stabilizer
-from .dcm import DcmGains, DcmStabilizer
+from ..estimation.balance import balance_step
+from ..jit import njit
+from .dcm import DcmGains, DcmStabilizer, _dcm_step_logged
 
 _F64 = np.dtype(np.float64)
+_LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 
 class BalanceStabilizer(Stabilizer):
@@ -69,6 +72,24 @@ class BalanceStabilizer(Stabilizer):
         if zmp is None or com is None:
             return refs
         est = self.estimator
+        if (est._step_args is not None and type(zmp) is np.ndarray and zmp.dtype == _F64 and zmp.ndim == 1
+                and 2 <= zmp.shape[0] <= 3):
+            # the estimator's update and the DCM step in one compiled call (the same kernels, the same numbers)
+            dcm = self.dcm
+            est_out, out = np.empty(11), np.empty(20)
+            force, torque = meas.ft_force, meas.ft_torque
+            code = _estimate_and_step(meas.q, feedback.q, force[_LEFT], torque[_LEFT], force[_RIGHT], torque[_RIGHT],
+                                      *est._step_args, est._state, est_out, com.position, com.velocity,
+                                      com.acceleration, zmp, dcm._constants, dcm._fresh, dcm._state, out, self.log)
+            est._take(est_out, code & 1)
+            if code < 2:  # no loaded foot: no measured ZMP
+                return refs
+            if code >= 4:  # an input not finite: the numpy law raises, naming it
+                dcm._step_numpy(com.position, com.velocity, com.acceleration, zmp, est.com, est.com_vel, est.zmp)
+            if dcm._filter is not None:
+                dcm._fresh = False
+            return refs.corrected(PointReference.unchecked(out[0:3], out[3:6], out[6:9]), refs.targets,
+                                  refs.wrench_targets, refs.contact_poses)
         est.update(meas, feedback.q)
         p_zmp = est.zmp
         z0, z1, z2 = p_zmp.tolist()
@@ -90,3 +111,21 @@ class BalanceStabilizer(Stabilizer):
         # the stabilizer's outputs are new float64 (3,) arrays, finite (its inputs were checked): no copies
         return refs.corrected(PointReference.unchecked(p, v, a), refs.targets, refs.wrench_targets,
                               refs.contact_poses)
+
+
+@njit
+def _estimate_and_step(q_meas, q_model, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
+                       floats, min_normal_force, alpha, dt, est_state, est_out, c_ref, v_ref, a_ref, z_ref, k, fresh,
+                       dcm_state, dcm_out, log):
+    """`BalanceEstimator.update` anchored on ``q_model`` (`_balance_step`, into ``est_out``) and, when it measured
+    a ZMP, the DCM step on its estimate (`_dcm_step_logged`, into ``dcm_out`` and ``log``): a tick of `correct` in
+    one call. Returns the support foot (0 left, 1 right) + 2 when the DCM step ran, + 4 when it refused a
+    non-finite input."""
+    support = balance_step(q_meas, q_model, True, f_left, m_left, f_right, m_right, memo_ints, memo_floats,
+                            frame_parents, floats, min_normal_force, alpha, dt, est_state, est_out)
+    if not (np.isfinite(est_out[2]) and np.isfinite(est_out[3]) and np.isfinite(est_out[4])):
+        return support
+    if not _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, est_out[5:8], est_out[8:11], est_out[2:5], k, fresh,
+                            dcm_state, dcm_out, log):
+        return support + 6
+    return support + 2

@@ -23,8 +23,10 @@ BoolArray = npt.NDArray[np.bool_]
 
 
 def frozen(array: np.ndarray) -> np.ndarray:
-    """Mark ``array`` read-only and return it (so that a task can hand out its internals without copies)."""
-    array.flags.writeable = False
+    """Mark ``array`` read-only and return it (so that a task can hand out its internals without copies).
+    (``setflags`` costs half of setting ``flags.writeable``, which makes a flags object first: 0.2 against 0.4 us,
+    several times a tick.)"""
+    array.setflags(write=False)
     return array
 
 
@@ -186,6 +188,13 @@ def copy_finite(a, b, c, a_out, b_out, c_out):
     """Copy three vectors (any of them empty) into the outputs; False (outputs unspecified) unless every value is
     finite. One compiled call for a reference and its derivatives, set every tick."""
     return _copy_finite(a, a_out) and _copy_finite(b, b_out) and _copy_finite(c, c_out)
+
+
+@njit
+def copy_rows_finite(a, b, c, out):
+    """`copy_finite` into the rows of ``out`` (3, dim) (the row of an empty input left as it is): a reference and
+    its derivatives as the rows of one new array, made read-only once."""
+    return _copy_finite(a, out[0]) and _copy_finite(b, out[1]) and _copy_finite(c, out[2])
 
 
 @njit

@@ -80,16 +80,16 @@ class CoMTask(Task):
         [m/s^2] (``None``: zero). All three components are stored even when the mask drops some."""
         if (val.is_vector(position, 3) and (velocity is None or val.is_vector(velocity, 3))
                 and (acceleration is None or val.is_vector(acceleration, 3))):
-            # float64 arrays (what a `PointReference` holds): checked and copied in one compiled call
-            p = np.empty(3)
-            v = self._zero_reference() if velocity is None else np.empty(3)
-            a = self._zero_reference() if acceleration is None else np.empty(3)
+            # float64 arrays (what a `PointReference` holds): checked and copied in one compiled call into the
+            # rows of one new array, made read-only once
             E = val.EMPTY
-            if val.copy_finite(position, E if velocity is None else velocity, E if acceleration is None else acceleration,
-                               p, E if velocity is None else v, E if acceleration is None else a):
-                self._v_ref = v if velocity is None else val.frozen(v)
-                self._a_ref = a if acceleration is None else val.frozen(a)
-                self._p_ref = val.frozen(p)
+            pva = np.empty((3, 3))
+            if val.copy_rows_finite(position, E if velocity is None else velocity,
+                                    E if acceleration is None else acceleration, pva):
+                pva.setflags(write=False)
+                self._p_ref = pva[0]
+                self._v_ref = self._zero_reference() if velocity is None else pva[1]
+                self._a_ref = self._zero_reference() if acceleration is None else pva[2]
                 return
         p = val.as_vector(position, 3, self.owner, "position")
         derivatives = self._check_derivatives(velocity, acceleration)

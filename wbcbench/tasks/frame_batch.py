@@ -105,6 +105,26 @@ class FrameBatch:
         self._seen: list = [None] * k
         self._R = np.zeros((k, 3, 3))
         self._t = np.zeros((k, 3))
+        # the forward kinematics of the joints that carry the frames only (`ForwardKinematics.pruned`: the same
+        # kernel and numbers, on TALOS' feet and base 14 joints of 34), the frames' parent joints numbered among them
+        sub = self.fk.pruned(self._parents)
+        kinds, jparents, idx_q, R0, t0 = sub._kinds, sub._parents, sub._idx_q, sub._R0, sub._t0
+        self._parents = np.array([sub._index[int(j)] for j in self._parents], dtype=np.intp)
+        n = len(kinds)
+        # the kernel's own arrays (constants, references, work) in three buffers by type, these attributes views of
+        # them: a compiled call types and unboxes each array argument (~40 ns each), and 36 arguments cost more
+        # than a third of the call
+        header = np.array([n, k, len(self._rows), len(self._com_rows), nv], dtype=np.intp)
+        self._ints, (self._kinds, self._jparents, self._idx_q, self._parents, self._axes, self._owner, self._rows,
+                     self._com_axes, self._com_rows) = _pack(
+            [header, kinds, jparents, idx_q, self._parents, self._axes, self._owner, self._rows, self._com_axes,
+             self._com_rows], np.intp, skip=1)
+        self._floats, (self._R0, self._t0, self._Rj, self._tj, self._Rf, self._tf, self._R, self._t, self._p_ref,
+                       self._R_ref, self._com_ref) = _pack(
+            [R0, t0, np.zeros((n, 3, 3)), np.zeros((n, 3)), self._Rf, self._tf, self._R, self._t, self._p_ref,
+             self._R_ref, self._com_ref], np.float64)
+        self._flags, (self._support, self._local, self._classical, self._split) = _pack(
+            [self._support, self._local, self._classical, self._split], np.bool_)
         self._args: tuple | None = None
         self._args_key: tuple = (None,) * 4
 
@@ -121,38 +141,56 @@ class FrameBatch:
                 self._R_ref[i] = ref
                 self._p_ref[i] = task._p_ref
                 seen[i] = ref
-        com_ref = self._com_ref
+        shared = _EMPTY
         if self._com:
-            com_seen = self._com_seen
-            for i, (task, rows, axes) in enumerate(self._com_slices):
-                p_ref = task._p_ref
-                if p_ref is not com_seen[i]:  # set_reference stores a new array
-                    if p_ref is None:
-                        raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
-                    com_ref[rows] = p_ref[axes]
-                    com_seen[i] = p_ref
+            # the usual case, every CoM task with the same reference (`CoMTask.share_reference`): the kernel reads
+            # it as it is; else each task's selected axes are copied when replaced
+            first = self._com_slices[0][0]._p_ref
+            for task, _, _ in self._com_slices:
+                if task._p_ref is not first:
+                    first = None
+                    break
+            if first is not None:
+                shared = first
+            else:
+                com_ref, com_seen = self._com_ref, self._com_seen
+                for i, (task, rows, axes) in enumerate(self._com_slices):
+                    p_ref = task._p_ref
+                    if p_ref is not com_seen[i]:  # set_reference stores a new array
+                        if p_ref is None:
+                            raise ReferenceNotSetError(f"{task.owner}: call set_reference before evaluating the task")
+                        com_ref[rows] = p_ref[axes]
+                        com_seen[i] = p_ref
         args, key = self._args, self._args_key
         if args is None or key[0] is not data or key[1] is not A or key[2] is not e or key[3] is not drift:
             args = self._args = self._arguments(data, A, e, drift)
             self._args_key = (data, A, e, drift)
-        _frame_rows(*args)
+        _frame_rows_packed(*args, shared)
 
     def _arguments(self, data: pin.Data, A: FloatArray, e: FloatArray, drift: FloatArray | None) -> tuple:
         """The kernel's arguments for these buffers: views of pinocchio's (fixed-size, filled in place by every
-        kinematics update and ``data.q_in = q``), the stack's and our own arrays, made once and reused (building
-        the tuple of 35 arguments each tick cost a few us)."""
-        fk = self.fk
+        kinematics update and ``data.q_in = q``), the stack's and our own three buffers, made once and reused."""
         with_drift = drift is not None
         if self._com:
             Ag, dAg, com = data.Ag, data.dAg, data.com[0]
         else:
             Ag = dAg = _EMPTY2
             com = _EMPTY
-        return (data.q_in, fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, fk.R, fk.t, self._parents,
-                self._Rf, self._tf, self._R, self._t, data.J, data.dJ if with_drift else data.J, data.v_in
-                if with_drift else _EMPTY, self._support, self._local, self._classical, self._split, self._p_ref, self._R_ref,
-                self._axes, self._owner, self._rows, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg,
-                com, self._com_ref, self._com_axes, self._com_rows, self._com_inv_mass)
+        return (data.q_in, self._ints, self._floats, self._flags, data.J, data.dJ if with_drift else data.J,
+                data.v_in if with_drift else _EMPTY, A, e, drift if with_drift else _EMPTY, with_drift, Ag, dAg, com,
+                self._com_inv_mass)
+
+
+def _pack(arrays: list, dtype, skip: int = 0) -> tuple:
+    """One flat buffer of ``dtype`` holding ``arrays`` one after the other (C order), and views of it shaped as
+    the arrays (but the first ``skip`` ones)."""
+    flat = [np.ascontiguousarray(a, dtype=dtype).ravel() for a in arrays]
+    buf = np.concatenate(flat) if flat else np.zeros(0, dtype=dtype)
+    views, start = [], 0
+    for a, f in zip(arrays, flat):
+        views.append(buf[start:start + f.size].reshape(np.shape(a)))
+        start += f.size
+    return buf, tuple(views[skip:])
 
 
 _EMPTY = np.zeros(0)
@@ -249,13 +287,65 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 
 
 @njit
+def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass, com_shared):
+    """`_frame_rows` with the batch's own arrays taken from its three buffers (`_pack`'s layout: ``ints`` = [joints
+    kept, k, rows, CoM rows, nv], then the arrays); ``com_shared`` (3,) the reference of every CoM task, or empty
+    (then each row's from the buffer)."""
+    n, k, n_rows, n_com, nv = ints[0], ints[1], ints[2], ints[3], ints[4]
+    o = 5
+    kinds = ints[o:o + n]
+    jparents = ints[o + n:o + 2 * n]
+    idx_q = ints[o + 2 * n:o + 3 * n]
+    o += 3 * n
+    parents = ints[o:o + k]
+    o += k
+    axes = ints[o:o + n_rows]
+    owner = ints[o + n_rows:o + 2 * n_rows]
+    rows = ints[o + 2 * n_rows:o + 3 * n_rows]
+    o += 3 * n_rows
+    com_axes = ints[o:o + n_com]
+    com_rows = ints[o + n_com:o + 2 * n_com]
+    f = 0
+    R0 = floats[f:f + 9 * n].reshape((n, 3, 3))
+    f += 9 * n
+    t0 = floats[f:f + 3 * n].reshape((n, 3))
+    f += 3 * n
+    Rj = floats[f:f + 9 * n].reshape((n, 3, 3))
+    f += 9 * n
+    tj = floats[f:f + 3 * n].reshape((n, 3))
+    f += 3 * n
+    Rf = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    tf = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    R = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    t = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    p_ref = floats[f:f + 3 * k].reshape((k, 3))
+    f += 3 * k
+    R_ref = floats[f:f + 9 * k].reshape((k, 3, 3))
+    f += 9 * k
+    com_ref = floats[f:f + n_com]
+    support = flags[0:k * nv].reshape((k, nv))
+    local = flags[k * nv:k * nv + k]
+    classical = flags[k * nv + k:k * nv + 2 * k]
+    split = flags[k * nv + 2 * k:k * nv + 3 * k]
+    _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
+                classical, split, p_ref, R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref,
+                com_axes, com_rows, inv_mass, com_shared)
+
+
+@njit
 def _frame_rows(q, kinds, jparents, idx_q, R0, t0, Rj, tj, parents, Rf, tf, R, t, J, dJ, v, support, local,
                 classical, split, p_ref,
-                R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass):
-    # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (com_ref per row)
+                R_ref, axes, owner, rows, A, e, drift, with_drift, Ag, dAg, com, com_ref, com_axes, com_rows, inv_mass,
+                com_shared):
+    # the CoM tasks' rows: Ag[:3] / m, p_ref - com, dAg[:3] v / m (p_ref: com_shared, else com_ref per row)
+    shared = com_shared.shape[0] == 3
     for r in range(com_rows.shape[0]):
         ax, row = com_axes[r], com_rows[r]
-        e[row] = com_ref[r] - com[ax]
+        e[row] = (com_shared[ax] if shared else com_ref[r]) - com[ax]
         s = 0.0
         for c in range(Ag.shape[1]):
             A[row, c] = Ag[ax, c] * inv_mass

@@ -55,6 +55,22 @@ class ForwardKinematics:
         self._t0 = np.array([model.jointPlacements[j].translation for j in range(n)])
         self.R = np.zeros((n, 3, 3))
         self.t = np.zeros((n, 3))
+        self._index: dict | None = None  # a pruned object's joint numbers (`pruned`)
+
+    def pruned(self, joints) -> "ForwardKinematics":
+        """The forward kinematics of ``joints`` (the model's joint indices) and their ancestors only, parents
+        first: the same kernel and the same numbers on those joints, for a caller that needs nothing else (a
+        foot's placement costs its leg, not the whole robot). Its arrays number the kept joints 0 (the universe),
+        1, ...; its `frame_arrays` give the frames' parent joints in that numbering (frames of kept joints only)."""
+        keep = sorted({0} | {int(a) for j in joints for a in self.model.supports[int(j)]})
+        index = {j: i for i, j in enumerate(keep)}
+        sub = object.__new__(ForwardKinematics)
+        sub.supported, sub.model, sub._index = self.supported, self.model, index
+        sub._kinds, sub._idx_q = self._kinds[keep], self._idx_q[keep]
+        sub._parents = np.array([index[int(self._parents[j])] for j in keep], dtype=np.intp)
+        sub._R0, sub._t0 = self._R0[keep], self._t0[keep]
+        sub.R, sub.t = np.zeros((len(keep), 3, 3)), np.zeros((len(keep), 3))
+        return sub
 
     def joints(self, q: FloatArray, joints=None, R_out: FloatArray | None = None,
                t_out: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
@@ -73,7 +89,9 @@ class ForwardKinematics:
         them."""
         m = self.model
         ids = [int(i) for i in frame_ids]
-        return (np.array([m.frames[i].parentJoint for i in ids], dtype=np.intp),
+        index = self._index
+        return (np.array([m.frames[i].parentJoint if index is None else index[m.frames[i].parentJoint]
+                          for i in ids], dtype=np.intp),
                 np.array([m.frames[i].placement.rotation for i in ids]),
                 np.array([m.frames[i].placement.translation for i in ids]))
 

@@ -135,7 +135,7 @@ class PostureTask(Task):
         self._idx_q_axes = (
             np.array([model.joints[j].idx_q for j in self._joint_ids], dtype=np.intp) if vector_space else None
         )
-        self._error_index: tuple = (None, None, None)  # (rows, index into q or v, q_ref and its selection)
+        self._error_index: tuple = (None, None, None)  # (rows, index into q or v, (q_ref, its selection, data, q's))
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -221,6 +221,11 @@ class PostureTask(Task):
         if q_ref is None:
             raise ReferenceNotSetError(f"{self.owner}: call set_reference before evaluating the task")
         rows, idx, ref = self._error_index
+        if rows is self._rows and ref is not None and ref[0] is q_ref and ref[2] is data:
+            # the usual tick: the reference's selection and a view of data.q_in (pinocchio's fixed-size buffer,
+            # filled in place by every kinematics update) kept from the last call
+            np.subtract(ref[1], ref[3], out=out)
+            return
         if rows is not self._rows:  # first call, or the mask changed: where the selected axes are
             if self._idx_q_axes is None:
                 idx = self._idx_v if self._all_selected else self._idx_v[self._rows]
@@ -233,10 +238,12 @@ class PostureTask(Task):
             self._error_index = (self._rows, idx, None)
             np.take(pin.difference(model, data.q_in, q_ref), idx, out=out)
             return
-        if ref is None or ref[0] is not q_ref:  # set_reference stores a new array
-            ref = (q_ref, q_ref[idx])
+        q_sel = data.q_in[idx]
+        # a new reference (set_reference stores a new array) or data: its selection, and the view of q (None when
+        # the selection is not one slice: a copy)
+        ref = (q_ref, q_ref[idx], data if type(idx) is slice else None, q_sel)
         self._error_index = (self._rows, idx, ref)
-        np.subtract(ref[1], data.q_in[idx], out=out)
+        np.subtract(ref[1], q_sel, out=out)
 
     def _write_drift(self, model: pin.Model, data: pin.Data, out: FloatArray) -> None:
         out.fill(0.0)

@@ -130,7 +130,6 @@ class TaskStack:
             start += r
         self._kp, self._kd, self._minus_kd = kp, kd, -kd
         self._v_ref_zero = self._a_ref_zero = True  # the reference rows are zeros until filled
-        self._refs_changed = False
         self._sqrt_weights = _read_only(sw)
         self._items = items
         self._split_items()
@@ -139,6 +138,7 @@ class TaskStack:
         self._tasks = tuple(tasks)
         self._slices = tuple(slices)
         self._A_out, self._b_out = _read_only(self._A), _read_only(self._b)
+        self._rows_out = Rows(self._A_out, self._b_out)  # the same views every evaluation
         self._pending_constant = any(t._constant_jacobian for t in tasks)
         self._layout_signature = self._signature()
         self._epoch = Task._config_epoch
@@ -196,21 +196,24 @@ class TaskStack:
                     write_drift(model, data, a)
             else:
                 how(model, data, J, e, a if drift else None)
+        v_changed = a_changed = False
         for task, v_ref_rows, a_ref_rows, seen in self._ref_rows:
             v_ref = task._v_ref
             if v_ref is not seen[0]:  # set_reference stores new (read-only) arrays: copy only when replaced
                 v_ref_rows[...] = v_ref if task._all_selected else v_ref[task._selection]
                 seen[0] = v_ref
-                self._refs_changed = True
+                v_changed = True
             if drift:
                 a_ref = task._a_ref
                 if a_ref is not seen[1]:
                     a_ref_rows[...] = a_ref if task._all_selected else a_ref[task._selection]
                     seen[1] = a_ref
-                    self._refs_changed = True
-        if self._refs_changed:
-            self._refs_changed = False
-            self._v_ref_zero = not np.count_nonzero(self._v_ref)  # (NaN counts, as in `any`; a third of its time)
+                    a_changed = True
+        # (NaN counts, as in `any`; a third of its time); the velocity level never reads the accelerations, whose
+        # test waits for the first evaluation that copies them
+        if v_changed:
+            self._v_ref_zero = not np.count_nonzero(self._v_ref)
+        if a_changed:
             self._a_ref_zero = not np.count_nonzero(self._a_ref)
 
     def acceleration_rows(self, model: pin.Model, data: pin.Data) -> Rows:
@@ -227,7 +230,7 @@ class TaskStack:
         np.matmul(self._A, data.v_in, out=self._jv)
         _acceleration_law(self._jv, self._kp, self._minus_kd, self._e, self._v_ref, self._a_ref, self._drift,
                           not self._v_ref_zero, not self._a_ref_zero, self._b)
-        return Rows(self._A_out, self._b_out)
+        return self._rows_out
 
     def velocity_rows(self, model: pin.Model, data: pin.Data) -> Rows:
         """Stacked ``J v = v_ref + Kp e`` (see :func:`~wbcbench.tasks.velocity_rows`); needs either kinematics
@@ -239,11 +242,8 @@ class TaskStack:
         if self._epoch != Task._config_epoch or self._pending_constant:
             self._refresh(model, data)
         self._fill(model, data, False)
-        b = self._b
-        np.multiply(self._kp, self._e, out=b)
-        if not self._v_ref_zero:
-            np.add(self._v_ref, b, out=b)
-        return Rows(self._A_out, self._b_out)
+        _velocity_law(self._kp, self._e, self._v_ref, not self._v_ref_zero, self._b)
+        return self._rows_out
 
     # ---------------------------------------------------------------------------------------- description
     @property
@@ -287,3 +287,14 @@ def _acceleration_law(jv, kp, minus_kd, e, v_ref, a_ref, drift, with_v_ref, with
         if with_a_ref:
             x = a_ref[r] + x
         b[r] = x + kp[r] * e[r] - drift[r]
+
+
+@njit(exact=True)
+def _velocity_law(kp, e, v_ref, with_v_ref, b):
+    """``b = Kp e + v_ref`` row by row: numpy's ``multiply`` then ``add`` it replaces (the same numbers), the
+    reference's term skipped when it is zero (``x + 0 = x``)."""
+    for r in range(b.shape[0]):
+        x = kp[r] * e[r]
+        if with_v_ref:
+            x = v_ref[r] + x
+        b[r] = x
