@@ -100,6 +100,12 @@ def test_markers_give_back_the_joint_centres(tmp_path):
     np.testing.assert_allclose(rel0, rel1, atol=2e-3)
     c = load_recording(path).conventions
     assert c["up"] == "+z" and c["unit_method"] == "file" and c["mapping"] == "names", c["line"]
+    # the trunk's frames lie along the spine: T8's z from the neck down to T8, as every segment's z points from its
+    # (first) child to it (an arm, T8's last child, is not its axis)
+    for seg, child in (("T8", "Neck"), ("Neck", "Head"), ("LeftUpperArm", "LeftForeArm")):
+        z = to_matrix(np.asarray(rec.orientations[:, rec.segments.index(seg)]))[..., 2]
+        along = _unit(rec.position(seg) - rec.position(child))
+        assert np.min(np.sum(z * along, axis=-1)) > 1 - 1e-9, seg
 
 
 def test_the_cmu_hdm05_waist_marker_set_is_read_through_its_aliases(tmp_path):

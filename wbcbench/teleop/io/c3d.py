@@ -306,7 +306,10 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
         hand_y = wrist - m[f"{s}FIN"] if f"{s}FIN" in m else elbow - wrist
         hand_x = (m[f"{s}WRA"] - m[f"{s}WRB"]) if f"{s}WRB" in m else np.cross(hand_y, left)
         rots[f"{side}Hand"] = _frame(hand_x, hand_y)
-    distal = {p: c for c, p in _PARENTS.items() if p is not None and not c.endswith("Toe")}
+    distal: dict[str, str] = {}  # a segment's first child: T8's is the Neck (along the spine), not an arm
+    for c, p in _PARENTS.items():
+        if p is not None and not c.endswith("Toe"):
+            distal.setdefault(p, c)
     distal.pop("Pelvis", None)
     hints = {}  # the feet's left: across the forefoot where the 1st and 5th metatarsal heads are marked
     for side, s, sign in (("Left", "L", 1.0), ("Right", "R", -1.0)):
