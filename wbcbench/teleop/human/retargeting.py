@@ -9,12 +9,10 @@ stream), which should show the operator standing, arms along the body (the robot
 2. move the model rigidly so that its feet overlay the robot's feet in the robot's reference posture: the
    :func:`~wbcbench.teleop.human.model.feet_frame` of the model's soles (ankles lowered by the ankle height)
    coincides with the feet frame of the robot's sole frames (:func:`robot_feet_frame`: midpoint of the soles,
-   heading from the right sole to the left one, z the world vertical). With ``stride_heading`` (set for
-   `locomotion: stepping`) an operator caught mid-stride (the feet's direction more than 45 deg from the hips')
-   takes the hips' heading: the feet's then points along the walk, and the steps would map sideways. Without it
-   (feet fixed) such an operator is calibrated turned by that angle (17 of 37 real-capture clips, 20 to 89 deg);
-   facing the hips there made two operators who bow down after a stride bow forward, and TALOS followed their
-   heads until its base tilted past the fall limit: left as it was;
+   heading from the right sole to the left one, z the world vertical). An operator caught mid-stride (the feet's
+   direction more than 45 deg from the hips') takes the hips' heading (``stride_heading``, on by default): the
+   feet's then points along the walk, the operator would be calibrated turned by that angle (17 of 37
+   real-capture clips, 20 to 89 deg) and a walk would map sideways;
 3. estimate the rigid transform ``T_world_suit`` from the suit's world frame to the robot's world with Umeyama's
    method on the 15 keypoints (segment origins) of the frame and of the placed model. If the posture from the
    joint angles leaves an RMS residual above ``fit_threshold`` (angles in another convention, sensor drift), the
@@ -162,7 +160,7 @@ def _effector_frames(robot: Any) -> dict[str, str]:
 
 def robot_workspaces(
     robot: Any, *, samples: int = 2048, seed: int = 0, hand_margin: float = 0.0, head_margin: float = 0.10,
-    head_tilt_margin: float = 0.10,
+    head_tilt_margin: float = 0.0,
 ) -> dict[str, ReachShell]:
     """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.human.workspace`)."""
     model = robot.model
@@ -199,7 +197,7 @@ class Retargeter:
         segment_map: canonical segment name -> source segment name, when :func:`canonical_name` cannot guess.
         fit_threshold: Umeyama RMS residual [m] above which a posture from joint angles is refined by a fit.
         stride_heading: the model's feet frame takes the hips' heading when the calibration frame catches the
-            operator in a stride (`HumanModel.feet_frame`; `locomotion: stepping` sets it, module docstring).
+            operator in a stride (`HumanModel.feet_frame`, module docstring); False: the feet's direction always.
 
     Raises:
         ConfigError: bad ``proportion``; the calibration frame lacks an effector segment or has < 4 keypoints.
@@ -216,7 +214,7 @@ class Retargeter:
         workspaces: Mapping[str, ReachShell] | None = None,
         segment_map: Mapping[str, str] | None = None,
         fit_threshold: float = 0.03,
-        stride_heading: bool = False,
+        stride_heading: bool = True,
     ) -> None:
         self._robot = robot
         self._source = source

@@ -13,7 +13,10 @@ lower half is no place for a head, though: an operator who squats or bends down 
 torso, the radial clamp keeps it there, and the head task pulled TALOS down into a crouch below the fall height
 (a public motion-capture recording). So the head's shell is also a cone: the direction from the centre tilts from
 the vertical at most ``max_tilt`` (the largest tilt of the samples plus ``tilt_margin``), and a target beyond it
-is turned onto the cone about the centre, its distance kept (it leans instead of sinking).
+is turned onto the cone about the centre, its distance kept (it leans instead of sinking). The samples move the
+torso and neck with the base upright, and the teleoperation's head shell takes no tilt margin
+(`robot_workspaces`): a head reference tilted further than the torso can lean made TALOS bow at the hips until its
+base tilted past the fall limit (two public captures whose operators bow down after a stride).
 """
 
 from __future__ import annotations

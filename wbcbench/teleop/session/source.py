@@ -165,10 +165,8 @@ class TeleopReferenceSource:
         self.walk_source = None
         if not self.live and isinstance(self.source, MocapRecording):
             self.source, self.operator_motion = self._fixed_feet(self.source)
-        # stepping reproduces the operator's walk: an operator caught mid-stride is faced by the hips
         self.retargeter = Retargeter(self.robot, self.source, proportion=self.proportion,
-                                     segment_map=self.config.segment_map,
-                                     stride_heading=self.config.locomotion == "stepping")
+                                     segment_map=self.config.segment_map)
         self.reference_poses = {k: pin.SE3(v) for k, v in self.retargeter.reference_poses.items()}
         model = self.robot.model
         data = model.createData()
