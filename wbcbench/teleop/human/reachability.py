@@ -79,6 +79,7 @@ class ChainReach:
         self.lower = np.clip(self.model.lowerPositionLimit, -np.pi, np.pi)
         self.upper = np.clip(self.model.upperPositionLimit, -np.pi, np.pi)
         self.q_rest = np.clip(q_reference[self.q_index], self.lower, self.upper)
+        self._eye = np.eye(len(joints))
         self.rotation = rotation
         self.position_tolerance = float(position_tolerance)
         self.rotation_tolerance = float(rotation_tolerance)
@@ -103,7 +104,7 @@ class ChainReach:
         e_p, e_r, F = self._residual(x, M)
         cost = float(e_p @ e_p + self.weight**2 * (e_r @ e_r))
         lam = 1e-3
-        n = len(x)
+        eye = self._eye
         for _ in range(self.iterations):
             if np.sqrt(e_p @ e_p) <= 0.1 * self.position_tolerance and (
                     not self.rotation or np.sqrt(e_r @ e_r) <= 0.1 * self.rotation_tolerance):
@@ -118,7 +119,7 @@ class ChainReach:
             H = A.T @ A
             improved = False
             while lam < 1e6:
-                dx = np.linalg.solve(H + lam * np.eye(n), -g)
+                dx = np.linalg.solve(H + lam * eye, -g)
                 x_new = np.clip(x + dx, self.lower, self.upper)
                 p_new, r_new, F_new = self._residual(x_new, M)
                 c_new = float(p_new @ p_new + self.weight**2 * (r_new @ r_new))

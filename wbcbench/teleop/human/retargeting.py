@@ -72,6 +72,7 @@ __all__ = [
     "Calibration",
     "TeleopSample",
     "Retargeter",
+    "effector_chains",
     "robot_workspaces",
     "robot_feet_frame",
 ]
@@ -158,25 +159,27 @@ def _effector_frames(robot: Any) -> dict[str, str]:
     return {"left_hand": profile.hands[Side.LEFT], "right_hand": profile.hands[Side.RIGHT], "head": profile.head_frame}
 
 
+def effector_chains(robot: Any) -> dict[str, tuple[str, list[int]]]:
+    """Effector name -> (its frame, the joint ids of its own chain, root first): a hand's after the torso frame's
+    joint, the head's after the floating base (:func:`~wbcbench.teleop.human.workspace.chain_joints`)."""
+    model = robot.model
+    torso_joint = model.frames[model.getFrameId(robot.profile.torso_frame)].parentJoint
+    return {name: (frame, chain_joints(model, frame, 1 if name == "head" else torso_joint))
+            for name, frame in _effector_frames(robot).items()}
+
+
 def robot_workspaces(
     robot: Any, *, samples: int = 2048, seed: int = 0, hand_margin: float = 0.0, head_margin: float = 0.10,
     head_tilt_margin: float = 0.0,
 ) -> dict[str, ReachShell]:
-    """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.human.workspace`)."""
-    model = robot.model
-    torso_joint = model.frames[model.getFrameId(robot.profile.torso_frame)].parentJoint
-    frames = _effector_frames(robot)
+    """A :class:`~wbcbench.teleop.ReachShell` per effector (see :mod:`wbcbench.teleop.human.workspace`), about
+    its :func:`effector_chains` chain."""
     out = {}
-    for name, frame in frames.items():
-        tilt = None
-        if name == "head":
-            joints = chain_joints(model, frame, 1)
-            margin, tilt = head_margin, head_tilt_margin
-        else:
-            joints = chain_joints(model, frame, torso_joint)
-            margin = hand_margin
-        out[name] = reach_shell(model, robot.q0, frame, joints, samples=samples, seed=seed, margin=margin,
-                                tilt_margin=tilt)
+    for name, (frame, joints) in effector_chains(robot).items():
+        head = name == "head"
+        out[name] = reach_shell(robot.model, robot.q0, frame, joints, samples=samples, seed=seed,
+                                margin=head_margin if head else hand_margin,
+                                tilt_margin=head_tilt_margin if head else None)
     return out
 
 

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from ...side import Side
 from ..human.reachability import ChainReach
-from ..human.workspace import chain_joints
+from ..human.retargeting import effector_chains
 from .source import HANDS, rotation_error, stats
 
 __all__ = ["EFFECTORS", "REACH_STRIDE", "has_targets", "has_truth", "reach_checks", "teleop_errors_from_log",
@@ -53,42 +53,41 @@ def has_truth(log: dict) -> bool:
 def reach_checks(robot) -> dict[str, ChainReach] | None:
     """A :class:`~wbcbench.teleop.human.reachability.ChainReach` per effector (hands: pose, from the torso; head:
     position, from the base), or None where a chain has a joint with several configuration variables."""
-    model = robot.model
-    torso_joint = model.frames[model.getFrameId(robot.profile.torso_frame)].parentJoint
-    frames = {"left_hand": robot.profile.hands[Side.LEFT], "right_hand": robot.profile.hands[Side.RIGHT],
-              "head": robot.profile.head_frame}
     try:
-        return {k: ChainReach(model, f, chain_joints(model, f, 1 if k == "head" else torso_joint), robot.q0,
-                              rotation=k != "head") for k, f in frames.items()}
+        return {k: ChainReach(robot.model, frame, joints, robot.q0, rotation=k != "head")
+                for k, (frame, joints) in effector_chains(robot).items()}
     except ValueError:
         return None
 
 
-def _reachability(robot, Q: np.ndarray, ref: dict, t: np.ndarray, stride: int) -> dict[str, np.ndarray] | None:
-    """Sampled ticks, per effector whether its reference was reachable, and the hands' speed ratios."""
-    checks = reach_checks(robot)
-    if checks is None or len(Q) == 0:
-        return None
-    model, data = robot.model, robot.model.createData()
-    n = len(Q)
-    ticks = np.arange(0, n, stride)
-    reachable = np.zeros((len(EFFECTORS), len(ticks)), dtype=bool)
-    speed = np.zeros((len(HANDS), len(ticks)))
-    h = _VELOCITY_HALF_WIDTH
-    for col, i in enumerate(ticks):
-        pin.forwardKinematics(model, data, Q[i])
+class _Reachability:
+    """Every `stride`-th row of a log: per effector whether its reference was reachable, and the hands' speed
+    ratios; `at` is called with the row's forward kinematics done (the errors' pass over the rows)."""
+
+    def __init__(self, checks: dict[str, ChainReach], Q: np.ndarray, ref: dict, t: np.ndarray, stride: int):
+        self.checks, self.Q, self.ref, self.t, self.stride = checks, Q, ref, t, stride
+        self.ticks = np.arange(0, len(Q), stride)
+        self.reachable = np.zeros((len(EFFECTORS), len(self.ticks)), dtype=bool)
+        self.speed = np.zeros((len(HANDS), len(self.ticks)))
+
+    def at(self, i: int, data) -> None:
+        if i % self.stride:
+            return
+        col, ref, t, n, h = i // self.stride, self.ref, self.t, len(self.Q), _VELOCITY_HALF_WIDTH
         for row, k in enumerate(EFFECTORS):
-            check = checks[k]
+            check = self.checks[k]
             parent = data.oMi[check.parent]
-            res = check.solve(Q[i], parent, pin.SE3(ref[k][i, 3:].reshape(3, 3), ref[k][i, :3]))
-            reachable[row, col] = res.reachable
+            res = check.solve(self.Q[i], parent, pin.SE3(ref[k][i, 3:].reshape(3, 3), ref[k][i, :3]))
+            self.reachable[row, col] = res.reachable
             if k in HANDS:
                 a, b = max(i - h, 0), min(i + h, n - 1)
                 dt = t[b] - t[a] if b > a else 1.0
                 Ra, Rb = ref[k][a, 3:].reshape(3, 3), ref[k][b, 3:].reshape(3, 3)
-                speed[row, col] = check.speed_ratio(res.q, parent, (ref[k][b, :3] - ref[k][a, :3]) / dt,
-                                                    Ra @ pin.log3(Ra.T @ Rb) / dt)
-    return {"reach_ticks": ticks, "reachable": reachable, "speed_ratio": speed}
+                self.speed[row, col] = check.speed_ratio(res.q, parent, (ref[k][b, :3] - ref[k][a, :3]) / dt,
+                                                         Ra @ pin.log3(Ra.T @ Rb) / dt)
+
+    def result(self) -> dict[str, np.ndarray]:
+        return {"reach_ticks": self.ticks, "reachable": self.reachable, "speed_ratio": self.speed}
 
 
 def teleop_errors_from_log(log: dict, robot, reach_stride: int | None = REACH_STRIDE) -> dict[str, np.ndarray]:
@@ -113,8 +112,13 @@ def teleop_errors_from_log(log: dict, robot, reach_stride: int | None = REACH_ST
     pos = {k: np.empty((n, 3)) for k in frames}
     rot = {k: np.empty((n, 3, 3)) for k in frames}
     inside = {h: np.zeros(n, dtype=bool) for h in HANDS}
+    t = np.asarray(log["t"]) - (log["t"][0] if n else 0.0)
+    checks = reach_checks(robot) if reach_stride and n else None
+    reach = _Reachability(checks, Q, ref, t, int(reach_stride)) if checks is not None else None
     for i in range(n):
         pin.framesForwardKinematics(model, data, Q[i])
+        if reach is not None:
+            reach.at(i, data)
         for k, fid in fids.items():
             M = data.oMf[fid]
             pos[k][i] = M.translation
@@ -127,11 +131,9 @@ def teleop_errors_from_log(log: dict, robot, reach_stride: int | None = REACH_ST
     e_rot = {k: rotation_error(ref[k][:, 3:].reshape(-1, 3, 3), rot[k]) for k in frames}
     out = {"position": np.stack([e_pos[h] for h in HANDS]), "rotation": np.stack([e_rot[h] for h in HANDS]),
            "reference_inside_body": np.stack([inside[h] for h in HANDS]), "head_position": e_pos["head"],
-           "t": np.asarray(log["t"]) - (log["t"][0] if n else 0.0)}
-    if reach_stride:
-        reach = _reachability(robot, Q, ref, out["t"], int(reach_stride))
-        if reach is not None:
-            out.update(reach)
+           "t": t}
+    if reach is not None:
+        out.update(reach.result())
     if has_truth(log):
         true = {h: np.column_stack([log[f"teleop_truth.{h}.{c}"] for c in _COMPONENTS])[shift] for h in HANDS}
         out["position_true"] = np.stack([np.linalg.norm(true[h][:, :3] - pos[h], axis=1) for h in HANDS])
