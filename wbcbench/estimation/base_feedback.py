@@ -9,8 +9,8 @@ The drift is the planar rigid transform D (yaw, x, y) that takes the real robot 
 the feet in double support, as the balance estimator anchors its CoM (estimation/balance.py): for each foot in contact,
 D_foot = P(T_model_foot) P(T_measured_foot)^-1 with P the planar pose of a sole (x, y, heading of its x axis),
 T_model_foot from the integrated configuration and T_measured_foot from the Measurement (base pose from the
-robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant `time_constant`). The estimate is held in single support, where the
-robot rocks on its stance sole.
+robot's base estimator, joints from the encoders); the feet's D are averaged and low-pass filtered (time constant
+`time_constant`). The estimate is held in single support, where the robot rocks on its stance sole.
 
 The correction moves the plan into the model's world: the CoM and swing-foot references and the trunk orientation
 target are mapped through D, so the model walks the plan shifted by the drift and the real robot walks the plan.

@@ -245,8 +245,8 @@ def segments_from_markers(m: dict[str, np.ndarray], file: str = "") -> tuple[dic
     if missing:
         kind = f"{family} markers" if family != "unknown" else "markers"
         raise ConfigError(f"{kind} {missing} not found (labels: {', '.join(labels[:12])}"
-                          f"{', ...' if len(labels) > 12 else ''}); a full-body set is needed: Plug-in Gait, the CMU/HDM05 "
-                          "Vicon waist set, OpenSim's gait set or the anatomical-landmark (ISB) set",
+                          f"{', ...' if len(labels) > 12 else ''}); a full-body set is needed: Plug-in Gait, the "
+                          "CMU/HDM05 Vicon waist set, OpenSim's gait set or the anatomical-landmark (ISB) set",
                           file=file or None)
     asis = 0.5 * (m["LASI"] + m["RASI"])
     back = m["SACR"] if "SACR" in m else 0.5 * (m["LPSI"] + m["RPSI"])
