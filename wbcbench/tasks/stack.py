@@ -71,8 +71,8 @@ class TaskStack:
         compiled_frames: fill the rows of the frame tasks, contacts and CoM tasks
             (:class:`~wbcbench.tasks.FrameTask`, :class:`~wbcbench.tasks.Contact6D`, :class:`~wbcbench.tasks.CoMTask`,
             not subclasses) with one compiled call (:mod:`wbcbench.tasks.frame_batch`): the same rows to rounding,
-            not the same bits, faster by a few us per task. Models the compiled kinematics does not support keep the tasks'
-            own evaluation.
+            not the same bits, faster by a few us per task. Models the compiled kinematics does not support keep
+            the tasks' own evaluation.
 
     The arrays returned are read-only views of the stack's buffers, overwritten by the next evaluation (copy
     them to keep them). Not thread-safe.
