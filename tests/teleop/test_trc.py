@@ -102,6 +102,10 @@ def test_a_bad_trc_is_one_line(tmp_path):
     truncated.write_text("\n".join(lines[:-1] + [lines[-1][: len(lines[-1]) // 2]]) + "\n")
     with pytest.raises(ConfigError, match=f"line {len(lines)}.*truncated"):
         read_trc_markers(truncated)
+    header_only = tmp_path / "header.trc"
+    header_only.write_text("\n".join(lines[:2]) + "\n")
+    with pytest.raises(ConfigError, match="header truncated: 2 line"):
+        read_trc_markers(header_only)
     no_unit = tmp_path / "unit.trc"
     no_unit.write_text("\n".join(lines[:2] + [lines[2].replace("\tmm\t", "\tfurlong\t")] + lines[3:]) + "\n")
     with pytest.raises(ConfigError, match="furlong"):

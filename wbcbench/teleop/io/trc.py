@@ -39,8 +39,11 @@ def read_trc_markers(path: str | Path) -> tuple[list[str], np.ndarray, float]:
         lines = Path(path).read_text(encoding="utf-8", errors="replace").splitlines()
     except OSError as exc:
         raise ConfigError(f"cannot read ({exc.strerror})", file=file) from None
-    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
+    if not lines or not lines[0].startswith("PathFileType"):
         raise ConfigError("not a TRC file: its first line must start with 'PathFileType'", file=file)
+    if len(lines) < 5:
+        raise ConfigError(f"TRC header truncated: {len(lines)} line(s), the header takes 5 (file type, field names, "
+                          "their values, marker names, coordinates)", file=file)
     header = dict(zip((k.strip() for k in lines[1].split("\t")), (v.strip() for v in lines[2].split("\t"))))
     for key in ("DataRate", "Units"):
         if not header.get(key):
