@@ -1,6 +1,6 @@
 """Reachability of an effector's reference by its own chain (wbcbench/teleop/human/reachability.py): poses the arm
-can take are found from another start, poses beyond the arm are not, and the speed ratio scales with the
-reference's speed."""
+can take are found from another start, poses beyond the arm are not, and the speed-limited follower reaches a
+pose in the time its joints' velocity limits allow, not sooner."""
 
 from __future__ import annotations
 
@@ -69,15 +69,27 @@ def test_beyond_the_arm_is_out_of_reach(talos, left_arm):
     assert not res.reachable and res.position_residual > 0.05
 
 
-def test_speed_ratio_scales_with_the_reference_speed(talos, left_arm):
+def test_the_follower_reaches_a_pose_in_the_time_its_joints_need(talos, left_arm):
+    """A pose 0.6 rad away on every arm joint: with dt shorter than the slowest joint needs, the follower is not
+    there and no joint moved more than its limit allows; given the time, it is."""
     check, frame = left_arm
-    data, M = _placements(talos, talos.q0, frame)
-    check._last = None
-    res = check.solve(talos.q0, data.oMi[check.parent], M)
-    v, w = np.array([0.3, 0.1, -0.2]), np.array([0.0, 0.5, 0.2])
-    r1 = check.speed_ratio(res.q, data.oMi[check.parent], v, w)
-    assert r1 > 0
-    assert check.speed_ratio(res.q, data.oMi[check.parent], 4 * v, 4 * w) == pytest.approx(4 * r1, rel=1e-9)
-    assert check.speed_ratio(res.q, data.oMi[check.parent], 0 * v, 0 * w) == 0.0
-    # a hand at 3 m/s is beyond what TALOS' arm joints (1.8 to 4.6 rad/s) can do
-    assert check.speed_ratio(res.q, data.oMi[check.parent], np.array([3.0, 0.0, 0.0]), np.zeros(3)) > 1.0
+    q = talos.q0.copy()
+    x0 = q[check.q_index].copy()
+    delta = np.where(x0 + 0.6 <= check.upper, 0.6, -0.6)
+    q[check.q_index] = x0 + delta
+    data, M = _placements(talos, q, frame)
+    parent = data.oMi[check.parent]  # (the torso does not move: the arm's parent is the same at q0)
+    need = float(np.max(np.abs(delta) / check.velocity_limit))  # the slowest joint's time at its limit
+    short = check.track(x0, 0.5 * need, parent, M)
+    assert not short.reachable and short.position_residual > 0.02
+    assert np.all(np.abs(short.q - x0) <= check.velocity_limit * 0.5 * need + 1e-12)
+    x, t = x0, 0.0
+    while t < 3.0 * need:  # sampled every 10 ms, as the metrics do
+        res = check.track(x, 0.01, parent, M)
+        x, t = res.q, t + 0.01
+        if res.reachable:
+            break
+    assert res.reachable and 0.5 * need < t <= 1.5 * need
+    assert res.position_residual <= check.position_tolerance and res.rotation_residual <= check.rotation_tolerance
+    with pytest.raises(ValueError, match="dt"):
+        check.track(x0, -0.01, parent, M)

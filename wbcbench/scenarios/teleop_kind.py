@@ -98,9 +98,9 @@ robot's configuration of that tick) and the fraction inside (`hand_reference_ins
 reference inside the hips cannot be tracked without interpenetration, whatever the controller; every 10 ms,
 the same split by reachability (wbcbench/teleop/human/reachability.py: whether the effector's own chain, an arm
 from where the torso was, can put it at its reference within the joint limits): `hand_position_error_reachable_m`
-(reachable and outside the body), `hand_position_error_out_of_reach_m`, `hand_reachable_fraction`, the reachable
-ticks whose reference the arm's joints can also follow at their velocity limits
-(`hand_position_error_reachable_within_speed_m`, `hand_reachable_within_speed_fraction`), and the head's
+(reachable and outside the body), `hand_position_error_out_of_reach_m`, `hand_reachable_fraction`, the ticks
+whose reference is reachable in time (a follower of it that moves the arm's joints at most at their velocity
+limits is there: `hand_position_error_reachable_in_time_m`, `hand_reachable_in_time_fraction`), and the head's
 (`head_position_error_reachable_m`, `head_position_error_out_of_reach_m`, `head_reachable_fraction`);
 `head_position_error_m`; and `teleop` (invalid ticks, loss events and their duration, clamped ticks per
 effector, the stream's receiver counters, the network link's counters and the prediction horizon). Through the

@@ -12,9 +12,17 @@ descent on ``[p - p_ref; w log3(R_ref^T R)]`` with the joints clipped to their l
 (the previous solution, the robot's own chain configuration of that tick, the reference posture's); the
 first start that meets the tolerances ends it. A local minimum can only call a reachable reference out of reach.
 
-The teleoperation metrics split the effectors' errors by it: a reference out of reach is where the operator's
-hand was and the robot's arm cannot be (a retargeting limit, whatever the controller); a reachable one that is
-missed is the controller's (or the command filter's) doing.
+Reachable *in time* (:meth:`ChainReach.track`): a moving reference can be reachable at every instant and still
+move faster than the arm's joints turn (a serve, a jump's arm swing: the hand at 2 to 11 m/s), and after such a
+swing the arm needs time to come back. A speed-limited follower answers both: a kinematic copy of the chain that
+starts where the robot's arm was and, every sampled tick, moves as close to the reference as it can, each joint
+by at most its velocity limit times the time since the last sample (within its position limits; no acceleration
+limit, no dynamics: it is quicker than any controller could be). Where it is at the reference (the tolerances
+above), a controller could have been there too.
+
+The teleoperation metrics split the effectors' errors by them: a reference out of reach is where the operator's
+hand was and the robot's arm cannot be (a retargeting limit, whatever the controller); one the follower reaches
+and the robot misses is the controller's (or the command filter's) doing.
 """
 
 from __future__ import annotations
@@ -99,8 +107,12 @@ class ChainReach:
         e_r = pin.log3(M.rotation.T @ F.rotation) if self.rotation else np.zeros(3)
         return e_p, e_r, F
 
-    def _descend(self, x0: FloatArray, M: pin.SE3) -> tuple[FloatArray, float, float]:
-        x = np.clip(x0, self.lower, self.upper)
+    def _descend(self, x0: FloatArray, M: pin.SE3, lower: FloatArray | None = None,
+                 upper: FloatArray | None = None) -> tuple[FloatArray, float, float]:
+        """The search from ``x0`` within [lower, upper] (default: the joints' position limits)."""
+        lower = self.lower if lower is None else lower
+        upper = self.upper if upper is None else upper
+        x = np.clip(x0, lower, upper)
         e_p, e_r, F = self._residual(x, M)
         cost = float(e_p @ e_p + self.weight**2 * (e_r @ e_r))
         lam = 1e-3
@@ -120,7 +132,7 @@ class ChainReach:
             improved = False
             while lam < 1e6:
                 dx = np.linalg.solve(H + lam * eye, -g)
-                x_new = np.clip(x + dx, self.lower, self.upper)
+                x_new = np.clip(x + dx, lower, upper)
                 p_new, r_new, F_new = self._residual(x_new, M)
                 c_new = float(p_new @ p_new + self.weight**2 * (r_new @ r_new))
                 if c_new < cost:
@@ -150,19 +162,17 @@ class ChainReach:
         self._last = best[1].q.copy()
         return best[1]
 
-    def speed_ratio(self, q_chain: FloatArray, parent_placement: pin.SE3, linear: FloatArray,
-                    angular: FloatArray) -> float:
-        """The largest ratio of a joint's speed to its velocity limit for the chain at ``q_chain`` (a
-        :meth:`solve` result) to move the effector at the reference's world velocity (``linear`` [m/s], and
-        ``angular`` [rad/s] when the rotation counts): the least-norm joint velocities (pseudo-inverse). Above 1,
-        the reference moves faster than the chain can follow there (an estimate: the least-norm solution is not
-        the one with the smallest largest ratio)."""
-        R = self._parent_reference.rotation @ parent_placement.rotation.T
-        J = pin.computeFrameJacobian(self.model, self.data, q_chain, self.frame_id, pin.LOCAL_WORLD_ALIGNED)
-        if self.rotation:
-            J, v = J, np.concatenate((R @ linear, R @ angular))
-        else:
-            J, v = J[:3], R @ linear
-        qd = np.linalg.lstsq(J, v, rcond=None)[0]
-        limit = np.where(self.velocity_limit > 0, self.velocity_limit, np.inf)  # 0: no limit given
-        return float(np.max(np.abs(qd) / limit))
+    def track(self, q_chain: FloatArray, dt: float, parent_placement: pin.SE3, reference: pin.SE3) -> ReachResult:
+        """One step of the speed-limited follower (module docstring): from the chain's joint positions ``q_chain``
+        (the follower's last ones), the closest the chain comes to ``reference`` (world; the chain's parent joint
+        at ``parent_placement``) with each joint moved by at most its velocity limit times ``dt`` [s] (a joint
+        without a limit, 0 in the model, moves freely), within its position limits. The result's ``q`` is the
+        follower's next state."""
+        if dt < 0:
+            raise ValueError(f"track: dt must be >= 0 s, got {dt!r}")
+        x = np.clip(np.asarray(q_chain, dtype=float), self.lower, self.upper)
+        step = np.where(self.velocity_limit > 0, self.velocity_limit * dt, np.inf)
+        lower, upper = np.maximum(self.lower, x - step), np.minimum(self.upper, x + step)
+        x, rp, rr = self._descend(x, self.target(parent_placement, reference), lower, upper)
+        ok = rp <= self.position_tolerance and (not self.rotation or rr <= self.rotation_tolerance)
+        return ReachResult(ok, rp, rr if self.rotation else 0.0, x)

@@ -321,6 +321,11 @@ def render(console, summary: dict, run_dir) -> None:
         t.add_row("hand error, reachable / out of reach [m]",
                   f"mean {f(r['mean'])} ({100 * m['hand_reachable_fraction']:.0f} % of the hand samples) / "
                   f"{f(o['mean'])}")
+        if m.get("hand_reachable_in_time_fraction") is not None:
+            it = m["hand_position_error_reachable_in_time_m"]
+            t.add_row("hand error, reachable in time [m]",
+                      f"mean {f(it['mean'])} ({100 * m['hand_reachable_in_time_fraction']:.0f} % of the hand "
+                      f"samples: where an arm at its joints' speed limits could have followed)")
     if "self_collisions" in m:
         pairs = ", ".join(f"{k} ({n} ticks)" for k, n in m.get("self_collision_pairs", {}).items())
         t.add_row("self-collisions", f"{m['self_collisions']} contact events, {m['self_collision_ticks']} ticks"

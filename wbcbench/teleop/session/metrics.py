@@ -13,10 +13,10 @@ own error against it (`reference_lag`: what the link and the prediction left in 
 
 Reachability (wbcbench/teleop/human/reachability.py): every `REACH_STRIDE` ticks (10 ms), whether each hand's
 reference pose and the head's reference position are reachable by the effector's own chain (an arm from where the
-torso was, the torso and neck from where the base was) within its joint limits, and for the hands how fast the
-arm's joints would have to move to follow the reference there (`speed_ratio`, the largest ratio to a joint's
-velocity limit). The errors are then split: reachable (and outside the body) against out of reach, and the
-reachable ticks within the arm's speed.
+torso was, the torso and neck from where the base was) within its joint limits, and for the hands whether it is
+reachable in time: whether a speed-limited follower of the reference (the arm moving each joint at most at its
+velocity limit, from where the robot's arm was at the first sample; `ChainReach.track`) is at it. The errors are
+then split: reachable (and outside the body) against out of reach, and reachable in time (and outside the body).
 """
 
 from __future__ import annotations
@@ -34,9 +34,6 @@ __all__ = ["EFFECTORS", "REACH_STRIDE", "has_targets", "has_truth", "reach_check
 
 #: reachability is checked every this many ticks (10 ms at 1 kHz)
 REACH_STRIDE = 10
-#: half-width [ticks] of the central difference that gives a reference's velocity
-_VELOCITY_HALF_WIDTH = 5
-
 EFFECTORS = ("left_hand", "right_hand", "head")
 _COMPONENTS = ("x", "y", "z", "r00", "r01", "r02", "r10", "r11", "r12", "r20", "r21", "r22")
 
@@ -61,40 +58,41 @@ def reach_checks(robot) -> dict[str, ChainReach] | None:
 
 
 class _Reachability:
-    """Every `stride`-th row of a log: per effector whether its reference was reachable, and the hands' speed
-    ratios; `at` is called with the row's forward kinematics done (the errors' pass over the rows)."""
+    """Every `stride`-th row of a log: per effector whether its reference was reachable, and per hand whether the
+    speed-limited follower reached it (reachable in time); `at` is called with the row's forward kinematics done
+    (the errors' pass over the rows)."""
 
     def __init__(self, checks: dict[str, ChainReach], Q: np.ndarray, ref: dict, t: np.ndarray, stride: int):
         self.checks, self.Q, self.ref, self.t, self.stride = checks, Q, ref, t, stride
         self.ticks = np.arange(0, len(Q), stride)
         self.reachable = np.zeros((len(EFFECTORS), len(self.ticks)), dtype=bool)
-        self.speed = np.zeros((len(HANDS), len(self.ticks)))
+        self.in_time = np.zeros((len(HANDS), len(self.ticks)), dtype=bool)
+        self._follower: dict[str, tuple[float, np.ndarray]] = {}  # hand -> (time, the follower's arm joints)
 
     def at(self, i: int, data) -> None:
         if i % self.stride:
             return
-        col, ref, t, n, h = i // self.stride, self.ref, self.t, len(self.Q), _VELOCITY_HALF_WIDTH
+        col, ref = i // self.stride, self.ref
         for row, k in enumerate(EFFECTORS):
             check = self.checks[k]
             parent = data.oMi[check.parent]
-            res = check.solve(self.Q[i], parent, pin.SE3(ref[k][i, 3:].reshape(3, 3), ref[k][i, :3]))
-            self.reachable[row, col] = res.reachable
+            M = pin.SE3(ref[k][i, 3:].reshape(3, 3), ref[k][i, :3])
+            self.reachable[row, col] = check.solve(self.Q[i], parent, M).reachable
             if k in HANDS:
-                a, b = max(i - h, 0), min(i + h, n - 1)
-                dt = t[b] - t[a] if b > a else 1.0
-                Ra, Rb = ref[k][a, 3:].reshape(3, 3), ref[k][b, 3:].reshape(3, 3)
-                self.speed[row, col] = check.speed_ratio(res.q, parent, (ref[k][b, :3] - ref[k][a, :3]) / dt,
-                                                         Ra @ pin.log3(Ra.T @ Rb) / dt)
+                t_last, x = self._follower.get(k, (self.t[i], self.Q[i][check.q_index]))
+                res = check.track(x, self.t[i] - t_last, parent, M)
+                self.in_time[row, col] = res.reachable
+                self._follower[k] = (self.t[i], res.q)
 
     def result(self) -> dict[str, np.ndarray]:
-        return {"reach_ticks": self.ticks, "reachable": self.reachable, "speed_ratio": self.speed}
+        return {"reach_ticks": self.ticks, "reachable": self.reachable, "reachable_in_time": self.in_time}
 
 
 def teleop_errors_from_log(log: dict, robot, reach_stride: int | None = REACH_STRIDE) -> dict[str, np.ndarray]:
     """Per tick: position [m] and rotation (||I - R_ref R^T||_F) errors of both hands, whether each hand's
     reference lies inside the body (its protected point within r_rep + r of a repulsion point), the head's
     position error, and the time; every `reach_stride` ticks (None: not checked) whether each effector's
-    reference was reachable and the hands' speed ratios (module docstring)."""
+    reference was reachable and each hand's reachable in time (module docstring)."""
     n = len(log["t"])
     model = robot.model
     data = model.createData()
@@ -170,7 +168,7 @@ def _split_by_reach(e: dict) -> dict:
     """The hand and head errors at the sampled ticks, split by reachability (module docstring)."""
     ticks, reach = e["reach_ticks"], e["reachable"]
     hands_reach = reach[:2] & ~e["reference_inside_body"][:, ticks]
-    within = hands_reach & (e["speed_ratio"] <= 1.0)
+    in_time = e["reachable_in_time"] & ~e["reference_inside_body"][:, ticks]
     pos = e["position"][:, ticks]
     head = e["head_position"][ticks]
     frac = (lambda mask: float(mask.mean()) if mask.size else None)
@@ -178,8 +176,8 @@ def _split_by_reach(e: dict) -> dict:
         "hand_position_error_reachable_m": stats(pos[hands_reach]),
         "hand_position_error_out_of_reach_m": stats(pos[~reach[:2]]),
         "hand_reachable_fraction": frac(hands_reach),
-        "hand_position_error_reachable_within_speed_m": stats(pos[within]),
-        "hand_reachable_within_speed_fraction": frac(within),
+        "hand_position_error_reachable_in_time_m": stats(pos[in_time]),
+        "hand_reachable_in_time_fraction": frac(in_time),
         "head_position_error_reachable_m": stats(head[reach[2]]),
         "head_position_error_out_of_reach_m": stats(head[~reach[2]]),
         "head_reachable_fraction": frac(reach[2]),
