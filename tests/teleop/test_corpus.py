@@ -63,7 +63,7 @@ def test_every_clip_runs_to_its_end(tmp_path, clip):
     assert not s["fell"] and s["sim_time_s"] >= s["duration_s"] - 2e-3  # to the last control tick
     assert m.get("self_collisions", 0) == 0
     assert m["teleop"]["skeleton"]["operator_motion"]["applied"] == clip.get("operator_moves", True)
-    assert m["hand_reachable_in_time_fraction"] > 0.1  # the error below is over a tenth of the samples at least
+    assert m["hand_reachable_in_time_fraction"] > 0.05  # the error below is over 5 % of the samples at least (0.11-1.0)
     err = m["hand_position_error_reachable_in_time_m"]["mean"]
     if clip.get("hand_error_known"):
         assert err >= 0.05, f"{err:.3f} m: fixed? remove hand_error_known from the manifest"
