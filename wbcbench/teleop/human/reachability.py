@@ -17,8 +17,8 @@ move faster than the arm's joints turn (a serve, a jump's arm swing: the hand at
 swing the arm needs time to come back. A speed-limited follower answers both: a kinematic copy of the chain that
 starts where the robot's arm was and, every sampled tick, moves as close to the reference as it can, each joint
 by at most its velocity limit times the time since the last sample (within its position limits; no acceleration
-limit, no dynamics: it is quicker than any controller could be). Where it is at the reference (the tolerances
-above), a controller could have been there too.
+limit, no dynamics: quicker than the real arm, though not an optimal plan, as it does not know where the
+reference goes next). Where it is at the reference (the tolerances above), a controller could have been there too.
 
 The teleoperation metrics split the effectors' errors by them: a reference out of reach is where the operator's
 hand was and the robot's arm cannot be (a retargeting limit, whatever the controller); one the follower reaches
