@@ -42,3 +42,23 @@ def test_a_configuration_changed_in_place_is_computed_again(talos):
     q[0] += 0.5  # the base moved: same array, other content
     slot = memo_joint_placements(q, *consts, *memo.args)
     np.testing.assert_allclose(memo.t[slot][1:] - t_before[1:], [[0.5, 0.0, 0.0]] * (model.njoints - 1), atol=1e-12)
+
+
+def test_the_kernels_views_of_the_memo_buffers_are_its_arrays(talos):
+    """`memo_arrays` (inside a kernel, views made by `jit.c_view`) gives the memo's and the model's arrays: their
+    shapes, strides and values, in the buffers' memory."""
+    from wbcbench.estimation._memo import memo_arrays
+
+    model = talos.model
+    fk = ForwardKinematics(model)
+    memo = placement_memo(model, fk)
+    memo_joint_placements(pin.neutral(model), fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, *memo.args)
+    got = memo_arrays(memo.ints, memo.floats)
+    expected = (fk._kinds, fk._parents, fk._idx_q, fk._R0, fk._t0, memo.q, memo.R, memo.t, memo.next)
+    for a, b in zip(got, expected):
+        assert a.shape == b.shape and a.strides == b.strides and a.flags.c_contiguous
+        assert np.array_equal(a, b, equal_nan=True)  # a slot not filled yet holds NaN
+    for a in got[:3] + got[-1:]:
+        assert np.shares_memory(a, memo.ints)
+    for a in got[3:-1]:
+        assert np.shares_memory(a, memo.floats)

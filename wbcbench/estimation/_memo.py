@@ -17,7 +17,7 @@ import weakref
 import numpy as np
 import pinocchio as pin
 
-from ..jit import njit
+from ..jit import c_view, njit
 from ..tasks.placements import ForwardKinematics, joint_placements
 
 __all__ = ["PlacementMemo", "memo_arrays", "memo_joint_placements", "placement_memo"]
@@ -84,16 +84,17 @@ def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo
 @njit
 def memo_arrays(ints, floats):
     """Inside a kernel, the arrays of a `PlacementMemo` from its two buffers: ``(kinds, parents, idx_q, R0, t0,
-    memo_q, memo_R, memo_t, memo_next)``, the arguments `memo_joint_placements` takes after ``q`` (views)."""
+    memo_q, memo_R, memo_t, memo_next)``, the arguments `memo_joint_placements` takes after ``q`` (views made by
+    `c_view`, cheaper than numba's reshape)."""
     n, nq = ints[0], ints[1]
     kinds = ints[2:2 + n]
     parents = ints[2 + n:2 + 2 * n]
     idx_q = ints[2 + 2 * n:2 + 3 * n]
     memo_next = ints[2 + 3 * n:3 + 3 * n]
-    R0 = floats[0:9 * n].reshape((n, 3, 3))
-    t0 = floats[9 * n:12 * n].reshape((n, 3))
+    R0 = c_view(floats[0:9 * n], (n, 3, 3))
+    t0 = c_view(floats[9 * n:12 * n], (n, 3))
     o = 12 * n
-    memo_q = floats[o:o + 2 * nq].reshape((2, nq))
-    memo_R = floats[o + 2 * nq:o + 2 * nq + 18 * n].reshape((2, n, 3, 3))
-    memo_t = floats[o + 2 * nq + 18 * n:o + 2 * nq + 24 * n].reshape((2, n, 3))
+    memo_q = c_view(floats[o:o + 2 * nq], (2, nq))
+    memo_R = c_view(floats[o + 2 * nq:o + 2 * nq + 18 * n], (2, n, 3, 3))
+    memo_t = c_view(floats[o + 2 * nq + 18 * n:o + 2 * nq + 24 * n], (2, n, 3))
     return kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..jit import njit
+from ..jit import c_view, njit
 from ..robots import Robot
 from ..side import Side
 from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
@@ -202,24 +202,24 @@ def _balance_arrays(n, frame_parents, floats):
     """The float arrays of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
     ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf)``, views."""
     k = frame_parents.shape[0]
-    R_frames = floats[0:9 * k].reshape((k, 3, 3))
+    R_frames = c_view(floats[0:9 * k], (k, 3, 3))
     o = 9 * k
-    t_frames = floats[o:o + 3 * k].reshape((k, 3))
+    t_frames = c_view(floats[o:o + 3 * k], (k, 3))
     o += 3 * k
     mass = floats[o:o + n]
     o += n
-    lever = floats[o:o + 3 * n].reshape((n, 3))
+    lever = c_view(floats[o:o + 3 * n], (n, 3))
     o += 3 * n
     msub = floats[o:o + n]
     o += n
-    csub = floats[o:o + 3 * n].reshape((n, 3))
+    csub = c_view(floats[o:o + 3 * n], (n, 3))
     o += 3 * n
     foot_mass = floats[o:o + 2]
-    foot_com = floats[o + 2:o + 8].reshape((2, 3))
+    foot_com = c_view(floats[o + 2:o + 8], (2, 3))
     gravity = floats[o + 8:o + 11]
     o += 11
-    Rf = floats[o:o + 54].reshape((6, 3, 3))
-    tf = floats[o + 54:o + 72].reshape((6, 3))
+    Rf = c_view(floats[o:o + 54], (6, 3, 3))
+    tf = c_view(floats[o + 54:o + 72], (6, 3))
     return R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf
 
 
