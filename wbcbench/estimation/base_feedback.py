@@ -34,7 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..robots import Robot
-from ..jit import njit
+from ..jit import c_view, njit
 from ..side import Side
 from ..tasks.placements import ForwardKinematics, frame_placements
 from ..types import Measurement, PointReference, PoseReference, References
@@ -86,15 +86,31 @@ def _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents
 
 
 @njit(exact=True)
-def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
-                         alpha, R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out):
-    """`_drift_step_transform`, then the CoM reference mapped through the new D into ``com_out`` (9,)
-    (`_map_point`; skipped for an empty ``com_out``): a double-support tick of `BaseFeedback.correct` up to the
-    feet's references, in one call."""
+def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, floats, drift_prev, com_position,
+                         com_velocity, com_acceleration, out):
+    """A double-support tick of `BaseFeedback.correct` up to the feet's references, in one call: the drift
+    ``drift_prev`` updated (`_drift_step_transform`) and the CoM reference mapped through the new D (`_map_point`;
+    skipped for an empty ``com_position``). ``out`` (24,): the new drift (3) | R_drift (9, row-major) | p_drift (3)
+    | the mapped CoM (9); ``floats``: the base feedback's buffer (`_feedback_arrays`)."""
+    alpha, R_frames, t_frames, R, t = _feedback_arrays(frame_parents.shape[0], floats)
+    drift = out[0:3]
+    for a in range(3):
+        drift[a] = drift_prev[a]
+    R_drift, p_drift = c_view(out[3:12], (3, 3)), out[12:15]
     _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
                           alpha, R_drift, p_drift)
-    if com_out.shape[0] == 9:
-        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out)
+    if com_position.shape[0] == 3:
+        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, out[15:24])
+
+
+@njit
+def _feedback_arrays(k, floats):
+    """The arrays of `BaseFeedback`'s buffer (``k`` sole frames; as `BaseFeedback` lays it out): ``(alpha,
+    R_frames (k, 3, 3), t_frames (k, 3), R (2k, 3, 3), t (2k, 3))``, the filter's gain, the soles' placements in
+    their joints and the scratch rows of the soles' placements, views."""
+    o = 1 + 9 * k
+    return (floats[0], c_view(floats[1:o], (k, 3, 3)), c_view(floats[o:o + 3 * k], (k, 3)),
+            c_view(floats[o + 3 * k:o + 21 * k], (2 * k, 3, 3)), c_view(floats[o + 21 * k:o + 27 * k], (2 * k, 3)))
 
 
 @njit(exact=True)
@@ -196,12 +212,17 @@ class BaseFeedback:
         # placements are pinocchio's to rounding): pinocchio's two passes and four frame updates and the numpy
         # around them took 45 us of a 480 us IK step
         self._fk = fk = ForwardKinematics(robot.model)
-        self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
+        self.alpha = alpha = 1.0 - np.exp(-dt / config.time_constant)
+        frame_parents, R_frames, t_frames = fk.frame_arrays([self.sole_ids[s] for s in Side])
+        # the double-support kernel's floats in one buffer (`_feedback_arrays`): the gain, the soles' placements in
+        # their joints, the soles' placements (rows model left, right, measured left, right; `_soles` views them)
+        self._floats = floats = np.concatenate([[alpha], R_frames.ravel(), t_frames.ravel(), np.zeros(4 * 12)])
+        o = 1 + 12 * 2
+        self._soles = (floats[o:o + 36].reshape(4, 3, 3), floats[o + 36:].reshape(4, 3))
         if fk.supported:
             memo = placement_memo(robot.model, fk)
-            self._step_args = (memo.ints, memo.floats, *fk.frame_arrays([self.sole_ids[s] for s in Side]),
-                               *self._soles)
-        self.alpha = 1.0 - np.exp(-dt / config.time_constant)
+            self._step_args = (memo.ints, memo.floats, frame_parents, R_frames, t_frames, *self._soles)
+            self._double_support_args = (memo.ints, memo.floats, frame_parents, floats)
         self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
         self._liftoff: dict[Side, tuple[float, np.ndarray, np.ndarray | None]] = {}
@@ -236,16 +257,20 @@ class BaseFeedback:
         R, p = self._transform()
         return R.copy(), p.copy()
 
-    _cached = (None, None, None)
+    _cached = (None, None, None, None)
 
     def _transform(self) -> tuple[np.ndarray, np.ndarray]:
-        """`transform`'s arrays, made again only when the drift estimate changed (not to be modified)."""
-        drift, R, p = self._cached
+        """`transform`'s arrays, made again only when the drift estimate changed (not to be modified): views of
+        the array of the double-support tick that computed them (`correct`), or computed here."""
+        drift, R, p, out = self._cached
         if drift is not self.drift:
             x, y, yaw = self.drift
             c, s = np.cos(yaw), np.sin(yaw)
             R, p = np.array((c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)).reshape(3, 3), np.array((x, y, 0.0))
-            self._cached = (self.drift, R, p)
+            self._cached = (self.drift, R, p, None)
+        elif R is None:
+            R, p = out[3:12].reshape(3, 3), out[12:15]
+            self._cached = (drift, R, p, out)
         return R, p
 
     def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
@@ -256,38 +281,49 @@ class BaseFeedback:
         # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
         # constructors; each reference mapped in one compiled call
         if _LEFT in contacts and _RIGHT in contacts and self._fk.supported:
-            # `update`, `_transform` and the CoM's mapping in one compiled call
-            drift, R, p = self.drift.copy(), np.empty((3, 3)), np.empty(3)
+            # `update`, D and the CoM's mapping in one compiled call, into one new array: the drift a view of it,
+            # D's views made when asked for (`_transform`: standing, nothing else is mapped)
+            out = np.empty(24)
             if com is None:
-                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, _NO_POINT,
-                                     _NO_POINT, _NO_POINT, _NO_POINT)
+                _double_support_step(q_model, meas.q, *self._double_support_args, self.drift, _NO_POINT, _NO_POINT,
+                                     _NO_POINT, out)
             else:
-                out = np.empty(9)
-                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, com.position,
+                _double_support_step(q_model, meas.q, *self._double_support_args, self.drift, com.position,
                                      com.velocity, com.acceleration, out)
-                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
-            self.drift = drift
-            self._cached = (drift, R, p)
+                com = PointReference.unchecked(out[15:18], out[18:21], out[21:24])
+            self.drift = drift = out[:3]
+            self._cached = (drift, None, None, out)
         else:
             self.update(meas, q_model, contacts)
-            R, p = self._transform()
             if com is not None:
+                R, p = self._transform()
                 out = np.empty(9)
                 _map_point(R, p, com.position, com.velocity, com.acceleration, out)
                 com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
         targets = refs.targets
-        if "waist" in targets:
-            targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}
-        feet = {}
-        for s, f in refs.feet.items():
-            mapped = _mapped_pose(R, p, f)
-            feet[s] = mapped if s in contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        feet = refs.feet  # none: the plan's (empty) dict
+        if feet or "waist" in targets:
+            targets, feet = self._mapped_frames(refs, q_model)
         liftoff = self._liftoff
         if liftoff:
             for s in list(liftoff):
                 if s in contacts or s not in refs.feet:
                     del liftoff[s]
         return refs.corrected(com, targets, refs.wrench_targets, refs.contact_poses, feet=feet)
+
+    def _mapped_frames(self, refs: References, q_model: np.ndarray) -> tuple[dict, dict]:
+        """The targets (the waist's mapped) and the feet's references (each mapped, a swing foot's from its
+        lift-off: `_from_liftoff`) of `correct`."""
+        R, p = self._transform()
+        targets = refs.targets
+        if "waist" in targets:
+            targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}
+        contacts = refs.contacts
+        feet = {}
+        for s, f in refs.feet.items():
+            mapped = _mapped_pose(R, p, f)
+            feet[s] = mapped if s in contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        return targets, feet
 
     def _from_liftoff(self, side: Side, ref: PoseReference, t: float, q_model: np.ndarray) -> PoseReference:
         """A swing foot's mapped reference `ref`, offset so that it starts where the model's foot stood at lift-off
