@@ -64,13 +64,13 @@ class BalanceEstimator:
             feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
             memo = placement_memo(robot.model, fk)
             frame_parents, R_frames, t_frames = fk.frame_arrays(frames)
-            # the kernel's float arrays in one buffer (`_balance_arrays` views them): an argument of a compiled call
-            # costs it ~40 ns
-            floats = np.concatenate([a.ravel() for a in (
+            # the kernel's floats in one buffer (`_balance_arrays` views them; its scratch too, instead of arrays
+            # allocated each call): an argument of a compiled call costs it ~40 ns
+            floats = np.concatenate([np.ravel(a) for a in (
                 R_frames, t_frames, com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
-                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros((6, 3, 3)), np.zeros((6, 3)))])
-            self._step_args = (memo.ints, memo.floats, frame_parents, floats, float(min_normal_force),
-                               float(self.alpha), float(dt))
+                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros(_SCRATCH),
+                (min_normal_force, self.alpha, dt))])
+            self._step_args = (memo.ints, memo.floats, frame_parents, floats)
         self._state = np.zeros(7)  # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3)
         self.reset()
 
@@ -197,10 +197,16 @@ class BalanceEstimator:
         self._normal_force = value
 
 
+#: the scratch of `_balance_step` in its buffer: the frames' placements Rf (6, 3, 3), tf (6, 3), the feet's ground
+#: forces F and moments M (2, 3 each), a foot's CoM lever c (3), the anchor's weights w (2)
+_SCRATCH = 54 + 18 + 6 + 6 + 3 + 2
+
+
 @njit
 def _balance_arrays(n, frame_parents, floats):
-    """The float arrays of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
-    ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf)``, views."""
+    """The floats of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
+    ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w)`` (views;
+    from ``Rf`` on its scratch, `_SCRATCH`) and the scalars ``(min_normal_force, alpha, dt)``."""
     k = frame_parents.shape[0]
     R_frames = c_view(floats[0:9 * k], (k, 3, 3))
     o = 9 * k
@@ -220,12 +226,17 @@ def _balance_arrays(n, frame_parents, floats):
     o += 11
     Rf = c_view(floats[o:o + 54], (6, 3, 3))
     tf = c_view(floats[o + 54:o + 72], (6, 3))
-    return R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf
+    F = c_view(floats[o + 72:o + 78], (2, 3))
+    M = c_view(floats[o + 78:o + 84], (2, 3))
+    c, w = floats[o + 84:o + 87], floats[o + 87:o + 89]
+    o += _SCRATCH
+    return (R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w), (
+        floats[o], floats[o + 1], floats[o + 2])
 
 
 @njit
 def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
-                  floats, min_normal_force, alpha, dt, state, out):
+                  floats, state, out):
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
@@ -234,21 +245,19 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
     the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
     the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations), given as its two
-    buffers; the other arrays as one buffer (`_balance_arrays`)."""
+    buffers; the other arrays, the scratch and the scalars (the ZMP's normal-force threshold, the velocity filter's
+    gain, dt) as one buffer (`_balance_arrays`)."""
     kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next = memo_arrays(memo_ints, memo_floats)
-    R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf = _balance_arrays(
-        kinds.shape[0], frame_parents, floats)
+    arrays, (min_normal_force, alpha, dt) = _balance_arrays(kinds.shape[0], frame_parents, floats)
+    R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w = arrays
     j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
     R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
     subtree_sums(R, t, parents, mass, lever, msub, csub)
     # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
-    F = np.empty((2, 3))
-    M = np.empty((2, 3))
     for k in range(2):
         fs, ms = (f_left, m_left) if k == 0 else (f_right, m_right)
         w0, w1, w2 = foot_mass[k] * gravity[0], foot_mass[k] * gravity[1], foot_mass[k] * gravity[2]
-        c = np.empty(3)
         for a in range(3):
             F[k, a] = -(Rf[k, a, 0] * fs[0] + Rf[k, a, 1] * fs[1] + Rf[k, a, 2] * fs[2]) - foot_mass[k] * gravity[a]
             c[a] = Rf[k, a, 0] * foot_com[k, 0] + Rf[k, a, 1] * foot_com[k, 1] + Rf[k, a, 2] * foot_com[k, 2]
@@ -278,7 +287,7 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
         # each loaded foot moved to where the model has it, weighted by its normal force
         j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
         frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
-        w = np.zeros(2)
+        w[0] = w[1] = 0.0
         for k in range(2):
             if out[k] > min_normal_force:
                 w[k] = out[k]
@@ -318,4 +327,4 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
 balance_step = _balance_step
 """`BalanceEstimator`'s compiled update, for a kernel of another package that runs it with more (the balance
 stabilizer's estimate and DCM step in one call); its arguments are those of `_balance_step`, the estimator's
-`_step_args` after the measurement's."""
+`_step_args` after the measurement's and the anchor's, then its state and output."""
