@@ -41,14 +41,17 @@ if JIT_ENABLED:
     # flag that assumes finite values: NaN must still fail the tests
     _FASTMATH = {"reassoc", "contract"}
 
-    def njit(fn=None, *, exact: bool = False):
+    def njit(fn=None, *, exact: bool = False, inline: bool = False):
         """numba.njit with the options every kernel uses (cached on disk, vectorised sums). `exact=True`: no
         reassociation or fused multiply-add, i.e. the same IEEE arithmetic, operation by operation, as the
-        numpy code the kernel replaces (for kernels whose results are logged bit for bit)."""
+        numpy code the kernel replaces (for kernels whose results are logged bit for bit). `inline=True`: a
+        helper inlined into the kernels that call it (numba's ``inline="always"``), which saves a call that passes
+        many arrays; for helpers without floating-point arithmetic only (views, comparisons, copies), whose
+        results cannot depend on the caller's `exact`."""
         if fn is None:
-            return lambda f: njit(f, exact=exact)
+            return lambda f: njit(f, exact=exact, inline=inline)
         return _numba_njit(cache=True, nogil=True, fastmath=set() if exact else _FASTMATH,
-                           error_model="numpy")(fn)
+                           error_model="numpy", inline="always" if inline else "never")(fn)
 
     from numba import types as _types
     from numba.core import cgutils as _cgutils
@@ -81,7 +84,7 @@ if JIT_ENABLED:
 
         return ret(a, shape), codegen
 else:
-    def njit(fn=None, *, exact: bool = False):
+    def njit(fn=None, *, exact: bool = False, inline: bool = False):
         """JIT off: the kernel runs as plain Python."""
         if fn is None:
             return lambda f: f

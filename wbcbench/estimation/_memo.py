@@ -57,7 +57,7 @@ def placement_memo(model: pin.Model, fk: ForwardKinematics) -> PlacementMemo:
     return memo
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next):
     """The slot (0 or 1) of ``memo_R``, ``memo_t`` holding the joint placements of ``q``: a slot whose
     configuration is ``q`` bit for bit (the sign of zero included), else the older slot, computed
@@ -81,7 +81,7 @@ def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo
     return slot
 
 
-@njit
+@njit(inline=True)
 def memo_arrays(ints, floats):
     """Inside a kernel, the arrays of a `PlacementMemo` from its two buffers: ``(kinds, parents, idx_q, R0, t0,
     memo_q, memo_R, memo_t, memo_next)``, the arguments `memo_joint_placements` takes after ``q`` (views made by

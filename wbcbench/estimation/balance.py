@@ -202,7 +202,7 @@ class BalanceEstimator:
 _SCRATCH = 54 + 18 + 6 + 6 + 3 + 2
 
 
-@njit
+@njit(inline=True)
 def _balance_arrays(n, frame_parents, floats):
     """The floats of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
     ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w)`` (views;

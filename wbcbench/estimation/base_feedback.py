@@ -103,7 +103,7 @@ def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents,
         _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, out[15:24])
 
 
-@njit
+@njit(inline=True)
 def _feedback_arrays(k, floats):
     """The arrays of `BaseFeedback`'s buffer (``k`` sole frames; as `BaseFeedback` lays it out): ``(alpha,
     R_frames (k, 3, 3), t_frames (k, 3), R (2k, 3, 3), t (2k, 3))``, the filter's gain, the soles' placements in
