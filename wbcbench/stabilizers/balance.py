@@ -114,13 +114,13 @@ class BalanceStabilizer(Stabilizer):
                               refs.contact_poses)
 
 
-@njit
+@njit(exact=True)
 def _estimate_and_step(q_meas, q_model, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
                        floats, est_state, c_ref, v_ref, a_ref, z_ref, k, fresh, dcm_state, out, log):
     """`BalanceEstimator.update` anchored on ``q_model`` (`_balance_step`, into ``out[:11]``) and, when it
     measured a ZMP, the DCM step on its estimate (`_dcm_step_logged`, into ``out[11:31]`` and ``log``): a tick of
     `correct` in one call. Returns the support foot (0 left, 1 right) + 2 when the DCM step ran, + 4 when it
-    refused a non-finite input."""
+    refused a non-finite input. `exact` as the DCM step, which it inlines (its own code only compares)."""
     est_out, dcm_out = out[0:11], out[11:31]
     support = balance_step(q_meas, q_model, True, f_left, m_left, f_right, m_right, memo_ints, memo_floats,
                             frame_parents, floats, est_state, est_out)

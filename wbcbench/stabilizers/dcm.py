@@ -358,13 +358,13 @@ def _finite(x, n):
     return True
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     """`DcmStabilizer.step`'s arithmetic, element by element in the numpy code's order. ``k``: the
     stabilizer's `_constants`; ``state`` (8,): integral, CoM offset position, velocity, the ZMP filter's last
     output (``fresh``: none yet), updated in place; ``out`` (20,): CoM position, velocity, acceleration (3 each),
     z*, filtered measured ZMP, measured DCM, planned DCM (2 each), integral saturated (2, 0 / 1). Returns False
-    (nothing changed) when an input is not finite."""
+    (nothing changed) when an input is not finite. Inlined: its compiled callers are all `exact`, as it is."""
     if not (_finite(c_ref, 3) and _finite(v_ref, 3) and _finite(a_ref, 3) and _finite(z_ref, 2) and _finite(c, 2)
             and _finite(v, 2) and _finite(z, 2)):
         return False
@@ -421,10 +421,10 @@ def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     return True
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out, log):
     """`_dcm_step`, then ``log`` (6,) = the filtered measured ZMP, z*, the measured DCM (x, y each) when it
-    succeeded."""
+    succeeded. Inlined: its compiled callers are all `exact`, as it is."""
     if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
         return False
     log[0], log[1] = out[11], out[12]

@@ -186,10 +186,11 @@ def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, 
     x[out + 5] = vz / total
 
 
-@njit
+@njit(inline=True)
 def _subtree_sums(R, t, parents, mass, lever, msub, csub):
     """From the joint placements ``R``, ``t``: each subtree's mass ``msub`` and first moment ``csub`` (sum of m_i
-    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``."""
+    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``. Inlined: its
+    compiled callers are all reassociating (not `exact`), as it is."""
     n = parents.shape[0]
     for j in range(n):
         m = mass[j]
@@ -260,9 +261,10 @@ def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
             t[j, a] = R[p, a, 0] * tl[0] + R[p, a, 1] * tl[1] + R[p, a, 2] * tl[2] + t[p, a]
 
 
-@njit
+@njit(inline=True)
 def _frames(R, t, parent, Rf, tf, R_out, t_out):
-    """``oMf = oMi[parent] * placement`` for each frame."""
+    """``oMf = oMi[parent] * placement`` for each frame. Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
     for i in range(parent.shape[0]):
         p = parent[i]
         for a in range(3):
