@@ -76,11 +76,11 @@ def _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames
     _drift_from_soles(R, t, drift, alpha)
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
                           alpha, R_drift, p_drift):
     """`_drift_step`, then D = (``R_drift`` (3, 3), ``p_drift`` (3,)) of the new drift (`BaseFeedback._transform`'s
-    numbers: the same cosine and sine)."""
+    numbers: the same cosine and sine). Inlined: its compiled callers are all `exact`, as it is."""
     _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift, alpha)
     _transform_of(drift, R_drift, p_drift)
 
@@ -113,9 +113,10 @@ def _feedback_arrays(k, floats):
             c_view(floats[o + 3 * k:o + 21 * k], (2 * k, 3, 3)), c_view(floats[o + 21 * k:o + 27 * k], (2 * k, 3)))
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _transform_of(drift, R, p):
-    """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0)."""
+    """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0).
+    Inlined: its compiled callers are all `exact`, as it is."""
     c, s = np.cos(drift[2]), np.sin(drift[2])
     R[0, 0], R[0, 1], R[0, 2] = c, -s, 0.0
     R[1, 0], R[1, 1], R[1, 2] = s, c, 0.0
@@ -123,12 +124,13 @@ def _transform_of(drift, R, p):
     p[0], p[1], p[2] = drift[0], drift[1], 0.0
 
 
-@njit
+@njit(inline=True)
 def _drift_from_soles(R, t, drift, alpha):
     """From the soles' placements ``R`` (4, 3, 3), ``t`` (4, 3) (rows model left, right, measured left, right):
     the planar drift of each sole, their mean, and the filter (gain ``alpha``) on ``drift`` (3,: x, y, yaw), in
     place. Planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
-    roll/pitch difference into a translation of D."""
+    roll/pitch difference into a translation of D. Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
     raw0 = raw1 = raw2 = 0.0
     for i in range(2):
         a2 = np.arctan2(R[i, 1, 0], R[i, 0, 0])
@@ -144,9 +146,10 @@ def _drift_from_soles(R, t, drift, alpha):
     drift[2] = drift[2] + alpha * (raw2 - drift[2])
 
 
-@njit
+@njit(inline=True)
 def _rotate(R, x, out, k):
-    """``out[k:k+3] = R x`` (x (3,))."""
+    """``out[k:k+3] = R x`` (x (3,)). Inlined: its compiled callers are all reassociating (not `exact`), as it
+    is."""
     for a in range(3):
         out[k + a] = R[a, 0] * x[0] + R[a, 1] * x[1] + R[a, 2] * x[2]
 
