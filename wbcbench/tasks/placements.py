@@ -18,7 +18,7 @@ import pinocchio as pin
 from wbcbench.jit import njit
 
 __all__ = ["CenterOfMass", "ForwardKinematics", "forward_gather", "frame_placements", "joint_placements",
-           "subtree_sums"]
+           "joint_placements_range", "subtree_sums"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -215,14 +215,25 @@ def _center_of_mass_rows(rows, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0
 @njit
 def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
     """``oMi[j] = oMi[parent] * jointPlacement[j] * M_j(q)`` for every joint in order (parents first)."""
+    _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, 0, kinds.shape[0])
+
+
+@njit(inline=True)
+def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi):
+    """`_forward` for the joints ``lo`` to ``hi - 1`` only (0: from the universe), those before ``lo`` already
+    placed in ``R``, ``t``: the joints a caller needs (a prefix of the order holds their ancestors) and later the
+    rest, the same numbers as one pass. Inlined: its compiled callers are all reassociating (not `exact`), as it
+    is."""
     Rj = np.empty((3, 3))
     Rl = np.empty((3, 3))
     tl = np.empty(3)
-    for a in range(3):
-        for b in range(3):
-            R[0, a, b] = 1.0 if a == b else 0.0
-        t[0, a] = 0.0
-    for j in range(1, kinds.shape[0]):
+    if lo == 0:
+        for a in range(3):
+            for b in range(3):
+                R[0, a, b] = 1.0 if a == b else 0.0
+            t[0, a] = 0.0
+        lo = 1
+    for j in range(lo, hi):
         k = kinds[j]
         iq = idx_q[j]
         if k == 1:
@@ -303,6 +314,9 @@ def _forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out
 # the arrays they take are those of `ForwardKinematics` and `CenterOfMass`.
 joint_placements = _forward
 """``joint_placements(q, kinds, parents, idx_q, R0, t0, R, t)``: every joint's placement into ``R``, ``t``."""
+joint_placements_range = _forward_range
+"""``joint_placements_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi)``: the placements of the joints ``lo``
+to ``hi - 1`` into ``R``, ``t``, those before ``lo`` already there (0: from the universe)."""
 frame_placements = _frames
 """``frame_placements(R, t, parent, Rf, tf, R_out, t_out)``: frames' placements from their joints'."""
 subtree_sums = _subtree_sums
