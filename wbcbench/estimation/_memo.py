@@ -40,13 +40,14 @@ class PlacementMemo:
         self.ints = np.concatenate([np.array([n, nq], dtype=np.intp), fk._kinds, fk._parents, fk._idx_q,
                                     np.zeros(3, dtype=np.intp)])
         self.floats = np.concatenate([fk._R0.ravel(), fk._t0.ravel(), np.full(2 * nq, np.nan),  # NaN: no configuration
-                                      np.zeros(2 * n * 9), np.zeros(2 * n * 3)])
+                                      np.zeros(2 * n * 9), np.zeros(2 * n * 3), np.zeros(21)])  # the kernel's scratch
         o = 12 * n
         self.q = self.floats[o:o + 2 * nq].reshape(2, nq)
         self.R = self.floats[o + 2 * nq:o + 2 * nq + 18 * n].reshape(2, n, 3, 3)
-        self.t = self.floats[o + 2 * nq + 18 * n:].reshape(2, n, 3)
+        self.t = self.floats[o + 2 * nq + 18 * n:o + 2 * nq + 24 * n].reshape(2, n, 3)
+        self.work = self.floats[o + 2 * nq + 24 * n:]
         self.state = self.ints[2 + 3 * n:]
-        self.args = (self.q, self.R, self.t, self.state)
+        self.args = (self.q, self.R, self.t, self.state, self.work)
 
 
 _MEMOS: dict[tuple[int, bytes], PlacementMemo] = {}
@@ -64,10 +65,11 @@ def placement_memo(model: pin.Model, fk: ForwardKinematics) -> PlacementMemo:
 
 
 @njit(inline=True)
-def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, upto):
+def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work, upto):
     """The slot (0 or 1) of ``memo_R``, ``memo_t`` holding the placements of the joints 0 to ``upto - 1`` of
     ``q``: a slot whose configuration is ``q`` bit for bit (the sign of zero included), its later joints placed if
-    it had fewer (`placements.joint_placements_range`), else the older slot, computed up to ``upto``. Inlined
+    it had fewer (`placements.joint_placements_range`, with the scratch ``memo_work``), else the older slot,
+    computed up to ``upto``. Inlined
     (no floating-point arithmetic of its own: the placements are computed as its caller's, reassociating)."""
     n = q.shape[0]
     for slot in range(2):
@@ -80,13 +82,14 @@ def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo
         if same:
             done = memo_state[1 + slot]
             if done < upto:
-                joint_placements_range(q, kinds, parents, idx_q, R0, t0, memo_R[slot], memo_t[slot], done, upto)
+                joint_placements_range(q, kinds, parents, idx_q, R0, t0, memo_R[slot], memo_t[slot], done, upto,
+                                       memo_work)
                 memo_state[1 + slot] = upto
             return slot
     slot = memo_state[0]
     memo_state[0] = 1 - slot
     memo_q[slot, 0] = np.nan  # not valid while the placements are written
-    joint_placements_range(q, kinds, parents, idx_q, R0, t0, memo_R[slot], memo_t[slot], 0, upto)
+    joint_placements_range(q, kinds, parents, idx_q, R0, t0, memo_R[slot], memo_t[slot], 0, upto, memo_work)
     memo_state[1 + slot] = upto
     for i in range(n):
         memo_q[slot, i] = q[i]
@@ -106,8 +109,8 @@ def joints_placing(frame_parents):
 @njit(inline=True)
 def memo_arrays(ints, floats):
     """Inside a kernel, the arrays of a `PlacementMemo` from its two buffers: ``(kinds, parents, idx_q, R0, t0,
-    memo_q, memo_R, memo_t, memo_state)``, the arguments `memo_joint_placements` takes after ``q`` (views made by
-    `c_view`, cheaper than numba's reshape)."""
+    memo_q, memo_R, memo_t, memo_state, memo_work)``, the arguments `memo_joint_placements` takes between ``q`` and
+    ``upto`` (views made by `c_view`, cheaper than numba's reshape)."""
     n, nq = ints[0], ints[1]
     kinds = ints[2:2 + n]
     parents = ints[2 + n:2 + 2 * n]
@@ -119,4 +122,5 @@ def memo_arrays(ints, floats):
     memo_q = c_view(floats[o:o + 2 * nq], (2, nq))
     memo_R = c_view(floats[o + 2 * nq:o + 2 * nq + 18 * n], (2, n, 3, 3))
     memo_t = c_view(floats[o + 2 * nq + 18 * n:o + 2 * nq + 24 * n], (2, n, 3))
-    return kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state
+    memo_work = floats[o + 2 * nq + 24 * n:o + 2 * nq + 24 * n + 21]
+    return kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work

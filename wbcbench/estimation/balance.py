@@ -247,10 +247,10 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations), given as its two
     buffers; the other arrays, the scratch and the scalars (the ZMP's normal-force threshold, the velocity filter's
     gain, dt) as one buffer (`_balance_arrays`)."""
-    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state = memo_arrays(memo_ints, memo_floats)
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work = memo_arrays(memo_ints, memo_floats)
     arrays, (min_normal_force, alpha, dt) = _balance_arrays(kinds.shape[0], frame_parents, floats)
     R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w = arrays
-    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work,
                               kinds.shape[0])  # every joint: the CoM
     R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
@@ -286,7 +286,7 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
     if anchor:
         # each loaded foot moved to where the model has it, weighted by its normal force
-        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work,
                                   joints_placing(frame_parents[2:]))  # the model's soles only
         frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
         w[0] = w[1] = 0.0

@@ -66,13 +66,15 @@ def _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
     model's and the measured configuration (`placements.joint_placements` through the model's memo
     (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
-    (4, 3, 3), ``t`` (4, 3); of the joints up to the soles' only), then `_drift_from_soles`. The memo and the model's constants come as its two
-    buffers (`PlacementMemo.ints`, `floats`)."""
-    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state = memo_arrays(memo_ints, memo_floats)
+    (4, 3, 3), ``t`` (4, 3); of the joints up to the soles' only), then `_drift_from_soles`. The memo and the
+    model's constants come as its two buffers (`PlacementMemo.ints`, `floats`)."""
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work = memo_arrays(memo_ints, memo_floats)
     upto = joints_placing(frame_parents)  # the legs: the soles' joints and those before them
-    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, upto)
+    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+                              memo_work, upto)
     frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[:2], t[:2])
-    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, upto)
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+                              memo_work, upto)
     frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[2:], t[2:])
     _drift_from_soles(R, t, drift, alpha)
 

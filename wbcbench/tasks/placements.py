@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from wbcbench.jit import njit
+from wbcbench.jit import c_view, njit
 
 __all__ = ["CenterOfMass", "ForwardKinematics", "forward_gather", "frame_placements", "joint_placements",
            "joint_placements_range", "subtree_sums"]
@@ -215,18 +215,18 @@ def _center_of_mass_rows(rows, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0
 @njit
 def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
     """``oMi[j] = oMi[parent] * jointPlacement[j] * M_j(q)`` for every joint in order (parents first)."""
-    _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, 0, kinds.shape[0])
+    _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, 0, kinds.shape[0], np.empty(21))
 
 
 @njit(inline=True)
-def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi):
+def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work):
     """`_forward` for the joints ``lo`` to ``hi - 1`` only (0: from the universe), those before ``lo`` already
     placed in ``R``, ``t``: the joints a caller needs (a prefix of the order holds their ancestors) and later the
-    rest, the same numbers as one pass. Inlined: its compiled callers are all reassociating (not `exact`), as it
-    is."""
-    Rj = np.empty((3, 3))
-    Rl = np.empty((3, 3))
-    tl = np.empty(3)
+    rest, the same numbers as one pass. ``work`` (21,): scratch (a joint's motion and its placement in its
+    parent). Inlined: its compiled callers are all reassociating (not `exact`), as it is."""
+    Rj = c_view(work[0:9], (3, 3))
+    Rl = c_view(work[9:18], (3, 3))
+    tl = work[18:21]
     if lo == 0:
         for a in range(3):
             for b in range(3):
@@ -315,8 +315,9 @@ def _forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out
 joint_placements = _forward
 """``joint_placements(q, kinds, parents, idx_q, R0, t0, R, t)``: every joint's placement into ``R``, ``t``."""
 joint_placements_range = _forward_range
-"""``joint_placements_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi)``: the placements of the joints ``lo``
-to ``hi - 1`` into ``R``, ``t``, those before ``lo`` already there (0: from the universe)."""
+"""``joint_placements_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work)``: the placements of the joints
+``lo`` to ``hi - 1`` into ``R``, ``t``, those before ``lo`` already there (0: from the universe); ``work`` (21,)
+scratch."""
 frame_placements = _frames
 """``frame_placements(R, t, parent, Rf, tf, R_out, t_out)``: frames' placements from their joints'."""
 subtree_sums = _subtree_sums
