@@ -35,10 +35,12 @@ class BalanceEstimator:
         dt: control period [s] (CoM velocity by finite difference).
         velocity_cutoff_hz: first-order low-pass on that finite difference; None: unfiltered.
         min_normal_force: per-foot normal-force threshold for the ZMP [N].
+        state: a float (7,) array to keep the compiled update's state in (e.g. a view of its owner's buffer, so
+            that a compiled call of the owner takes one array for both); None: its own.
     """
 
     def __init__(self, robot: Robot, dt: float, velocity_cutoff_hz: float | None = 50.0,
-                 min_normal_force: float = DEFAULT_MIN_NORMAL_FORCE):
+                 min_normal_force: float = DEFAULT_MIN_NORMAL_FORCE, state: np.ndarray | None = None):
         self.robot = robot
         self.model = robot.model
         self.data = robot.model.createData()
@@ -71,7 +73,8 @@ class BalanceEstimator:
                 np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros(_SCRATCH),
                 (min_normal_force, self.alpha, dt))])
             self._step_args = (memo.ints, memo.floats, frame_parents, floats)
-        self._state = np.zeros(7)  # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3)
+        # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3); zeroed by `reset`
+        self._state = np.zeros(7) if state is None else state
         self.reset()
 
     def reset(self) -> None:

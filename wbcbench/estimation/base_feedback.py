@@ -290,11 +290,12 @@ class BaseFeedback:
             # `update`, D and the CoM's mapping in one compiled call, into one new array: the drift a view of it,
             # D's views made when asked for (`_transform`: standing, nothing else is mapped)
             out = np.empty(24)
+            m_ints, m_floats, parents, floats = self._double_support_args  # a call without *: no tuple built
             if com is None:
-                _double_support_step(q_model, meas.q, *self._double_support_args, self.drift, _NO_POINT, _NO_POINT,
-                                     _NO_POINT, out)
+                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, _NO_POINT,
+                                     _NO_POINT, _NO_POINT, out)
             else:
-                _double_support_step(q_model, meas.q, *self._double_support_args, self.drift, com.position,
+                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, com.position,
                                      com.velocity, com.acceleration, out)
                 com = PointReference.unchecked(out[15:18], out[18:21], out[21:24])
             self.drift = drift = out[:3]

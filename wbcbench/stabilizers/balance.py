@@ -48,9 +48,12 @@ class BalanceStabilizer(Stabilizer):
         self.robot = robot
         self.gains = gains
         self.dt = dt
-        self.estimator = BalanceEstimator(robot, dt)
+        # the estimator's state (7) and the log (6) in one array: one argument of `_estimate_and_step`
+        self._arrays = np.zeros(13)
+        self.estimator = BalanceEstimator(robot, dt, state=self._arrays[:7])
         self.dcm: DcmStabilizer | None = None
-        self.log = np.full(6, np.nan)
+        self.log = self._arrays[7:]
+        self.log[:] = np.nan
 
     def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
         """Restart from the model's configuration standing on the ground (sets the nominal CoM height)."""
@@ -79,9 +82,10 @@ class BalanceStabilizer(Stabilizer):
             dcm = self.dcm
             out = np.empty(31)
             force, torque = meas.ft_force, meas.ft_torque
+            m_ints, m_floats, parents, floats = est._step_args  # a call without *: no tuple built
             code = _estimate_and_step(meas.q, feedback.q, force[_LEFT], torque[_LEFT], force[_RIGHT], torque[_RIGHT],
-                                      *est._step_args, est._state, com.position, com.velocity, com.acceleration, zmp,
-                                      dcm._constants, dcm._fresh, dcm._state, out, self.log)
+                                      m_ints, m_floats, parents, floats, self._arrays, com.position, com.velocity,
+                                      com.acceleration, zmp, dcm._arrays, dcm._fresh, out)
             est._take(out, code & 1)
             if code < 2:  # no loaded foot: no measured ZMP
                 return refs
@@ -116,11 +120,15 @@ class BalanceStabilizer(Stabilizer):
 
 @njit(exact=True)
 def _estimate_and_step(q_meas, q_model, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
-                       floats, est_state, c_ref, v_ref, a_ref, z_ref, k, fresh, dcm_state, out, log):
+                       floats, arrays, c_ref, v_ref, a_ref, z_ref, dcm_arrays, fresh, out):
     """`BalanceEstimator.update` anchored on ``q_model`` (`_balance_step`, into ``out[:11]``) and, when it
     measured a ZMP, the DCM step on its estimate (`_dcm_step_logged`, into ``out[11:31]`` and ``log``): a tick of
-    `correct` in one call. Returns the support foot (0 left, 1 right) + 2 when the DCM step ran, + 4 when it
-    refused a non-finite input. `exact` as the DCM step, which it inlines (its own code only compares)."""
+    `correct` in one call. ``arrays``: the stabilizer's (the estimator's state, the log), ``dcm_arrays``: the DCM
+    stabilizer's (its constants, its state). Returns the support foot (0 left, 1 right) + 2 when the DCM step
+    ran, + 4 when it refused a non-finite input. `exact` as the DCM step, which it inlines (its own code only
+    compares)."""
+    est_state, log = arrays[0:7], arrays[7:13]
+    k, dcm_state = dcm_arrays[0:13], dcm_arrays[13:21]
     est_out, dcm_out = out[0:11], out[11:31]
     support = balance_step(q_meas, q_model, True, f_left, m_left, f_right, m_right, memo_ints, memo_floats,
                             frame_parents, floats, est_state, est_out)

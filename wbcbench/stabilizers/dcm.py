@@ -216,9 +216,13 @@ class DcmStabilizer:
         self.dt = float(dt)
         self.omega = natural_frequency(com_height, gravity)
         self._filter = FirstOrderLowPass(gains.zmp_cutoff_hz, dt) if gains.zmp_cutoff_hz is not None else None
-        # `_step`'s constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
+        # `_step`'s constants (13) and state (8) in one array (`_arrays`; `_constants`, `_state` views of it): one
+        # argument of a compiled call that runs the step (stabilizers/balance.py)
+        self._arrays = np.zeros(21)
+        self._constants, self._state = self._arrays[:13], self._arrays[13:]
+        # the constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
         g = gains
-        self._constants = np.array([
+        self._constants[:] = np.array([
             g.kp_adm, g.kp_dcm, g.ki_dcm, g.kz_dcm, g.integral_leak,
             g.integral_limit is not None, g.integral_limit or 0.0,
             g.com_offset_limit is not None, g.com_offset_limit or 0.0,
@@ -230,7 +234,7 @@ class DcmStabilizer:
         """Zero the DCM error integral and the CoM offset, and restart the ZMP filter."""
         # the state, updated in place tick after tick: the integral (2), the CoM offset's position (2) and velocity
         # (2), the ZMP filter's last output (2; `_fresh`: none yet)
-        self._state = np.zeros(8)
+        self._state[:] = 0.0
         self._fresh = True
         if self._filter is not None:
             self._filter.reset()
