@@ -241,7 +241,7 @@ class BaseFeedback:
         """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
         feet are in contact (in single support the robot rocks on its stance sole, and updating there made TSID
         position fall on the platforms)."""
-        if any(s not in contacts for s in Side):
+        if _LEFT not in contacts or _RIGHT not in contacts:
             return self.drift
         drift = self.drift.copy()  # a new array each update (callers may keep the last one)
         if self._fk.supported:
