@@ -184,6 +184,26 @@ def _map_pose(R, p, position, rotation, velocity, acceleration, out):
     _rotate(R, acceleration[3:], out, 21)
 
 
+@njit(exact=True)
+def _liftoff_offset(position, velocity, acceleration, dp, dphi, b, db, ddb, out):
+    """`BaseFeedback._from_liftoff`'s offset of a swing foot's reference, element by element as numpy did it:
+    ``out`` (15,) = position + (1 - b) dp, velocity and acceleration with db dp, ddb dp taken from their linear
+    parts and db dphi, ddb dphi from their angular parts (unchanged for an empty ``dphi``)."""
+    c = 1.0 - b
+    for a in range(3):
+        out[a] = position[a] + c * dp[a]
+    for a in range(6):
+        out[3 + a] = velocity[a]
+        out[9 + a] = acceleration[a]
+    for a in range(3):
+        out[3 + a] -= db * dp[a]
+        out[9 + a] -= ddb * dp[a]
+    if dphi.shape[0] == 3:
+        for a in range(3):
+            out[6 + a] -= db * dphi[a]
+            out[12 + a] -= ddb * dphi[a]
+
+
 _NO_ROTATION = np.zeros((0, 3))
 _NO_POINT = np.zeros(0)
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
@@ -352,13 +372,10 @@ class BaseFeedback:
         b = u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
         db = 30.0 * u * u * (1.0 - u) ** 2 / self.blend
         ddb = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / self.blend ** 2
-        vel = ref.velocity.copy()
-        acc = ref.acceleration.copy()
-        vel[:3] -= db * dp
-        acc[:3] -= ddb * dp
+        out = np.empty(15)  # position, velocity, acceleration offset in one compiled call
+        _liftoff_offset(ref.position, ref.velocity, ref.acceleration, dp, _NO_POINT if dphi is None else dphi, b, db,
+                        ddb, out)
         rot = ref.rotation
         if dphi is not None:
             rot = pin.exp3((1.0 - b) * dphi) @ rot
-            vel[3:] -= db * dphi
-            acc[3:] -= ddb * dphi
-        return PoseReference.unchecked(ref.position + (1.0 - b) * dp, rot, vel, acc)
+        return PoseReference.unchecked(out[:3], rot, out[3:9], out[9:15])
