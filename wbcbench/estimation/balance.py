@@ -243,7 +243,7 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
-    sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchored`, when
+    sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchor_on_feet`, when
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
     the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
@@ -292,29 +292,7 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
         j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work,
                                   joints_placing(frame_parents[2:]))  # the model's soles only
         frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
-        w[0] = w[1] = 0.0
-        for k in range(2):
-            if out[k] > min_normal_force:
-                w[k] = out[k]
-        wsum = w[0] + w[1]
-        if wsum <= 0.0:
-            w[:] = 0.0
-            w[support] = 1.0
-            wsum = 1.0
-        ax = ay = az = 0.0
-        for k in range(2):
-            if w[k] <= 0.0:
-                continue
-            # R_model R_meas^T (c - t_meas) + t_model
-            d0, d1, d2 = cx - tf[2 + k, 0], cy - tf[2 + k, 1], cz - tf[2 + k, 2]
-            l0 = Rf[2 + k, 0, 0] * d0 + Rf[2 + k, 1, 0] * d1 + Rf[2 + k, 2, 0] * d2
-            l1 = Rf[2 + k, 0, 1] * d0 + Rf[2 + k, 1, 1] * d1 + Rf[2 + k, 2, 1] * d2
-            l2 = Rf[2 + k, 0, 2] * d0 + Rf[2 + k, 1, 2] * d1 + Rf[2 + k, 2, 2] * d2
-            s = w[k] / wsum
-            ax += s * (Rf[4 + k, 0, 0] * l0 + Rf[4 + k, 0, 1] * l1 + Rf[4 + k, 0, 2] * l2 + tf[4 + k, 0])
-            ay += s * (Rf[4 + k, 1, 0] * l0 + Rf[4 + k, 1, 1] * l1 + Rf[4 + k, 1, 2] * l2 + tf[4 + k, 1])
-            az += s * (Rf[4 + k, 2, 0] * l0 + Rf[4 + k, 2, 1] * l1 + Rf[4 + k, 2, 2] * l2 + tf[4 + k, 2])
-        cx, cy, cz = ax, ay, az
+        cx, cy, cz = _anchor_on_feet(cx, cy, cz, out, Rf, tf, w, min_normal_force, support)
     out[5], out[6], out[7] = cx, cy, cz
     if state[0] == 0.0:
         state[4] = state[5] = state[6] = 0.0
@@ -327,6 +305,38 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
         state[1 + a] = out[5 + a]
         out[8 + a] = state[4 + a]
     return support
+
+
+@njit(inline=True)
+def _anchor_on_feet(cx, cy, cz, out, Rf, tf, w, min_normal_force, support):
+    """`_balance_step`'s anchoring: the CoM (cx, cy, cz) of the measured configuration with each loaded foot
+    moved to where the model has it (the soles' placements ``Rf``, ``tf``: rows 2, 3 measured, 4, 5 the model's),
+    averaged with the normal forces ``out[:2]`` as weights (into the scratch ``w``; none loaded: the support
+    foot's alone; as `BalanceEstimator._anchored`). Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
+    w[0] = w[1] = 0.0
+    for k in range(2):
+        if out[k] > min_normal_force:
+            w[k] = out[k]
+    wsum = w[0] + w[1]
+    if wsum <= 0.0:
+        w[:] = 0.0
+        w[support] = 1.0
+        wsum = 1.0
+    ax = ay = az = 0.0
+    for k in range(2):
+        if w[k] <= 0.0:
+            continue
+        # R_model R_meas^T (c - t_meas) + t_model
+        d0, d1, d2 = cx - tf[2 + k, 0], cy - tf[2 + k, 1], cz - tf[2 + k, 2]
+        l0 = Rf[2 + k, 0, 0] * d0 + Rf[2 + k, 1, 0] * d1 + Rf[2 + k, 2, 0] * d2
+        l1 = Rf[2 + k, 0, 1] * d0 + Rf[2 + k, 1, 1] * d1 + Rf[2 + k, 2, 1] * d2
+        l2 = Rf[2 + k, 0, 2] * d0 + Rf[2 + k, 1, 2] * d1 + Rf[2 + k, 2, 2] * d2
+        s = w[k] / wsum
+        ax += s * (Rf[4 + k, 0, 0] * l0 + Rf[4 + k, 0, 1] * l1 + Rf[4 + k, 0, 2] * l2 + tf[4 + k, 0])
+        ay += s * (Rf[4 + k, 1, 0] * l0 + Rf[4 + k, 1, 1] * l1 + Rf[4 + k, 1, 2] * l2 + tf[4 + k, 1])
+        az += s * (Rf[4 + k, 2, 0] * l0 + Rf[4 + k, 2, 1] * l1 + Rf[4 + k, 2, 2] * l2 + tf[4 + k, 2])
+    return ax, ay, az
 
 
 balance_step = _balance_step
