@@ -30,8 +30,8 @@ __all__ = ["PlacementMemo", "joints_placing", "memo_arrays", "memo_joint_placeme
 
 class PlacementMemo:
     """Two slots of (configuration, joint placements); `state`: the slot to overwrite next, then the number of joints
-    each slot has placed (a prefix of the order); `args` are the arrays `memo_joint_placements` takes after the
-    model's constants."""
+    each slot has placed (a prefix of the order); `work`: the forward kinematics' scratch; `args` are the arrays
+    `memo_joint_placements` takes between the model's constants and ``upto``."""
 
     def __init__(self, fk: ForwardKinematics, nq: int):
         n = fk.R.shape[0]
