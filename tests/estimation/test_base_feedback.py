@@ -127,3 +127,24 @@ def test_double_support_tick_in_one_call_gives_the_numbers_of_update_then_mappin
         assert np.array_equal(fused.drift, steps.drift)
         assert np.array_equal(np.r_[out.com.position, out.com.velocity, out.com.acceleration], expected)
         assert all(np.array_equal(a, b) for a, b in zip(fused.transform(), (R, p)))
+
+
+@pytest.mark.parametrize("with_rotation", [True, False])
+def test_the_compiled_liftoff_offset_is_the_numpy_arithmetic_bit_for_bit(with_rotation):
+    """`_from_liftoff`'s offset in one compiled call (`_liftoff_offset`) against the numpy expressions it replaced."""
+    from wbcbench.estimation.base_feedback import _NO_POINT, _liftoff_offset
+
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        p, v, a, dp, dphi = rng.normal(size=3), rng.normal(size=6), rng.normal(size=6), rng.normal(size=3), \
+            rng.normal(size=3)
+        b, db, ddb = rng.uniform(0.0, 1.0), rng.normal(), rng.normal()
+        out = np.empty(15)
+        _liftoff_offset(p, v, a, dp, dphi if with_rotation else _NO_POINT, b, db, ddb, out)
+        vel, acc = v.copy(), a.copy()
+        vel[:3] -= db * dp
+        acc[:3] -= ddb * dp
+        if with_rotation:
+            vel[3:] -= db * dphi
+            acc[3:] -= ddb * dphi
+        assert np.array_equal(out, np.r_[p + (1.0 - b) * dp, vel, acc])

@@ -227,22 +227,25 @@ class InverseDynamicsController(Controller):
     def feedback(self, at_reset: bool = False) -> ModelFeedback:
         """What the stabilizer may know of the model: its configuration, active contacts, last wrenches and
         contact placements (at the last `update`); at reset also the contact and frame-task references."""
+        if not at_reset:
+            return self._stabilizer_feedback(None)
         F = self.formulation
         active = F.active
-        poses = _ContactPlacements(F, active)
-        if not at_reset:
-            held = self._feedback_active
-            if held[0] != active:  # the contact set changes a few times a walk: its frozenset made then
-                held = self._feedback_active = (active, frozenset(active))
-            return ModelFeedback.of_tick(self._model_q(), held[1], F.wrenches, poses)
         contact_refs = {s: cs.contact.reference for s, cs in F.contacts.items() if cs.contact.reference is not None}
         task_refs = {t.name: t.reference for t in self.tasks if isinstance(t, FrameTask)}
-        return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, poses, contact_refs, task_refs)
+        return ModelFeedback(self._model_q(), frozenset(active), F.wrenches, _ContactPlacements(F, active),
+                             contact_refs, task_refs)
 
     _feedback_active: tuple = ((), frozenset())
 
-    def _stabilizer_feedback(self, refs: References) -> ModelFeedback:
-        return self.feedback()
+    def _stabilizer_feedback(self, refs: References | None) -> ModelFeedback:
+        """`feedback()` at a tick (the corrections' callable: `refs` unused), in one call."""
+        F = self.formulation
+        active = F.active
+        held = self._feedback_active
+        if held[0] != active:  # the contact set changes a few times a walk: its frozenset made then
+            held = self._feedback_active = (active, frozenset(active))
+        return ModelFeedback.of_tick(self._model_q(), held[1], F.wrenches, _ContactPlacements(F, active))
 
     def _model_q(self) -> np.ndarray:
         return self.q_int

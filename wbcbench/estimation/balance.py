@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..jit import njit
+from ..jit import c_view, njit
 from ..robots import Robot
 from ..side import Side
 from ..tasks.placements import CenterOfMass, frame_placements, subtree_sums
 from ..types import Measurement
-from ._memo import memo_arrays, memo_joint_placements, placement_memo
+from ._memo import joints_placing, memo_arrays, memo_joint_placements, placement_memo
 from .wrench import GRAVITY_WORLD, FootMass, contact_wrench_from_ft
 from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 
@@ -35,10 +35,12 @@ class BalanceEstimator:
         dt: control period [s] (CoM velocity by finite difference).
         velocity_cutoff_hz: first-order low-pass on that finite difference; None: unfiltered.
         min_normal_force: per-foot normal-force threshold for the ZMP [N].
+        state: a float (7,) array to keep the compiled update's state in (e.g. a view of its owner's buffer, so
+            that a compiled call of the owner takes one array for both); None: its own.
     """
 
     def __init__(self, robot: Robot, dt: float, velocity_cutoff_hz: float | None = 50.0,
-                 min_normal_force: float = DEFAULT_MIN_NORMAL_FORCE):
+                 min_normal_force: float = DEFAULT_MIN_NORMAL_FORCE, state: np.ndarray | None = None):
         self.robot = robot
         self.model = robot.model
         self.data = robot.model.createData()
@@ -64,14 +66,15 @@ class BalanceEstimator:
             feet = (self.feet[Side.LEFT], self.feet[Side.RIGHT])
             memo = placement_memo(robot.model, fk)
             frame_parents, R_frames, t_frames = fk.frame_arrays(frames)
-            # the kernel's float arrays in one buffer (`_balance_arrays` views them): an argument of a compiled call
-            # costs it ~40 ns
-            floats = np.concatenate([a.ravel() for a in (
+            # the kernel's floats in one buffer (`_balance_arrays` views them; its scratch too, instead of arrays
+            # allocated each call): an argument of a compiled call costs it ~40 ns
+            floats = np.concatenate([np.ravel(a) for a in (
                 R_frames, t_frames, com._mass, com._lever, com._msub, com._csub, np.array([f.mass for f in feet]),
-                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros((6, 3, 3)), np.zeros((6, 3)))])
-            self._step_args = (memo.ints, memo.floats, frame_parents, floats, float(min_normal_force),
-                               float(self.alpha), float(dt))
-        self._state = np.zeros(7)  # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3)
+                np.array([f.p_sensor_com for f in feet]), GRAVITY_WORLD, np.zeros(_SCRATCH),
+                (min_normal_force, self.alpha, dt))])
+            self._step_args = (memo.ints, memo.floats, frame_parents, floats)
+        # has a previous CoM (0 / 1), that CoM (3), the filtered velocity (3); zeroed by `reset`
+        self._state = np.zeros(7) if state is None else state
         self.reset()
 
     def reset(self) -> None:
@@ -197,58 +200,68 @@ class BalanceEstimator:
         self._normal_force = value
 
 
-@njit
+#: the scratch of `_balance_step` in its buffer: the frames' placements Rf (6, 3, 3), tf (6, 3), the feet's ground
+#: forces F and moments M (2, 3 each), a foot's CoM lever c (3), the anchor's weights w (2)
+_SCRATCH = 54 + 18 + 6 + 6 + 3 + 2
+
+
+@njit(inline=True)
 def _balance_arrays(n, frame_parents, floats):
-    """The float arrays of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
-    ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf)``, views."""
+    """The floats of `_balance_step` (``n`` joints; as `BalanceEstimator` lays them out in one buffer):
+    ``(R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w)`` (views;
+    from ``Rf`` on its scratch, `_SCRATCH`) and the scalars ``(min_normal_force, alpha, dt)``."""
     k = frame_parents.shape[0]
-    R_frames = floats[0:9 * k].reshape((k, 3, 3))
+    R_frames = c_view(floats[0:9 * k], (k, 3, 3))
     o = 9 * k
-    t_frames = floats[o:o + 3 * k].reshape((k, 3))
+    t_frames = c_view(floats[o:o + 3 * k], (k, 3))
     o += 3 * k
     mass = floats[o:o + n]
     o += n
-    lever = floats[o:o + 3 * n].reshape((n, 3))
+    lever = c_view(floats[o:o + 3 * n], (n, 3))
     o += 3 * n
     msub = floats[o:o + n]
     o += n
-    csub = floats[o:o + 3 * n].reshape((n, 3))
+    csub = c_view(floats[o:o + 3 * n], (n, 3))
     o += 3 * n
     foot_mass = floats[o:o + 2]
-    foot_com = floats[o + 2:o + 8].reshape((2, 3))
+    foot_com = c_view(floats[o + 2:o + 8], (2, 3))
     gravity = floats[o + 8:o + 11]
     o += 11
-    Rf = floats[o:o + 54].reshape((6, 3, 3))
-    tf = floats[o + 54:o + 72].reshape((6, 3))
-    return R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf
+    Rf = c_view(floats[o:o + 54], (6, 3, 3))
+    tf = c_view(floats[o + 54:o + 72], (6, 3))
+    F = c_view(floats[o + 72:o + 78], (2, 3))
+    M = c_view(floats[o + 78:o + 84], (2, 3))
+    c, w = floats[o + 84:o + 87], floats[o + 87:o + 89]
+    o += _SCRATCH
+    return (R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w), (
+        floats[o], floats[o + 1], floats[o + 2])
 
 
 @njit
 def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
-                  floats, min_normal_force, alpha, dt, state, out):
+                  floats, state, out):
     """`BalanceEstimator.update` in one call. Placements of the frames ``frame_parents`` (sensor left, right,
     sole left, right) for ``q_meas`` into ``Rf[:4]``, ``tf[:4]`` (the soles for ``q_model`` into rows 4, 5);
     `contact_wrench_from_ft` per foot, the ZMP of the loaded feet on the horizontal plane through the support
-    sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchored`, when
+    sole (`zmp_from_wrenches`), the CoM of ``q_meas`` anchored on the loaded feet (`_anchor_on_feet`, when
     ``anchor``) and the filtered velocity (``state``: has a previous CoM, that CoM, the velocity; updated).
     ``out`` (11,): normal forces left, right | ZMP (NaN without a loaded foot) | CoM | CoM velocity. Returns
     the support foot (0 left, 1 right: the larger normal force, left on a tie). The joint placements come from
     the model's memo (`_memo.memo_joint_placements`: computed once a tick for both configurations), given as its two
-    buffers; the other arrays as one buffer (`_balance_arrays`)."""
-    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next = memo_arrays(memo_ints, memo_floats)
-    R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf = _balance_arrays(
-        kinds.shape[0], frame_parents, floats)
-    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    buffers; the other arrays, the scratch and the scalars (the ZMP's normal-force threshold, the velocity filter's
+    gain, dt) as one buffer (`_balance_arrays`)."""
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work = memo_arrays(memo_ints, memo_floats)
+    arrays, (min_normal_force, alpha, dt) = _balance_arrays(kinds.shape[0], frame_parents, floats)
+    R_frames, t_frames, mass, lever, msub, csub, foot_mass, foot_com, gravity, Rf, tf, F, M, c, w = arrays
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work,
+                              kinds.shape[0])  # every joint: the CoM
     R, t = memo_R[j], memo_t[j]
     frame_placements(R, t, frame_parents, R_frames, t_frames, Rf[:4], tf[:4])
     subtree_sums(R, t, parents, mass, lever, msub, csub)
     # each foot's ground wrench from its F/T reading: F = -R f_s - m g, M = -R m_s - (R c) x m g at the sensor
-    F = np.empty((2, 3))
-    M = np.empty((2, 3))
     for k in range(2):
         fs, ms = (f_left, m_left) if k == 0 else (f_right, m_right)
         w0, w1, w2 = foot_mass[k] * gravity[0], foot_mass[k] * gravity[1], foot_mass[k] * gravity[2]
-        c = np.empty(3)
         for a in range(3):
             F[k, a] = -(Rf[k, a, 0] * fs[0] + Rf[k, a, 1] * fs[1] + Rf[k, a, 2] * fs[2]) - foot_mass[k] * gravity[a]
             c[a] = Rf[k, a, 0] * foot_com[k, 0] + Rf[k, a, 1] * foot_com[k, 1] + Rf[k, a, 2] * foot_com[k, 2]
@@ -276,31 +289,10 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     cx, cy, cz = csub[0, 0] / total, csub[0, 1] / total, csub[0, 2] / total
     if anchor:
         # each loaded foot moved to where the model has it, weighted by its normal force
-        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+        j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work,
+                                  joints_placing(frame_parents[2:]))  # the model's soles only
         frame_placements(memo_R[j], memo_t[j], frame_parents[2:], R_frames[2:], t_frames[2:], Rf[4:], tf[4:])
-        w = np.zeros(2)
-        for k in range(2):
-            if out[k] > min_normal_force:
-                w[k] = out[k]
-        wsum = w[0] + w[1]
-        if wsum <= 0.0:
-            w[:] = 0.0
-            w[support] = 1.0
-            wsum = 1.0
-        ax = ay = az = 0.0
-        for k in range(2):
-            if w[k] <= 0.0:
-                continue
-            # R_model R_meas^T (c - t_meas) + t_model
-            d0, d1, d2 = cx - tf[2 + k, 0], cy - tf[2 + k, 1], cz - tf[2 + k, 2]
-            l0 = Rf[2 + k, 0, 0] * d0 + Rf[2 + k, 1, 0] * d1 + Rf[2 + k, 2, 0] * d2
-            l1 = Rf[2 + k, 0, 1] * d0 + Rf[2 + k, 1, 1] * d1 + Rf[2 + k, 2, 1] * d2
-            l2 = Rf[2 + k, 0, 2] * d0 + Rf[2 + k, 1, 2] * d1 + Rf[2 + k, 2, 2] * d2
-            s = w[k] / wsum
-            ax += s * (Rf[4 + k, 0, 0] * l0 + Rf[4 + k, 0, 1] * l1 + Rf[4 + k, 0, 2] * l2 + tf[4 + k, 0])
-            ay += s * (Rf[4 + k, 1, 0] * l0 + Rf[4 + k, 1, 1] * l1 + Rf[4 + k, 1, 2] * l2 + tf[4 + k, 1])
-            az += s * (Rf[4 + k, 2, 0] * l0 + Rf[4 + k, 2, 1] * l1 + Rf[4 + k, 2, 2] * l2 + tf[4 + k, 2])
-        cx, cy, cz = ax, ay, az
+        cx, cy, cz = _anchor_on_feet(cx, cy, cz, out, Rf, tf, w, min_normal_force, support)
     out[5], out[6], out[7] = cx, cy, cz
     if state[0] == 0.0:
         state[4] = state[5] = state[6] = 0.0
@@ -315,7 +307,39 @@ def _balance_step(q_meas, q_model, anchor, f_left, m_left, f_right, m_right, mem
     return support
 
 
+@njit(inline=True)
+def _anchor_on_feet(cx, cy, cz, out, Rf, tf, w, min_normal_force, support):
+    """`_balance_step`'s anchoring: the CoM (cx, cy, cz) of the measured configuration with each loaded foot
+    moved to where the model has it (the soles' placements ``Rf``, ``tf``: rows 2, 3 measured, 4, 5 the model's),
+    averaged with the normal forces ``out[:2]`` as weights (into the scratch ``w``; none loaded: the support
+    foot's alone; as `BalanceEstimator._anchored`). Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
+    w[0] = w[1] = 0.0
+    for k in range(2):
+        if out[k] > min_normal_force:
+            w[k] = out[k]
+    wsum = w[0] + w[1]
+    if wsum <= 0.0:
+        w[:] = 0.0
+        w[support] = 1.0
+        wsum = 1.0
+    ax = ay = az = 0.0
+    for k in range(2):
+        if w[k] <= 0.0:
+            continue
+        # R_model R_meas^T (c - t_meas) + t_model
+        d0, d1, d2 = cx - tf[2 + k, 0], cy - tf[2 + k, 1], cz - tf[2 + k, 2]
+        l0 = Rf[2 + k, 0, 0] * d0 + Rf[2 + k, 1, 0] * d1 + Rf[2 + k, 2, 0] * d2
+        l1 = Rf[2 + k, 0, 1] * d0 + Rf[2 + k, 1, 1] * d1 + Rf[2 + k, 2, 1] * d2
+        l2 = Rf[2 + k, 0, 2] * d0 + Rf[2 + k, 1, 2] * d1 + Rf[2 + k, 2, 2] * d2
+        s = w[k] / wsum
+        ax += s * (Rf[4 + k, 0, 0] * l0 + Rf[4 + k, 0, 1] * l1 + Rf[4 + k, 0, 2] * l2 + tf[4 + k, 0])
+        ay += s * (Rf[4 + k, 1, 0] * l0 + Rf[4 + k, 1, 1] * l1 + Rf[4 + k, 1, 2] * l2 + tf[4 + k, 1])
+        az += s * (Rf[4 + k, 2, 0] * l0 + Rf[4 + k, 2, 1] * l1 + Rf[4 + k, 2, 2] * l2 + tf[4 + k, 2])
+    return ax, ay, az
+
+
 balance_step = _balance_step
 """`BalanceEstimator`'s compiled update, for a kernel of another package that runs it with more (the balance
 stabilizer's estimate and DCM step in one call); its arguments are those of `_balance_step`, the estimator's
-`_step_args` after the measurement's."""
+`_step_args` after the measurement's and the anchor's, then its state and output."""

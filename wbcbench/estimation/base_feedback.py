@@ -34,11 +34,11 @@ import numpy as np
 import pinocchio as pin
 
 from ..robots import Robot
-from ..jit import njit
+from ..jit import c_view, njit
 from ..side import Side
 from ..tasks.placements import ForwardKinematics, frame_placements
 from ..types import Measurement, PointReference, PoseReference, References
-from ._memo import memo_arrays, memo_joint_placements, placement_memo
+from ._memo import joints_placing, memo_arrays, memo_joint_placements, placement_memo
 
 __all__ = ["BaseFeedbackConfig", "BaseFeedback"]
 
@@ -66,40 +66,60 @@ def _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames
     """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
     model's and the measured configuration (`placements.joint_placements` through the model's memo
     (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
-    (4, 3, 3), ``t`` (4, 3)), then `_drift_from_soles`. The memo and the model's constants come as its two
-    buffers (`PlacementMemo.ints`, `floats`)."""
-    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next = memo_arrays(memo_ints, memo_floats)
-    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    (4, 3, 3), ``t`` (4, 3); of the joints up to the soles' only), then `_drift_from_soles`. The memo and the
+    model's constants come as its two buffers (`PlacementMemo.ints`, `floats`)."""
+    kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work = memo_arrays(memo_ints, memo_floats)
+    upto = joints_placing(frame_parents)  # the legs: the soles' joints and those before them
+    j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+                              memo_work, upto)
     frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[:2], t[:2])
-    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_next)
+    j = memo_joint_placements(q_meas, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
+                              memo_work, upto)
     frame_placements(memo_R[j], memo_t[j], frame_parents, R_frames, t_frames, R[2:], t[2:])
     _drift_from_soles(R, t, drift, alpha)
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
                           alpha, R_drift, p_drift):
     """`_drift_step`, then D = (``R_drift`` (3, 3), ``p_drift`` (3,)) of the new drift (`BaseFeedback._transform`'s
-    numbers: the same cosine and sine)."""
+    numbers: the same cosine and sine). Inlined: its compiled callers are all `exact`, as it is."""
     _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift, alpha)
     _transform_of(drift, R_drift, p_drift)
 
 
 @njit(exact=True)
-def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
-                         alpha, R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out):
-    """`_drift_step_transform`, then the CoM reference mapped through the new D into ``com_out`` (9,)
-    (`_map_point`; skipped for an empty ``com_out``): a double-support tick of `BaseFeedback.correct` up to the
-    feet's references, in one call."""
+def _double_support_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, floats, drift_prev, com_position,
+                         com_velocity, com_acceleration, out):
+    """A double-support tick of `BaseFeedback.correct` up to the feet's references, in one call: the drift
+    ``drift_prev`` updated (`_drift_step_transform`) and the CoM reference mapped through the new D (`_map_point`;
+    skipped for an empty ``com_position``). ``out`` (24,): the new drift (3) | R_drift (9, row-major) | p_drift (3)
+    | the mapped CoM (9); ``floats``: the base feedback's buffer (`_feedback_arrays`)."""
+    alpha, R_frames, t_frames, R, t = _feedback_arrays(frame_parents.shape[0], floats)
+    drift = out[0:3]
+    for a in range(3):
+        drift[a] = drift_prev[a]
+    R_drift, p_drift = c_view(out[3:12], (3, 3)), out[12:15]
     _drift_step_transform(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift,
                           alpha, R_drift, p_drift)
-    if com_out.shape[0] == 9:
-        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, com_out)
+    if com_position.shape[0] == 3:
+        _map_point(R_drift, p_drift, com_position, com_velocity, com_acceleration, out[15:24])
 
 
-@njit(exact=True)
+@njit(inline=True)
+def _feedback_arrays(k, floats):
+    """The arrays of `BaseFeedback`'s buffer (``k`` sole frames; as `BaseFeedback` lays it out): ``(alpha,
+    R_frames (k, 3, 3), t_frames (k, 3), R (2k, 3, 3), t (2k, 3))``, the filter's gain, the soles' placements in
+    their joints and the scratch rows of the soles' placements, views."""
+    o = 1 + 9 * k
+    return (floats[0], c_view(floats[1:o], (k, 3, 3)), c_view(floats[o:o + 3 * k], (k, 3)),
+            c_view(floats[o + 3 * k:o + 21 * k], (2 * k, 3, 3)), c_view(floats[o + 21 * k:o + 27 * k], (2 * k, 3)))
+
+
+@njit(exact=True, inline=True)
 def _transform_of(drift, R, p):
-    """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0)."""
+    """D = (R (3, 3), p (3,)) of the drift (x, y, yaw): a rotation about z by yaw and the translation (x, y, 0).
+    Inlined: its compiled callers are all `exact`, as it is."""
     c, s = np.cos(drift[2]), np.sin(drift[2])
     R[0, 0], R[0, 1], R[0, 2] = c, -s, 0.0
     R[1, 0], R[1, 1], R[1, 2] = s, c, 0.0
@@ -107,12 +127,13 @@ def _transform_of(drift, R, p):
     p[0], p[1], p[2] = drift[0], drift[1], 0.0
 
 
-@njit
+@njit(inline=True)
 def _drift_from_soles(R, t, drift, alpha):
     """From the soles' placements ``R`` (4, 3, 3), ``t`` (4, 3) (rows model left, right, measured left, right):
     the planar drift of each sole, their mean, and the filter (gain ``alpha``) on ``drift`` (3,: x, y, yaw), in
     place. Planar poses first (x, y, heading of each sole): a tilted sole (slopes, rocking) must not turn its
-    roll/pitch difference into a translation of D."""
+    roll/pitch difference into a translation of D. Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
     raw0 = raw1 = raw2 = 0.0
     for i in range(2):
         a2 = np.arctan2(R[i, 1, 0], R[i, 0, 0])
@@ -128,9 +149,10 @@ def _drift_from_soles(R, t, drift, alpha):
     drift[2] = drift[2] + alpha * (raw2 - drift[2])
 
 
-@njit
+@njit(inline=True)
 def _rotate(R, x, out, k):
-    """``out[k:k+3] = R x`` (x (3,))."""
+    """``out[k:k+3] = R x`` (x (3,)). Inlined: its compiled callers are all reassociating (not `exact`), as it
+    is."""
     for a in range(3):
         out[k + a] = R[a, 0] * x[0] + R[a, 1] * x[1] + R[a, 2] * x[2]
 
@@ -160,6 +182,26 @@ def _map_pose(R, p, position, rotation, velocity, acceleration, out):
     _rotate(R, velocity[3:], out, 15)
     _rotate(R, acceleration[:3], out, 18)
     _rotate(R, acceleration[3:], out, 21)
+
+
+@njit(exact=True)
+def _liftoff_offset(position, velocity, acceleration, dp, dphi, b, db, ddb, out):
+    """`BaseFeedback._from_liftoff`'s offset of a swing foot's reference, element by element as numpy did it:
+    ``out`` (15,) = position + (1 - b) dp, velocity and acceleration with db dp, ddb dp taken from their linear
+    parts and db dphi, ddb dphi from their angular parts (unchanged for an empty ``dphi``)."""
+    c = 1.0 - b
+    for a in range(3):
+        out[a] = position[a] + c * dp[a]
+    for a in range(6):
+        out[3 + a] = velocity[a]
+        out[9 + a] = acceleration[a]
+    for a in range(3):
+        out[3 + a] -= db * dp[a]
+        out[9 + a] -= ddb * dp[a]
+    if dphi.shape[0] == 3:
+        for a in range(3):
+            out[6 + a] -= db * dphi[a]
+            out[12 + a] -= ddb * dphi[a]
 
 
 _NO_ROTATION = np.zeros((0, 3))
@@ -196,12 +238,17 @@ class BaseFeedback:
         # placements are pinocchio's to rounding): pinocchio's two passes and four frame updates and the numpy
         # around them took 45 us of a 480 us IK step
         self._fk = fk = ForwardKinematics(robot.model)
-        self._soles = (np.zeros((4, 3, 3)), np.zeros((4, 3)))  # rows model left, right, measured left, right
+        self.alpha = alpha = 1.0 - np.exp(-dt / config.time_constant)
+        frame_parents, R_frames, t_frames = fk.frame_arrays([self.sole_ids[s] for s in Side])
+        # the double-support kernel's floats in one buffer (`_feedback_arrays`): the gain, the soles' placements in
+        # their joints, the soles' placements (rows model left, right, measured left, right; `_soles` views them)
+        self._floats = floats = np.concatenate([[alpha], R_frames.ravel(), t_frames.ravel(), np.zeros(4 * 12)])
+        o = 1 + 12 * 2
+        self._soles = (floats[o:o + 36].reshape(4, 3, 3), floats[o + 36:].reshape(4, 3))
         if fk.supported:
             memo = placement_memo(robot.model, fk)
-            self._step_args = (memo.ints, memo.floats, *fk.frame_arrays([self.sole_ids[s] for s in Side]),
-                               *self._soles)
-        self.alpha = 1.0 - np.exp(-dt / config.time_constant)
+            self._step_args = (memo.ints, memo.floats, frame_parents, R_frames, t_frames, *self._soles)
+            self._double_support_args = (memo.ints, memo.floats, frame_parents, floats)
         self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
         self._liftoff: dict[Side, tuple[float, np.ndarray, np.ndarray | None]] = {}
@@ -214,7 +261,7 @@ class BaseFeedback:
         """Update and return the drift estimate (x, y, yaw) from the feet in `contacts`; unchanged unless both
         feet are in contact (in single support the robot rocks on its stance sole, and updating there made TSID
         position fall on the platforms)."""
-        if any(s not in contacts for s in Side):
+        if _LEFT not in contacts or _RIGHT not in contacts:
             return self.drift
         drift = self.drift.copy()  # a new array each update (callers may keep the last one)
         if self._fk.supported:
@@ -236,16 +283,20 @@ class BaseFeedback:
         R, p = self._transform()
         return R.copy(), p.copy()
 
-    _cached = (None, None, None)
+    _cached = (None, None, None, None)
 
     def _transform(self) -> tuple[np.ndarray, np.ndarray]:
-        """`transform`'s arrays, made again only when the drift estimate changed (not to be modified)."""
-        drift, R, p = self._cached
+        """`transform`'s arrays, made again only when the drift estimate changed (not to be modified): views of
+        the array of the double-support tick that computed them (`correct`), or computed here."""
+        drift, R, p, out = self._cached
         if drift is not self.drift:
             x, y, yaw = self.drift
             c, s = np.cos(yaw), np.sin(yaw)
             R, p = np.array((c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)).reshape(3, 3), np.array((x, y, 0.0))
-            self._cached = (self.drift, R, p)
+            self._cached = (self.drift, R, p, None)
+        elif R is None:
+            R, p = out[3:12].reshape(3, 3), out[12:15]
+            self._cached = (drift, R, p, out)
         return R, p
 
     def correct(self, meas: Measurement, refs: References, q_model: np.ndarray) -> References:
@@ -256,38 +307,50 @@ class BaseFeedback:
         # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
         # constructors; each reference mapped in one compiled call
         if _LEFT in contacts and _RIGHT in contacts and self._fk.supported:
-            # `update`, `_transform` and the CoM's mapping in one compiled call
-            drift, R, p = self.drift.copy(), np.empty((3, 3)), np.empty(3)
+            # `update`, D and the CoM's mapping in one compiled call, into one new array: the drift a view of it,
+            # D's views made when asked for (`_transform`: standing, nothing else is mapped)
+            out = np.empty(24)
+            m_ints, m_floats, parents, floats = self._double_support_args  # a call without *: no tuple built
             if com is None:
-                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, _NO_POINT,
-                                     _NO_POINT, _NO_POINT, _NO_POINT)
+                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, _NO_POINT,
+                                     _NO_POINT, _NO_POINT, out)
             else:
-                out = np.empty(9)
-                _double_support_step(q_model, meas.q, *self._step_args, drift, self.alpha, R, p, com.position,
+                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, com.position,
                                      com.velocity, com.acceleration, out)
-                com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
-            self.drift = drift
-            self._cached = (drift, R, p)
+                com = PointReference.unchecked(out[15:18], out[18:21], out[21:24])
+            self.drift = drift = out[:3]
+            self._cached = (drift, None, None, out)
         else:
             self.update(meas, q_model, contacts)
-            R, p = self._transform()
             if com is not None:
+                R, p = self._transform()
                 out = np.empty(9)
                 _map_point(R, p, com.position, com.velocity, com.acceleration, out)
                 com = PointReference.unchecked(out[:3], out[3:6], out[6:9])
         targets = refs.targets
-        if "waist" in targets:
-            targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}
-        feet = {}
-        for s, f in refs.feet.items():
-            mapped = _mapped_pose(R, p, f)
-            feet[s] = mapped if s in contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        feet = refs.feet  # none: the plan's (empty) dict
+        if feet or "waist" in targets:
+            targets, feet = self._mapped_frames(refs, q_model)
         liftoff = self._liftoff
         if liftoff:
             for s in list(liftoff):
                 if s in contacts or s not in refs.feet:
                     del liftoff[s]
         return refs.corrected(com, targets, refs.wrench_targets, refs.contact_poses, feet=feet)
+
+    def _mapped_frames(self, refs: References, q_model: np.ndarray) -> tuple[dict, dict]:
+        """The targets (the waist's mapped) and the feet's references (each mapped, a swing foot's from its
+        lift-off: `_from_liftoff`) of `correct`."""
+        R, p = self._transform()
+        targets = refs.targets
+        if "waist" in targets:
+            targets = {**targets, "waist": _mapped_pose(R, p, targets["waist"])}
+        contacts = refs.contacts
+        feet = {}
+        for s, f in refs.feet.items():
+            mapped = _mapped_pose(R, p, f)
+            feet[s] = mapped if s in contacts else self._from_liftoff(s, mapped, refs.t, q_model)
+        return targets, feet
 
     def _from_liftoff(self, side: Side, ref: PoseReference, t: float, q_model: np.ndarray) -> PoseReference:
         """A swing foot's mapped reference `ref`, offset so that it starts where the model's foot stood at lift-off
@@ -309,13 +372,10 @@ class BaseFeedback:
         b = u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
         db = 30.0 * u * u * (1.0 - u) ** 2 / self.blend
         ddb = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / self.blend ** 2
-        vel = ref.velocity.copy()
-        acc = ref.acceleration.copy()
-        vel[:3] -= db * dp
-        acc[:3] -= ddb * dp
+        out = np.empty(15)  # position, velocity, acceleration offset in one compiled call
+        _liftoff_offset(ref.position, ref.velocity, ref.acceleration, dp, _NO_POINT if dphi is None else dphi, b, db,
+                        ddb, out)
         rot = ref.rotation
         if dphi is not None:
             rot = pin.exp3((1.0 - b) * dphi) @ rot
-            vel[3:] -= db * dphi
-            acc[3:] -= ddb * dphi
-        return PoseReference.unchecked(ref.position + (1.0 - b) * dp, rot, vel, acc)
+        return PoseReference.unchecked(out[:3], rot, out[3:9], out[9:15])

@@ -48,9 +48,12 @@ class BalanceStabilizer(Stabilizer):
         self.robot = robot
         self.gains = gains
         self.dt = dt
-        self.estimator = BalanceEstimator(robot, dt)
+        # the estimator's state (7) and the log (6) in one array: one argument of `_estimate_and_step`
+        self._arrays = np.zeros(13)
+        self.estimator = BalanceEstimator(robot, dt, state=self._arrays[:7])
         self.dcm: DcmStabilizer | None = None
-        self.log = np.full(6, np.nan)
+        self.log = self._arrays[7:]
+        self.log[:] = np.nan
 
     def reset(self, meas: Measurement, refs: References, feedback: ModelFeedback) -> None:
         """Restart from the model's configuration standing on the ground (sets the nominal CoM height)."""
@@ -74,21 +77,23 @@ class BalanceStabilizer(Stabilizer):
         est = self.estimator
         if (est._step_args is not None and type(zmp) is np.ndarray and zmp.dtype == _F64 and zmp.ndim == 1
                 and 2 <= zmp.shape[0] <= 3):
-            # the estimator's update and the DCM step in one compiled call (the same kernels, the same numbers)
+            # the estimator's update and the DCM step in one compiled call (the same kernels, the same numbers),
+            # their outputs in one new array: the estimate's (11), the DCM step's (20)
             dcm = self.dcm
-            est_out, out = np.empty(11), np.empty(20)
+            out = np.empty(31)
             force, torque = meas.ft_force, meas.ft_torque
+            m_ints, m_floats, parents, floats = est._step_args  # a call without *: no tuple built
             code = _estimate_and_step(meas.q, feedback.q, force[_LEFT], torque[_LEFT], force[_RIGHT], torque[_RIGHT],
-                                      *est._step_args, est._state, est_out, com.position, com.velocity,
-                                      com.acceleration, zmp, dcm._constants, dcm._fresh, dcm._state, out, self.log)
-            est._take(est_out, code & 1)
+                                      m_ints, m_floats, parents, floats, self._arrays, com.position, com.velocity,
+                                      com.acceleration, zmp, dcm._arrays, dcm._fresh, out)
+            est._take(out, code & 1)
             if code < 2:  # no loaded foot: no measured ZMP
                 return refs
             if code >= 4:  # an input not finite: the numpy law raises, naming it
                 dcm._step_numpy(com.position, com.velocity, com.acceleration, zmp, est.com, est.com_vel, est.zmp)
             if dcm._filter is not None:
                 dcm._fresh = False
-            return refs.corrected(PointReference.unchecked(out[0:3], out[3:6], out[6:9]), refs.targets,
+            return refs.corrected(PointReference.unchecked(out[11:14], out[14:17], out[17:20]), refs.targets,
                                   refs.wrench_targets, refs.contact_poses)
         est.update(meas, feedback.q)
         p_zmp = est.zmp
@@ -113,16 +118,20 @@ class BalanceStabilizer(Stabilizer):
                               refs.contact_poses)
 
 
-@njit
+@njit(exact=True)
 def _estimate_and_step(q_meas, q_model, f_left, m_left, f_right, m_right, memo_ints, memo_floats, frame_parents,
-                       floats, min_normal_force, alpha, dt, est_state, est_out, c_ref, v_ref, a_ref, z_ref, k, fresh,
-                       dcm_state, dcm_out, log):
-    """`BalanceEstimator.update` anchored on ``q_model`` (`_balance_step`, into ``est_out``) and, when it measured
-    a ZMP, the DCM step on its estimate (`_dcm_step_logged`, into ``dcm_out`` and ``log``): a tick of `correct` in
-    one call. Returns the support foot (0 left, 1 right) + 2 when the DCM step ran, + 4 when it refused a
-    non-finite input."""
+                       floats, arrays, c_ref, v_ref, a_ref, z_ref, dcm_arrays, fresh, out):
+    """`BalanceEstimator.update` anchored on ``q_model`` (`_balance_step`, into ``out[:11]``) and, when it
+    measured a ZMP, the DCM step on its estimate (`_dcm_step_logged`, into ``out[11:31]`` and ``log``): a tick of
+    `correct` in one call. ``arrays``: the stabilizer's (the estimator's state, the log), ``dcm_arrays``: the DCM
+    stabilizer's (its constants, its state). Returns the support foot (0 left, 1 right) + 2 when the DCM step
+    ran, + 4 when it refused a non-finite input. `exact` as the DCM step, which it inlines (its own code only
+    compares)."""
+    est_state, log = arrays[0:7], arrays[7:13]
+    k, dcm_state = dcm_arrays[0:13], dcm_arrays[13:21]
+    est_out, dcm_out = out[0:11], out[11:31]
     support = balance_step(q_meas, q_model, True, f_left, m_left, f_right, m_right, memo_ints, memo_floats,
-                            frame_parents, floats, min_normal_force, alpha, dt, est_state, est_out)
+                            frame_parents, floats, est_state, est_out)
     if not (np.isfinite(est_out[2]) and np.isfinite(est_out[3]) and np.isfinite(est_out[4])):
         return support
     if not _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, est_out[5:8], est_out[8:11], est_out[2:5], k, fresh,

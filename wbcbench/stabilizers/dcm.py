@@ -216,9 +216,13 @@ class DcmStabilizer:
         self.dt = float(dt)
         self.omega = natural_frequency(com_height, gravity)
         self._filter = FirstOrderLowPass(gains.zmp_cutoff_hz, dt) if gains.zmp_cutoff_hz is not None else None
-        # `_step`'s constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
+        # `_step`'s constants (13) and state (8) in one array (`_arrays`; `_constants`, `_state` views of it): one
+        # argument of a compiled call that runs the step (stabilizers/balance.py)
+        self._arrays = np.zeros(21)
+        self._constants, self._state = self._arrays[:13], self._arrays[13:]
+        # the constants: the gains, with the optional ones' switches (0 / 1), the filter's alpha, omega, dt
         g = gains
-        self._constants = np.array([
+        self._constants[:] = np.array([
             g.kp_adm, g.kp_dcm, g.ki_dcm, g.kz_dcm, g.integral_leak,
             g.integral_limit is not None, g.integral_limit or 0.0,
             g.com_offset_limit is not None, g.com_offset_limit or 0.0,
@@ -230,7 +234,7 @@ class DcmStabilizer:
         """Zero the DCM error integral and the CoM offset, and restart the ZMP filter."""
         # the state, updated in place tick after tick: the integral (2), the CoM offset's position (2) and velocity
         # (2), the ZMP filter's last output (2; `_fresh`: none yet)
-        self._state = np.zeros(8)
+        self._state[:] = 0.0
         self._fresh = True
         if self._filter is not None:
             self._filter.reset()
@@ -358,13 +362,13 @@ def _finite(x, n):
     return True
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     """`DcmStabilizer.step`'s arithmetic, element by element in the numpy code's order. ``k``: the
     stabilizer's `_constants`; ``state`` (8,): integral, CoM offset position, velocity, the ZMP filter's last
     output (``fresh``: none yet), updated in place; ``out`` (20,): CoM position, velocity, acceleration (3 each),
     z*, filtered measured ZMP, measured DCM, planned DCM (2 each), integral saturated (2, 0 / 1). Returns False
-    (nothing changed) when an input is not finite."""
+    (nothing changed) when an input is not finite. Inlined: its compiled callers are all `exact`, as it is."""
     if not (_finite(c_ref, 3) and _finite(v_ref, 3) and _finite(a_ref, 3) and _finite(z_ref, 2) and _finite(c, 2)
             and _finite(v, 2) and _finite(z, 2)):
         return False
@@ -421,10 +425,10 @@ def _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
     return True
 
 
-@njit(exact=True)
+@njit(exact=True, inline=True)
 def _dcm_step_logged(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out, log):
     """`_dcm_step`, then ``log`` (6,) = the filtered measured ZMP, z*, the measured DCM (x, y each) when it
-    succeeded."""
+    succeeded. Inlined: its compiled callers are all `exact`, as it is."""
     if not _dcm_step(c_ref, v_ref, a_ref, z_ref, c, v, z, k, fresh, state, out):
         return False
     log[0], log[1] = out[11], out[12]

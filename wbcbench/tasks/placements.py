@@ -15,10 +15,10 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from wbcbench.jit import njit
+from wbcbench.jit import c_view, njit
 
 __all__ = ["CenterOfMass", "ForwardKinematics", "forward_gather", "frame_placements", "joint_placements",
-           "subtree_sums"]
+           "joint_placements_range", "subtree_sums"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -186,10 +186,11 @@ def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, 
     x[out + 5] = vz / total
 
 
-@njit
+@njit(inline=True)
 def _subtree_sums(R, t, parents, mass, lever, msub, csub):
     """From the joint placements ``R``, ``t``: each subtree's mass ``msub`` and first moment ``csub`` (sum of m_i
-    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``."""
+    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``. Inlined: its
+    compiled callers are all reassociating (not `exact`), as it is."""
     n = parents.shape[0]
     for j in range(n):
         m = mass[j]
@@ -214,14 +215,25 @@ def _center_of_mass_rows(rows, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0
 @njit
 def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
     """``oMi[j] = oMi[parent] * jointPlacement[j] * M_j(q)`` for every joint in order (parents first)."""
-    Rj = np.empty((3, 3))
-    Rl = np.empty((3, 3))
-    tl = np.empty(3)
-    for a in range(3):
-        for b in range(3):
-            R[0, a, b] = 1.0 if a == b else 0.0
-        t[0, a] = 0.0
-    for j in range(1, kinds.shape[0]):
+    _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, 0, kinds.shape[0], np.empty(21))
+
+
+@njit(inline=True)
+def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work):
+    """`_forward` for the joints ``lo`` to ``hi - 1`` only (0: from the universe), those before ``lo`` already
+    placed in ``R``, ``t``: the joints a caller needs (a prefix of the order holds their ancestors) and later the
+    rest, the same numbers as one pass. ``work`` (21,): scratch (a joint's motion and its placement in its
+    parent). Inlined: its compiled callers are all reassociating (not `exact`), as it is."""
+    Rj = c_view(work[0:9], (3, 3))
+    Rl = c_view(work[9:18], (3, 3))
+    tl = work[18:21]
+    if lo == 0:
+        for a in range(3):
+            for b in range(3):
+                R[0, a, b] = 1.0 if a == b else 0.0
+            t[0, a] = 0.0
+        lo = 1
+    for j in range(lo, hi):
         k = kinds[j]
         iq = idx_q[j]
         if k == 1:
@@ -260,9 +272,10 @@ def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
             t[j, a] = R[p, a, 0] * tl[0] + R[p, a, 1] * tl[1] + R[p, a, 2] * tl[2] + t[p, a]
 
 
-@njit
+@njit(inline=True)
 def _frames(R, t, parent, Rf, tf, R_out, t_out):
-    """``oMf = oMi[parent] * placement`` for each frame."""
+    """``oMf = oMi[parent] * placement`` for each frame. Inlined: its compiled callers are all reassociating (not
+    `exact`), as it is."""
     for i in range(parent.shape[0]):
         p = parent[i]
         for a in range(3):
@@ -301,6 +314,10 @@ def _forward_gather(q, kinds, parents, idx_q, R0, t0, R, t, joints, R_out, t_out
 # the arrays they take are those of `ForwardKinematics` and `CenterOfMass`.
 joint_placements = _forward
 """``joint_placements(q, kinds, parents, idx_q, R0, t0, R, t)``: every joint's placement into ``R``, ``t``."""
+joint_placements_range = _forward_range
+"""``joint_placements_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work)``: the placements of the joints
+``lo`` to ``hi - 1`` into ``R``, ``t``, those before ``lo`` already there (0: from the universe); ``work`` (21,)
+scratch."""
 frame_placements = _frames
 """``frame_placements(R, t, parent, Rf, tf, R_out, t_out)``: frames' placements from their joints'."""
 subtree_sums = _subtree_sums
