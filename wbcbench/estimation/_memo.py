@@ -64,13 +64,12 @@ def placement_memo(model: pin.Model, fk: ForwardKinematics) -> PlacementMemo:
     return memo
 
 
-@njit(inline=True)
+@njit
 def memo_joint_placements(q, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work, upto):
     """The slot (0 or 1) of ``memo_R``, ``memo_t`` holding the placements of the joints 0 to ``upto - 1`` of
     ``q``: a slot whose configuration is ``q`` bit for bit (the sign of zero included), its later joints placed if
     it had fewer (`placements.joint_placements_range`, with the scratch ``memo_work``), else the older slot,
-    computed up to ``upto``. Inlined
-    (no floating-point arithmetic of its own: the placements are computed as its caller's, reassociating)."""
+    computed up to ``upto``."""
     n = q.shape[0]
     for slot in range(2):
         same = True

@@ -186,11 +186,10 @@ def _center_of_mass(x, iq, iv, out, kinds, parents, idx_q, idx_v, R0, t0, mass, 
     x[out + 5] = vz / total
 
 
-@njit(inline=True)
+@njit
 def _subtree_sums(R, t, parents, mass, lever, msub, csub):
     """From the joint placements ``R``, ``t``: each subtree's mass ``msub`` and first moment ``csub`` (sum of m_i
-    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``. Inlined: its
-    compiled callers are all reassociating (not `exact`), as it is."""
+    c_i, world), children after their parents in pinocchio's order; the CoM is ``csub[0] / msub[0]``."""
     n = parents.shape[0]
     for j in range(n):
         m = mass[j]
@@ -218,12 +217,12 @@ def _forward(q, kinds, parents, idx_q, R0, t0, R, t):
     _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, 0, kinds.shape[0], np.empty(21))
 
 
-@njit(inline=True)
+@njit
 def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work):
     """`_forward` for the joints ``lo`` to ``hi - 1`` only (0: from the universe), those before ``lo`` already
     placed in ``R``, ``t``: the joints a caller needs (a prefix of the order holds their ancestors) and later the
     rest, the same numbers as one pass. ``work`` (21,): scratch (a joint's motion and its placement in its
-    parent). Inlined: its compiled callers are all reassociating (not `exact`), as it is."""
+    parent)."""
     Rj = c_view(work[0:9], (3, 3))
     Rl = c_view(work[9:18], (3, 3))
     tl = work[18:21]
@@ -272,10 +271,9 @@ def _forward_range(q, kinds, parents, idx_q, R0, t0, R, t, lo, hi, work):
             t[j, a] = R[p, a, 0] * tl[0] + R[p, a, 1] * tl[1] + R[p, a, 2] * tl[2] + t[p, a]
 
 
-@njit(inline=True)
+@njit
 def _frames(R, t, parent, Rf, tf, R_out, t_out):
-    """``oMf = oMi[parent] * placement`` for each frame. Inlined: its compiled callers are all reassociating (not
-    `exact`), as it is."""
+    """``oMf = oMi[parent] * placement`` for each frame."""
     for i in range(parent.shape[0]):
         p = parent[i]
         for a in range(3):
