@@ -8,7 +8,9 @@ process pinned to one core with OPENBLAS_NUM_THREADS=1, the sides alternating ro
   loop (`bench_controllers.py`'s set-up); the peers integrate their own solution
   (benchmarks/peers/*_stand.py, run in the environments benchmarks/peers/setup.sh makes);
 - the ratios the project tracks: tsid-torque / C++ TSID, tsid-torque / PlaCo's dynamics solver, ik / PlaCo's
-  kinematics solver, ik / pink, tsid-position / tsid-torque.
+  kinematics solver, ik's core (its step without the plan corrections, i.e. the formulation and solve alone:
+  `bench_controllers.py`'s "core", timed in the same runs) / PlaCo's kinematics solver, ik / pink,
+  tsid-position / tsid-torque.
 
     bash benchmarks/peers/setup.sh /tmp/wbcbench-peers
     .venv/bin/python benchmarks/bench_peers.py --peers /tmp/wbcbench-peers [--rounds 3] [--ticks 3000] [--core 1]
@@ -30,8 +32,8 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 OURS = ("tsid-torque", "ik", "tsid-position")
-RATIOS = (("tsid-torque", "tsid"), ("tsid-torque", "placo-dynamics"), ("ik", "placo-kinematics"), ("ik", "pink"),
-          ("tsid-position", "tsid-torque"))
+RATIOS = (("tsid-torque", "tsid"), ("tsid-torque", "placo-dynamics"), ("ik", "placo-kinematics"),
+          ("ik core", "placo-kinematics"), ("ik", "pink"), ("tsid-position", "tsid-torque"))
 
 
 def ours(name: str, ticks: int) -> dict:
@@ -62,16 +64,25 @@ def ours(name: str, ticks: int) -> dict:
 
     ctrl.reset(meas, refs(0.0))
     times = np.empty(ticks)
+    corrections = np.zeros(ticks)
+    from bench_controllers import _time_corrections
+
+    timed = _time_corrections(ctrl, corrections)  # [tick, whether the controller has plan corrections]
     for k in range(ticks):
         r = refs(k * 1e-3)
+        timed[0] = k
         t0 = time.perf_counter()
         cmd = ctrl.step(meas, r)
         times[k] = (time.perf_counter() - t0) * 1e6
         sim.apply(cmd)
         sim.step()
         meas = sim.measure()
-    warm = times[ticks // 10:]
-    return {"median_us": float(np.median(warm)), "p99_us": float(np.percentile(warm, 99))}
+    warm = slice(ticks // 10, None)
+    out = {"median_us": float(np.median(times[warm])), "p99_us": float(np.percentile(times[warm], 99))}
+    if timed[1]:
+        core = (times - corrections)[warm]
+        out["core"] = {"median_us": float(np.median(core)), "p99_us": float(np.percentile(core, 99))}
+    return out
 
 
 def _peer_files(tmp: Path) -> tuple[str, str]:
@@ -127,12 +138,14 @@ def main() -> None:
                 res = _run(cmd, args.core)
                 rounds[name].append(res)
                 versions[name] = res.get("version")
+                if "core" in res:  # the step without its plan corrections, from the same run
+                    rounds.setdefault(f"{name} core", []).append(res["core"])
             print(f"  round {r + 1}/{args.rounds} done", flush=True)
     med = {k: float(np.median([x["median_us"] for x in v])) for k, v in rounds.items()}
     p99 = {k: float(np.median([x["p99_us"] for x in v])) for k, v in rounds.items()}
     print(f"TALOS standing, CoM on a lateral sine; {args.ticks} ticks per run, {args.rounds} alternating rounds, "
           f"core {args.core or 'any'}; median of the rounds' medians [us]")
-    for k in cmds:
+    for k in rounds:
         print(f"  {k:18s} {med[k]:7.1f}   p99 {p99[k]:7.1f}" + (f"   ({versions[k]})" if versions.get(k) else ""))
     ratios = {f"{a} / {b}": med[a] / med[b] for a, b in RATIOS}
     for key, val in ratios.items():
