@@ -218,3 +218,24 @@ def test_a_cell_whose_rendering_fails_keeps_its_report(monkeypatch, tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert o.media_error in md and "Table 2" in md
     assert res.results["runs"][0]["media_error"] == o.media_error
+
+
+def test_the_workers_take_each_scenes_first_cell_first():
+    """The pool's order: every scene's first cell before any scene's second (so that two workers do not both make
+    a multi-contact scene's plan), each scene's cells in the matrix's order, every cell once."""
+    from wbcbench.report import matrix
+    from wbcbench.report.reproduce import _submission_order
+
+    jobs = matrix.plan_jobs()
+    order = _submission_order(jobs)
+    assert sorted(map(id, order)) == sorted(map(id, jobs))
+    rank = {}
+    seen: dict[str, int] = {}
+    for j in order:
+        rank[id(j)] = seen.get(j.scenario_run, 0)
+        seen[j.scenario_run] = rank[id(j)] + 1
+    assert [rank[id(j)] for j in order] == sorted(rank[id(j)] for j in order)  # first cells, then second ones ...
+    for scene in seen:
+        assert [j for j in order if j.scenario_run == scene] == [j for j in jobs if j.scenario_run == scene]
+    first = [j.scenario_run for j in order[:len(seen)]]
+    assert "platforms" in first and "stairs" in first
