@@ -7,6 +7,7 @@ A figure whose runs are missing is not drawn; `draw_figures` returns only the fi
 from __future__ import annotations
 
 import json
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,9 +60,11 @@ class _Logs:
 
 
 def _color(controller: str) -> str:
+    """A controller's line colour: its own, or one of the others chosen by its name (a checksum, the same in every
+    process: Python's `hash` of a string changes from one process to the next)."""
     if controller in COLORS:
         return COLORS[controller]
-    return OTHER_COLORS[hash(controller) % len(OTHER_COLORS)]
+    return OTHER_COLORS[zlib.crc32(controller.encode()) % len(OTHER_COLORS)]
 
 
 def _label(o: RunOutcome) -> str:
@@ -255,44 +258,73 @@ def sanity_figure(logs: _Logs, runs: list[RunOutcome], out_dir: Path, name: str,
     return _save(fig, out_dir, name)
 
 
-def draw_figures(outcomes: list[RunOutcome], out_dir: str | Path) -> list[FigureInfo]:
-    """Write every figure that has data into `out_dir`; returns them in report order."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    logs = _Logs()
+@dataclass(frozen=True)
+class FigureTask:
+    """One figure to draw: `draw` (the name of one of this module's figure functions), its runs (a single
+    outcome for the functions of one run), its file name, the plot's title, and the report's title and caption.
+    Picklable: a worker process can draw it (`draw_task`)."""
 
-    def runs(scenario: str) -> list[RunOutcome]:
-        return [o for o in outcomes if o.scenario == scenario and o.has_metrics]
+    draw: str
+    runs: tuple[RunOutcome, ...]
+    file: str
+    plot_title: str
+    title: str
+    caption: str
 
-    made: list[FigureInfo] = []
 
-    def add(file: str | None, title: str, caption: str) -> None:
-        if file:
-            made.append(FigureInfo(f"{out.name}/{file}", title, caption))
+_ONE_RUN = ("walk_state_figure", "angular_momentum_figure")
 
+
+def figure_tasks(outcomes: list[RunOutcome]) -> list[FigureTask]:
+    """Every figure the report may show, in report order (a figure whose runs drew nothing is left out later)."""
+
+    def runs(scenario: str) -> tuple[RunOutcome, ...]:
+        return tuple(o for o in outcomes if o.scenario == scenario and o.has_metrics)
+
+    tasks: list[FigureTask] = []
     for scen, fig_no in (("walk-20cm", 4), ("walk-20cm-fast", None), ("platforms", 8), ("stairs", 9)):
         label = SCENARIO_LABELS.get(scen, scen)
         tag = f"Figure {fig_no}" if fig_no else "Extra figure"
-        add(zmp_figure(logs, runs(scen), out, f"zmp_{scen}.png", f"ZMP estimation, {label}"),
-            f"{tag}: ZMP estimation, {label}",
-            "ZMP from the two ankle F/T sensors (foot mass removed), x top, y bottom; dashed: planned ZMP.")
+        tasks.append(FigureTask("zmp_figure", runs(scen), f"zmp_{scen}.png", f"ZMP estimation, {label}",
+                                f"{tag}: ZMP estimation, {label}",
+                                "ZMP from the two ankle F/T sensors (foot mass removed), x top, y bottom; dashed: "
+                                "planned ZMP."))
         if scen == "walk-20cm":
-            add(left_force_figure(logs, runs(scen), out, "left_foot_force_walk-20cm.png",
-                                  "Left foot vertical force, 20 cm walk"),
-                "Figure 5: Z-axis left foot force, 20 cm walk",
-                "Vertical ground force on the left foot from its ankle F/T sensor, foot weight removed.")
+            tasks.append(FigureTask("left_force_figure", runs(scen), "left_foot_force_walk-20cm.png",
+                                    "Left foot vertical force, 20 cm walk", "Figure 5: Z-axis left foot force, 20 cm walk",
+                                    "Vertical ground force on the left foot from its ankle F/T sensor, foot weight "
+                                    "removed."))
     for o in runs("walk-60cm"):
         if o.controller != "tsid-torque":
             continue
-        add(walk_state_figure(logs, o, out, "walk_state_walk-60cm.png", "Feet, CoM, DCM and ZMP, 60 cm walk"),
-            "Figure 6: Feet, CoM, DCM and ZMP, 60 cm walk (TSID torque)",
-            "Measured (solid) and planned (dashed); feet are the sole origins by forward kinematics, the DCM "
-            "c + c_dot / omega with omega = sqrt(g / (c_z - ground)).")
-        add(angular_momentum_figure(logs, o, out, "angular_momentum_walk-60cm.png",
-                                    "Centroidal angular momentum, 60 cm walk"),
-            "Figure 7: Angular momentum, 60 cm walk (TSID torque)",
-            "Centroidal angular momentum about the CoM, world axes, computed from the logged q and v.")
+        tasks.append(FigureTask("walk_state_figure", (o,), "walk_state_walk-60cm.png",
+                                "Feet, CoM, DCM and ZMP, 60 cm walk",
+                                "Figure 6: Feet, CoM, DCM and ZMP, 60 cm walk (TSID torque)",
+                                "Measured (solid) and planned (dashed); feet are the sole origins by forward kinematics, "
+                                "the DCM c + c_dot / omega with omega = sqrt(g / (c_z - ground))."))
+        tasks.append(FigureTask("angular_momentum_figure", (o,), "angular_momentum_walk-60cm.png",
+                                "Centroidal angular momentum, 60 cm walk",
+                                "Figure 7: Angular momentum, 60 cm walk (TSID torque)",
+                                "Centroidal angular momentum about the CoM, world axes, computed from the logged q "
+                                "and v."))
     for scen in sorted({o.scenario for o in outcomes if o.section == "sanity"}):
-        add(sanity_figure(logs, runs(scen), out, f"sanity_{scen}.png", f"Sanity: {scen}"),
-            f"Sanity: {scen}", "CoM y (dashed: reference) and ZMP y from the ankle F/T sensors per controller.")
-    return made
+        tasks.append(FigureTask("sanity_figure", runs(scen), f"sanity_{scen}.png", f"Sanity: {scen}",
+                                f"Sanity: {scen}",
+                                "CoM y (dashed: reference) and ZMP y from the ankle F/T sensors per controller."))
+    return tasks
+
+
+def draw_task(task: FigureTask, out_dir: str | Path, logs: _Logs | None = None) -> FigureInfo | None:
+    """Draw one figure into `out_dir` (in this or a worker process); None where its runs drew nothing."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fn = globals()[task.draw]
+    what = task.runs[0] if task.draw in _ONE_RUN else list(task.runs)
+    file = fn(logs if logs is not None else _Logs(), what, out, task.file, task.plot_title)
+    return FigureInfo(f"{out.name}/{file}", task.title, task.caption) if file else None
+
+
+def draw_figures(outcomes: list[RunOutcome], out_dir: str | Path) -> list[FigureInfo]:
+    """Write every figure that has data into `out_dir`; returns them in report order."""
+    logs = _Logs()  # the runs' logs read once for every figure
+    return [f for t in figure_tasks(outcomes) if (f := draw_task(t, out_dir, logs)) is not None]
