@@ -152,12 +152,11 @@ class ChainReach:
         starts = [s for s in (self._last, np.asarray(q, dtype=float)[self.q_index], self.q_rest) if s is not None]
         best = None
         for x0 in starts:
-            x, rp, rr = self._descend(x0, M)
-            ok = rp <= self.position_tolerance and (not self.rotation or rr <= self.rotation_tolerance)
-            score = rp + self.weight * rr
-            if best is None or ok or score < best[0]:
-                best = (score, ReachResult(ok, rp, rr if self.rotation else 0.0, x))
-            if ok:
+            res = self._result(*self._descend(x0, M))
+            score = res.position_residual + self.weight * res.rotation_residual
+            if best is None or res.reachable or score < best[0]:
+                best = (score, res)
+            if res.reachable:
                 break
         self._last = best[1].q.copy()
         return best[1]
@@ -173,6 +172,11 @@ class ChainReach:
         x = np.clip(np.asarray(q_chain, dtype=float), self.lower, self.upper)
         step = np.where(self.velocity_limit > 0, self.velocity_limit * dt, np.inf)
         lower, upper = np.maximum(self.lower, x - step), np.minimum(self.upper, x + step)
-        x, rp, rr = self._descend(x, self.target(parent_placement, reference), lower, upper)
-        ok = rp <= self.position_tolerance and (not self.rotation or rr <= self.rotation_tolerance)
-        return ReachResult(ok, rp, rr if self.rotation else 0.0, x)
+        return self._result(*self._descend(x, self.target(parent_placement, reference), lower, upper))
+
+    def _result(self, x: FloatArray, rp: float, rr: float) -> ReachResult:
+        """A search's end ``x`` with its residuals as a result: reachable within the tolerances (the rotation only
+        where it counts, and then 0 in the result)."""
+        if not self.rotation:
+            rr = 0.0
+        return ReachResult(rp <= self.position_tolerance and rr <= self.rotation_tolerance, rp, rr, x)
