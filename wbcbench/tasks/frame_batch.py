@@ -34,7 +34,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from wbcbench.jit import njit
+from wbcbench.jit import c_view, njit
 from wbcbench.tasks.com_task import CoMTask
 from wbcbench.tasks.exceptions import ReferenceNotSetError
 from wbcbench.tasks.frame_task import FrameTask
@@ -289,8 +289,8 @@ def classical_acceleration(JW, dJ, v, support, p, out):
 @njit
 def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass, com_shared):
     """`_frame_rows` with the batch's own arrays taken from its three buffers (`_pack`'s layout: ``ints`` = [joints
-    kept, k, rows, CoM rows, nv], then the arrays); ``com_shared`` (3,) the reference of every CoM task, or empty
-    (then each row's from the buffer)."""
+    kept, k, rows, CoM rows, nv], then the arrays, viewed by `jit.c_view`); ``com_shared`` (3,) the reference of
+    every CoM task, or empty (then each row's from the buffer)."""
     n, k, n_rows, n_com, nv = ints[0], ints[1], ints[2], ints[3], ints[4]
     o = 5
     kinds = ints[o:o + n]
@@ -306,28 +306,28 @@ def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift
     com_axes = ints[o:o + n_com]
     com_rows = ints[o + n_com:o + 2 * n_com]
     f = 0
-    R0 = floats[f:f + 9 * n].reshape((n, 3, 3))
+    R0 = c_view(floats[f:f + 9 * n], (n, 3, 3))
     f += 9 * n
-    t0 = floats[f:f + 3 * n].reshape((n, 3))
+    t0 = c_view(floats[f:f + 3 * n], (n, 3))
     f += 3 * n
-    Rj = floats[f:f + 9 * n].reshape((n, 3, 3))
+    Rj = c_view(floats[f:f + 9 * n], (n, 3, 3))
     f += 9 * n
-    tj = floats[f:f + 3 * n].reshape((n, 3))
+    tj = c_view(floats[f:f + 3 * n], (n, 3))
     f += 3 * n
-    Rf = floats[f:f + 9 * k].reshape((k, 3, 3))
+    Rf = c_view(floats[f:f + 9 * k], (k, 3, 3))
     f += 9 * k
-    tf = floats[f:f + 3 * k].reshape((k, 3))
+    tf = c_view(floats[f:f + 3 * k], (k, 3))
     f += 3 * k
-    R = floats[f:f + 9 * k].reshape((k, 3, 3))
+    R = c_view(floats[f:f + 9 * k], (k, 3, 3))
     f += 9 * k
-    t = floats[f:f + 3 * k].reshape((k, 3))
+    t = c_view(floats[f:f + 3 * k], (k, 3))
     f += 3 * k
-    p_ref = floats[f:f + 3 * k].reshape((k, 3))
+    p_ref = c_view(floats[f:f + 3 * k], (k, 3))
     f += 3 * k
-    R_ref = floats[f:f + 9 * k].reshape((k, 3, 3))
+    R_ref = c_view(floats[f:f + 9 * k], (k, 3, 3))
     f += 9 * k
     com_ref = floats[f:f + n_com]
-    support = flags[0:k * nv].reshape((k, nv))
+    support = c_view(flags[0:k * nv], (k, nv))
     local = flags[k * nv:k * nv + k]
     classical = flags[k * nv + k:k * nv + 2 * k]
     split = flags[k * nv + 2 * k:k * nv + 3 * k]
