@@ -26,6 +26,26 @@ from .zmp import DEFAULT_MIN_NORMAL_FORCE, zmp_from_wrenches
 _LEFT, _RIGHT = Side.LEFT, Side.RIGHT
 
 
+class _OutputView:
+    """An estimate of `BalanceEstimator`: the slice [lo, hi) of the compiled update's output array (`_take`), a view
+    made when read, or the array the numpy `update` (or a user) set. Kept in the instance as ``_<name>``."""
+
+    def __init__(self, lo: int, hi: int, doc: str):
+        self.lo, self.hi, self.__doc__ = lo, hi, doc
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.attr = "_" + name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        v = getattr(obj, self.attr)
+        return obj._out[self.lo:self.hi] if v is None else v
+
+    def __set__(self, obj, value: np.ndarray) -> None:
+        setattr(obj, self.attr, value)
+
+
 class BalanceEstimator:
     """Measured ZMP and support-foot-anchored CoM of a robot, one `update` per control tick.
 
@@ -156,36 +176,9 @@ class BalanceEstimator:
         self._zmp = self._com = self._com_vel = None
 
     _out = _zmp = _com = _com_vel = None
-
-    @property
-    def zmp(self) -> np.ndarray:
-        """The measured ZMP (3,) [m], world, at the last update (NaN without a loaded foot)."""
-        z = self._zmp
-        return self._out[2:5] if z is None else z
-
-    @zmp.setter
-    def zmp(self, value: np.ndarray) -> None:
-        self._zmp = value
-
-    @property
-    def com(self) -> np.ndarray:
-        """The anchored CoM (3,) [m], world, at the last update."""
-        c = self._com
-        return self._out[5:8] if c is None else c
-
-    @com.setter
-    def com(self, value: np.ndarray) -> None:
-        self._com = value
-
-    @property
-    def com_vel(self) -> np.ndarray:
-        """Its filtered velocity (3,) [m/s]."""
-        v = self._com_vel
-        return self._out[8:11] if v is None else v
-
-    @com_vel.setter
-    def com_vel(self, value: np.ndarray) -> None:
-        self._com_vel = value
+    zmp = _OutputView(2, 5, "The measured ZMP (3,) [m], world, at the last update (NaN without a loaded foot).")
+    com = _OutputView(5, 8, "The anchored CoM (3,) [m], world, at the last update.")
+    com_vel = _OutputView(8, 11, "Its filtered velocity (3,) [m/s].")
 
     @property
     def normal_force(self) -> dict:
