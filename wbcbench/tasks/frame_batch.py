@@ -286,6 +286,13 @@ def classical_acceleration(JW, dJ, v, support, p, out):
     out[3], out[4], out[5] = wd[0], wd[1], wd[2]
 
 
+@njit(inline=True)
+def _placements_at(buf, o, m):
+    """Inside a kernel: ``m`` placements stored from ``buf[o]`` on (rotations (m, 3, 3), then translations (m, 3)),
+    as views, and the offset after them."""
+    return c_view(buf[o:o + 9 * m], (m, 3, 3)), c_view(buf[o + 9 * m:o + 12 * m], (m, 3)), o + 12 * m
+
+
 @njit
 def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift, Ag, dAg, com, inv_mass, com_shared):
     """`_frame_rows` with the batch's own arrays taken from its three buffers (`_pack`'s layout: ``ints`` = [joints
@@ -305,23 +312,10 @@ def _frame_rows_packed(q, ints, floats, flags, J, dJ, v, A, e, drift, with_drift
     o += 3 * n_rows
     com_axes = ints[o:o + n_com]
     com_rows = ints[o + n_com:o + 2 * n_com]
-    f = 0
-    R0 = c_view(floats[f:f + 9 * n], (n, 3, 3))
-    f += 9 * n
-    t0 = c_view(floats[f:f + 3 * n], (n, 3))
-    f += 3 * n
-    Rj = c_view(floats[f:f + 9 * n], (n, 3, 3))
-    f += 9 * n
-    tj = c_view(floats[f:f + 3 * n], (n, 3))
-    f += 3 * n
-    Rf = c_view(floats[f:f + 9 * k], (k, 3, 3))
-    f += 9 * k
-    tf = c_view(floats[f:f + 3 * k], (k, 3))
-    f += 3 * k
-    R = c_view(floats[f:f + 9 * k], (k, 3, 3))
-    f += 9 * k
-    t = c_view(floats[f:f + 3 * k], (k, 3))
-    f += 3 * k
+    R0, t0, f = _placements_at(floats, 0, n)
+    Rj, tj, f = _placements_at(floats, f, n)
+    Rf, tf, f = _placements_at(floats, f, k)
+    R, t, f = _placements_at(floats, f, k)
     p_ref = c_view(floats[f:f + 3 * k], (k, 3))
     f += 3 * k
     R_ref = c_view(floats[f:f + 9 * k], (k, 3, 3))
