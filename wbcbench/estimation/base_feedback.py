@@ -63,11 +63,11 @@ class BaseFeedbackConfig:
 
 @njit
 def _drift_step(q_model, q_meas, memo_ints, memo_floats, frame_parents, R_frames, t_frames, R, t, drift, alpha):
-    """`BaseFeedback.update` with both feet in contact, in one compiled call: the soles' placements for the
-    model's and the measured configuration (`placements.joint_placements` through the model's memo
-    (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured left, right into ``R``
-    (4, 3, 3), ``t`` (4, 3); of the joints up to the soles' only), then `_drift_from_soles`. The memo and the
-    model's constants come as its two buffers (`PlacementMemo.ints`, `floats`)."""
+    """The drift step with both feet in contact (of `_double_support_step`, i.e. of `BaseFeedback.update` and
+    `correct`): the soles' placements for the model's and the measured configuration (`placements.joint_placements`
+    through the model's memo (`_memo.memo_joint_placements`), `frame_placements`; rows model left, right, measured
+    left, right into ``R`` (4, 3, 3), ``t`` (4, 3); of the joints up to the soles' only), then `_drift_from_soles`.
+    The memo and the model's constants come as its two buffers (`PlacementMemo.ints`, `floats`)."""
     kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state, memo_work = memo_arrays(memo_ints, memo_floats)
     upto = joints_placing(frame_parents)  # the legs: the soles' joints and those before them
     j = memo_joint_placements(q_model, kinds, parents, idx_q, R0, t0, memo_q, memo_R, memo_t, memo_state,
@@ -234,20 +234,20 @@ class BaseFeedback:
         self.data_meas = robot.model.createData()
         self.data_model = robot.model.createData()
         self.sole_ids = {s: robot.sole_frame_id(s) for s in Side}
-        # the drift step in one compiled call (`_drift_step`) where the compiled forward kinematics applies (its
-        # placements are pinocchio's to rounding): pinocchio's two passes and four frame updates and the numpy
+        # the drift step in one compiled call (`_double_support_step`) where the compiled forward kinematics applies
+        # (its placements are pinocchio's to rounding): pinocchio's two passes and four frame updates and the numpy
         # around them took 45 us of a 480 us IK step
         self._fk = fk = ForwardKinematics(robot.model)
         self.alpha = alpha = 1.0 - np.exp(-dt / config.time_constant)
         frame_parents, R_frames, t_frames = fk.frame_arrays([self.sole_ids[s] for s in Side])
         # the double-support kernel's floats in one buffer (`_feedback_arrays`): the gain, the soles' placements in
-        # their joints, the soles' placements (rows model left, right, measured left, right; `_soles` views them)
+        # their joints, the soles' placements (rows model left, right, measured left, right; `_soles` views them,
+        # for pinocchio's placements where the compiled ones do not apply)
         self._floats = floats = np.concatenate([[alpha], R_frames.ravel(), t_frames.ravel(), np.zeros(4 * 12)])
         o = 1 + 12 * 2
         self._soles = (floats[o:o + 36].reshape(4, 3, 3), floats[o + 36:].reshape(4, 3))
         if fk.supported:
             memo = placement_memo(robot.model, fk)
-            self._step_args = (memo.ints, memo.floats, frame_parents, R_frames, t_frames, *self._soles)
             self._double_support_args = (memo.ints, memo.floats, frame_parents, floats)
         self.blend = config.liftoff_blend
         self.drift = np.zeros(3)   # (x [m], y [m], yaw [rad]) of D
@@ -263,20 +263,36 @@ class BaseFeedback:
         position fall on the platforms)."""
         if _LEFT not in contacts or _RIGHT not in contacts:
             return self.drift
-        drift = self.drift.copy()  # a new array each update (callers may keep the last one)
         if self._fk.supported:
-            _drift_step(q_model, meas.q, *self._step_args, drift, self.alpha)
-        else:  # other joint types: pinocchio's placements
-            m = self.model
-            R, t = self._soles
-            for k, (d, q) in enumerate(((self.data_model, q_model), (self.data_meas, meas.q))):
-                pin.forwardKinematics(m, d, q)
-                for i, s in enumerate(Side):
-                    M = pin.updateFramePlacement(m, d, self.sole_ids[s])
-                    R[2 * k + i], t[2 * k + i] = M.rotation, M.translation
-            _drift_from_soles(R, t, drift, self.alpha)
+            self._double_support(q_model, meas.q, None)
+            return self.drift
+        # other joint types: pinocchio's placements
+        drift = self.drift.copy()  # a new array each update (callers may keep the last one)
+        m = self.model
+        R, t = self._soles
+        for k, (d, q) in enumerate(((self.data_model, q_model), (self.data_meas, meas.q))):
+            pin.forwardKinematics(m, d, q)
+            for i, s in enumerate(Side):
+                M = pin.updateFramePlacement(m, d, self.sole_ids[s])
+                R[2 * k + i], t[2 * k + i] = M.rotation, M.translation
+        _drift_from_soles(R, t, drift, self.alpha)
         self.drift = drift
         return drift
+
+    def _double_support(self, q_model: np.ndarray, q_meas: np.ndarray, com: PointReference | None) -> np.ndarray:
+        """The compiled double-support tick (`_double_support_step`): the drift updated from both soles, D and,
+        given a CoM reference, its mapping, in one new array (24,); the drift becomes a view of it (a new array
+        each update: callers may keep the last one)."""
+        out = np.empty(24)
+        m_ints, m_floats, parents, floats = self._double_support_args  # a call without *: no tuple built
+        if com is None:
+            _double_support_step(q_model, q_meas, m_ints, m_floats, parents, floats, self.drift, _NO_POINT,
+                                 _NO_POINT, _NO_POINT, out)
+        else:
+            _double_support_step(q_model, q_meas, m_ints, m_floats, parents, floats, self.drift, com.position,
+                                 com.velocity, com.acceleration, out)
+        self.drift = out[:3]
+        return out
 
     def transform(self) -> tuple[np.ndarray, np.ndarray]:
         """D as (R (3, 3), p (3,)): a world point x maps to R x + p in the model's world."""
@@ -307,19 +323,12 @@ class BaseFeedback:
         # the mapped arrays are views of new float64 arrays, of the checked references' shapes: the fast
         # constructors; each reference mapped in one compiled call
         if _LEFT in contacts and _RIGHT in contacts and self._fk.supported:
-            # `update`, D and the CoM's mapping in one compiled call, into one new array: the drift a view of it,
-            # D's views made when asked for (`_transform`: standing, nothing else is mapped)
-            out = np.empty(24)
-            m_ints, m_floats, parents, floats = self._double_support_args  # a call without *: no tuple built
-            if com is None:
-                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, _NO_POINT,
-                                     _NO_POINT, _NO_POINT, out)
-            else:
-                _double_support_step(q_model, meas.q, m_ints, m_floats, parents, floats, self.drift, com.position,
-                                     com.velocity, com.acceleration, out)
+            # `update`, D and the CoM's mapping in one compiled call, into one new array: D's views made when asked
+            # for (`_transform`: standing, nothing else is mapped)
+            out = self._double_support(q_model, meas.q, com)
+            if com is not None:
                 com = PointReference.unchecked(out[15:18], out[18:21], out[21:24])
-            self.drift = drift = out[:3]
-            self._cached = (drift, None, None, out)
+            self._cached = (self.drift, None, None, out)
         else:
             self.update(meas, q_model, contacts)
             if com is not None:
