@@ -291,7 +291,7 @@ def selection_lsq_into(P, b_P, A, c, rank_tol, x):
     x_J))_1``. About 20 thousand flops for the TALOS IK (LAPACK's general ``dgglse`` does 130 thousand).
 
     The reflections are applied by row index (row views' reference counting cost more than the arithmetic:
-    12.6 -> 10.5 us on the TALOS IK).
+    12.6 -> 10.5 us on the TALOS IK), and to the columns of ``P_J`` all at once.
 
     Writes x into ``x`` (n,) (a new array each call costs more to hand back than to pass in) and returns the
     status: 1 solved; 0 the structure does not apply (then the general path runs); -1 a rank test failed:
@@ -341,17 +341,36 @@ def selection_lsq_into(P, b_P, A, c, rank_tol, x):
     for a in range(k):
         if not abs(d_k[a]) > tol_P:
             return -1
+    # Q_K' P_J, every column at once (X[t, i] = P[t, col_of[i]]): each reflection's dot products accumulate
+    # along the rows of X for all columns together, i.e. vector operations over the columns instead of one short
+    # dot product per column (10.1 -> 6.5 us on the TALOS IK)
+    X = np.empty((r, m))
+    for t in range(r):
+        for i in range(m):
+            X[t, i] = P[t, col_of[i]]
+    acc = np.empty(m)
+    for a in range(k):
+        ta = tau_k[a]
+        if ta == 0.0:
+            continue
+        for i in range(m):
+            acc[i] = X[a, i]
+        for t in range(a + 1, r):
+            v = RK[a, t]
+            for i in range(m):
+                acc[i] += v * X[t, i]
+        for i in range(m):
+            acc[i] *= ta
+            X[a, i] -= acc[i]
+        for t in range(a + 1, r):
+            v = RK[a, t]
+            for i in range(m):
+                X[t, i] -= acc[i] * v
     # G S^-1 (p, m) and h
-    col = np.empty(r)
     GS = np.empty((p, m))
-    for i in range(m):
-        j = col_of[i]
-        for t in range(r):
-            col[t] = P[t, j]
-        for a in range(k):
-            _reflect_vec(RK, a, tau_k[a], col, a)
-        for t in range(p):
-            GS[t, i] = col[k + t] / scale[i]
+    for t in range(p):
+        for i in range(m):
+            GS[t, i] = X[k + t, i] / scale[i]
     bq = b_P.copy()
     for a in range(k):
         _reflect_vec(RK, a, tau_k[a], bq, a)
