@@ -83,8 +83,11 @@ def _certify_equality_qp(H, g, A_eq, b_eq, C, l, u, lb, ub, c_up, c_lo, x_up, x_
     L = np.empty((n, n))
     if not _cholesky_lower(H, L):
         return False, x, 0.0
-    # W = L^-1 [E' -g]: E = [A_eq; C[c_up]; C[c_lo]; I[x_up]; I[x_lo]], e its right-hand side
-    W = np.zeros((n, m + 1))
+    # W = L^-1 [E' -g]: E = [A_eq; C[c_up]; C[c_lo]; I[x_up]; I[x_lo]], e its right-hand side; its rows padded
+    # with zero columns to a multiple of 4 (whole vector registers: the forward substitution's row updates have no
+    # scalar remainder; 11.5 -> 10.7 us on TALOS' standing QP, the same numbers)
+    mp = ((m + 1 + 3) // 4) * 4
+    W = np.zeros((n, mp))
     e = np.empty(m)
     for c in range(m_eq):
         for i in range(n):
@@ -115,10 +118,10 @@ def _certify_equality_qp(H, g, A_eq, b_eq, C, l, u, lb, ub, c_up, c_lo, x_up, x_
         for kk in range(i):
             lik = L[i, kk]
             if lik != 0.0:
-                for c in range(m + 1):
+                for c in range(mp):
                     W[i, c] -= lik * W[kk, c]
         d = L[i, i]
-        for c in range(m + 1):
+        for c in range(mp):
             W[i, c] /= d
     y = np.empty(n)
     for i in range(n):
