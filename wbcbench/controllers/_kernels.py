@@ -60,12 +60,12 @@ def _assemble(A_cost, b_cost, sw, Jc, A_hard, b_hard, M_base, nle_base, reg_dv, 
             a = row[i]
             if a != 0.0:
                 g[i] += a * bw
-                # the whole row (both triangles: each entry sums the same products in the same order, so H is
-                # symmetric bit for bit): a loop of fixed length and no mirroring pass (3.0 -> 2.7 us on TALOS)
-                for j in range(nv):
+                for j in range(i + 1):
                     H[i, j] += a * row[j]
     for i in range(nv):
         H[i, i] += reg_dv
+        for j in range(i):
+            H[j, i] = H[i, j]
     # equalities: floating-base dynamics, then the hard rows
     n = A_eq.shape[1]
     nw = n - nv
